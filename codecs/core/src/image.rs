@@ -1,0 +1,187 @@
+use crate::{ColorPrimaries, Error, Hdr10Metadata, Result};
+
+/// The channel layout of an [`HdrImage`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channels {
+    /// Red, green, blue.
+    Rgb,
+    /// Red, green, blue, straight (not premultiplied) alpha.
+    Rgba,
+}
+
+impl Channels {
+    /// Samples per pixel: 3 or 4.
+    pub const fn count(self) -> usize {
+        match self {
+            Channels::Rgb => 3,
+            Channels::Rgba => 4,
+        }
+    }
+
+    /// The layout with `n` samples per pixel, if there is one.
+    pub const fn from_count(n: usize) -> Option<Self> {
+        match n {
+            3 => Some(Channels::Rgb),
+            4 => Some(Channels::Rgba),
+            _ => None,
+        }
+    }
+}
+
+/// What the sample values of an [`HdrImage`] mean.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColorInfo {
+    /// The RGB primaries and white point of the samples.
+    pub primaries: ColorPrimaries,
+    /// The absolute luminance, in cd/m² (nits), of a sample value of 1.0. Default 100.
+    pub nits_per_unit: f32,
+    /// HDR10 static metadata (mastering display, content light level), if known.
+    pub hdr10: Option<Hdr10Metadata>,
+}
+
+impl Default for ColorInfo {
+    /// BT.709 primaries with a D65 white, 1.0 = 100 nits, no HDR10 metadata.
+    fn default() -> Self {
+        ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 100.0, hdr10: None }
+    }
+}
+
+/// An image of scene-linear `f32` samples, interleaved, rows top to bottom.
+///
+/// Pixels in memory are always linear; transfer functions live at the edges (codecs, export).
+/// The sample buffer always holds exactly `width * height * channels` values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HdrImage {
+    width: u32,
+    height: u32,
+    channels: Channels,
+    samples: Vec<f32>,
+    /// Colour interpretation of the samples.
+    pub color: ColorInfo,
+    /// Free-form key/value metadata carried from and to files (Radiance `EXPOSURE`, `SOFTWARE`,
+    /// the container's `META` chunk, ...). Keys are lower-case by convention.
+    pub metadata: Vec<(String, String)>,
+}
+
+impl HdrImage {
+    /// An image from interleaved samples; fails if the buffer length does not match.
+    pub fn new(width: u32, height: u32, channels: Channels, samples: Vec<f32>, color: ColorInfo) -> Result<Self> {
+        let expected = (width as usize)
+            .checked_mul(height as usize)
+            .and_then(|p| p.checked_mul(channels.count()))
+            .ok_or_else(|| Error::invalid(format!("image dimensions {width}x{height} overflow")))?;
+        if samples.len() != expected {
+            return Err(Error::invalid(format!(
+                "{width}x{height} {channels:?} image needs {expected} samples, got {}",
+                samples.len()
+            )));
+        }
+        Ok(HdrImage { width, height, channels, samples, color, metadata: Vec::new() })
+    }
+
+    /// A black (and, with alpha, transparent) image. Callers decoding untrusted input check
+    /// [`Limits::check_image`](crate::Limits::check_image) first.
+    pub fn zeroed(width: u32, height: u32, channels: Channels) -> Self {
+        let n = width as usize * height as usize * channels.count();
+        HdrImage { width, height, channels, samples: vec![0.0; n], color: ColorInfo::default(), metadata: Vec::new() }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Channel layout.
+    pub fn channels(&self) -> Channels {
+        self.channels
+    }
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+    /// All samples, interleaved, rows top to bottom.
+    pub fn samples(&self) -> &[f32] {
+        &self.samples
+    }
+    /// All samples, mutable.
+    pub fn samples_mut(&mut self) -> &mut [f32] {
+        &mut self.samples
+    }
+    /// The sample buffer, consuming the image.
+    pub fn into_samples(self) -> Vec<f32> {
+        self.samples
+    }
+    /// Samples of row `y`. Panics if `y >= height`.
+    pub fn row(&self, y: u32) -> &[f32] {
+        let w = self.width as usize * self.channels.count();
+        &self.samples[y as usize * w..(y as usize + 1) * w]
+    }
+    /// Samples of row `y`, mutable. Panics if `y >= height`.
+    pub fn row_mut(&mut self, y: u32) -> &mut [f32] {
+        let w = self.width as usize * self.channels.count();
+        &mut self.samples[y as usize * w..(y as usize + 1) * w]
+    }
+    /// Samples of the pixel at (`x`, `y`). Panics if out of bounds.
+    pub fn pixel(&self, x: u32, y: u32) -> &[f32] {
+        let c = self.channels.count();
+        let i = (y as usize * self.width as usize + x as usize) * c;
+        &self.samples[i..i + c]
+    }
+    /// Iterates over the pixels' RGB triples (alpha, if any, is skipped).
+    pub fn rgb(&self) -> impl Iterator<Item = [f32; 3]> + '_ {
+        self.samples.chunks_exact(self.channels.count()).map(|p| [p[0], p[1], p[2]])
+    }
+    /// The same picture with `channels` samples per pixel: alpha is dropped, or added as 1.0.
+    pub fn with_channels(&self, channels: Channels) -> HdrImage {
+        if channels == self.channels {
+            return self.clone();
+        }
+        let samples = match channels {
+            Channels::Rgb => self.rgb().flatten().collect(),
+            Channels::Rgba => self.rgb().flat_map(|[r, g, b]| [r, g, b, 1.0]).collect(),
+        };
+        HdrImage {
+            width: self.width,
+            height: self.height,
+            channels,
+            samples,
+            color: self.color.clone(),
+            metadata: self.metadata.clone(),
+        }
+    }
+    /// The value of metadata `key`, if present.
+    pub fn metadata_value(&self, key: &str) -> Option<&str> {
+        self.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+    /// Sets metadata `key` to `value`, replacing an earlier value.
+    pub fn set_metadata(&mut self, key: impl Into<String>, value: impl Into<String>) {
+        let key = key.into();
+        let value = value.into();
+        match self.metadata.iter_mut().find(|(k, _)| *k == key) {
+            Some(entry) => entry.1 = value,
+            None => self.metadata.push((key, value)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn buffer_length_is_checked() {
+        assert!(HdrImage::new(2, 2, Channels::Rgb, vec![0.0; 11], ColorInfo::default()).is_err());
+        assert!(HdrImage::new(2, 2, Channels::Rgba, vec![0.0; 16], ColorInfo::default()).is_ok());
+    }
+
+    #[test]
+    fn channel_conversion_keeps_colour() {
+        let img = HdrImage::new(1, 2, Channels::Rgb, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], ColorInfo::default()).unwrap();
+        let rgba = img.with_channels(Channels::Rgba);
+        assert_eq!(rgba.samples(), &[1.0, 2.0, 3.0, 1.0, 4.0, 5.0, 6.0, 1.0]);
+        assert_eq!(rgba.with_channels(Channels::Rgb), img);
+    }
+}

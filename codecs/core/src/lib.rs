@@ -1,0 +1,32 @@
+//! `hdrcodec-core`: what every codec of the hdrcodec family shares.
+//!
+//! - [`HdrImage`]: interleaved scene-linear `f32` pixels (RGB or RGBA) with their [`ColorInfo`].
+//! - [`ImageCodec`]: the one object-safe trait every codec implements, so that the CLI, the
+//!   container, fuzzers and benches can treat all codecs alike.
+//! - [`Limits`]: what a decoder may allocate; checked before every allocation.
+//! - [`Error`]: the one error enum of the family.
+//! - [`color`], [`transfer`], [`metrics`], [`tonemap`], [`hdr10`]: colour science services.
+//!
+//! ```
+//! use hdrcodec_core::{Channels, ColorInfo, HdrImage};
+//! let img = HdrImage::new(2, 1, Channels::Rgb, vec![1.0, 0.5, 0.25, 4.0, 2.0, 1.0], ColorInfo::default())?;
+//! assert_eq!(img.pixel(1, 0), &[4.0, 2.0, 1.0]);
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
+
+mod codec;
+pub mod color;
+mod error;
+pub mod hdr10;
+mod image;
+mod limits;
+pub mod metrics;
+pub mod tonemap;
+pub mod transfer;
+
+pub use codec::{EncodeSettings, ImageCodec};
+pub use color::{Chromaticities, ColorPrimaries};
+pub use error::{Error, Result};
+pub use hdr10::{ContentLightLevel, Hdr10Metadata, MasteringDisplay};
+pub use image::{Channels, ColorInfo, HdrImage};
+pub use limits::Limits;

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Installs the reference implementations the validation tests compare against
+# (see ../shared/REFERENCES.md): Debian's OpenImageIO, OpenEXR, libtiff, jxrlib,
+# libjxl, libavif, FFmpeg, pfstools, and a Python venv with a pinned imagecodecs.
+# Idempotent: re-running it on a prepared machine takes a few seconds.
+set -euo pipefail
+
+here=$(cd "$(dirname "$0")/.." && pwd)
+venv="${HDRCODEC_VENV:-$here/.venv}"
+
+packages=(openimageio-tools python3-openimageio python3-numpy openexr libtiff-tools libtiff-dev
+          libjxr-tools libjxl-tools libavif-bin ffmpeg dav1d pfstools pkg-config)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  echo "setup: installing Debian packages: ${missing[*]}" >&2
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# The venv sits on Debian's python3 so that OpenImageIO's Python module is visible in it.
+if [ ! -x "$venv/bin/python" ]; then
+  echo "setup: creating Python venv at $venv" >&2
+  /usr/bin/python3 -m venv --system-site-packages "$venv"
+fi
+if ! "$venv/bin/python" -c 'import imagecodecs, sys; sys.exit(imagecodecs.__version__ != "2026.3.6")' 2>/dev/null; then
+  echo "setup: installing imagecodecs==2026.3.6 into the venv" >&2
+  "$venv/bin/pip" install -q --disable-pip-version-check "imagecodecs==2026.3.6"
+fi
+"$venv/bin/python" -c 'import imagecodecs, OpenImageIO, numpy' >/dev/null
+echo "setup: reference tools ready (venv: $venv)" >&2
