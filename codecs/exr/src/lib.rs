@@ -1,0 +1,1 @@
+//! OpenEXR reading and writing for hdrcodec, through the exr crate (being written)

@@ -1,0 +1,1 @@
+//! Portable float map (PFM) reading and writing for hdrcodec (being written)

@@ -1,0 +1,1 @@
+//! Radiance RGBE / XYZE (.hdr, .pic) codec (being written)
