@@ -1,1 +1,2 @@
-//! BC6H (BPTC float) GPU texture encoder and decoder, in DDS and KTX2 files (being written)
+//! BC6H (BPTC float) GPU texture codec (being written).
+pub mod encode;
