@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Writes small valid files of every format into DIR/<fuzz target>/, as seeds for the fuzzers:
+# the generated corpus's small scenes, converted by our own CLI.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out="${1:?usage: make-fuzz-seeds.sh DIR}"
+rm -rf "$out"; mkdir -p "$out"
+cargo build --release --quiet --bin hdrcodec
+bin=target/release/hdrcodec
+work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
+"$bin" corpus write "$work/scenes" >/dev/null
+seed() { # TARGET EXT [convert args...]
+  local target=$1 ext=$2; shift 2
+  mkdir -p "$out/$target"
+  for f in "$work"/scenes/*.exr; do
+    local name; name=$(basename "$f" .exr)
+    # Only the small scenes: libFuzzer works best on inputs of a few KiB.
+    [ "$(stat -c %s "$f")" -lt 200000 ] || continue
+    "$bin" convert "$f" "$out/$target/$name.$ext" "$@" >/dev/null 2>&1 || true
+  done
+}
+seed exr exr --opt compression=piz
+seed pfm pfm
+seed container hdrc
+seed rgbe hdr
+seed logluv tif --codec logluv32
+seed bc6h_files dds --effort 0
+ls "$out"/* | head -n 0
