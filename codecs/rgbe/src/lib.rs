@@ -1,1 +1,193 @@
-//! Radiance RGBE / XYZE (.hdr, .pic) codec (being written)
+//! Radiance RGBE / XYZE pictures (`.hdr`, `.pic`): Greg Ward's shared-exponent encoding
+//! (Ward, "Real Pixels", Graphics Gems II, 1991) in the Radiance file format.
+//!
+//! Reads every variant in use: the `#?RADIANCE` / `#?RGBE` header with `FORMAT`
+//! (`32-bit_rle_rgbe`, `32-bit_rle_xyze`), cumulative `EXPOSURE` and `COLORCORR`, `PRIMARIES`,
+//! `PIXASPECT`, `SOFTWARE`, comments and command lines; the eight resolution-string orientations;
+//! new-style adaptive run-length scanlines, old-style run-length encoding and flat pixels.
+//! Writes new-style RLE (or flat) RGBE or XYZE with the standard `-Y H +X W` orientation.
+//!
+//! ```
+//! use hdrcodec_core::{Channels, ColorInfo, HdrImage, Limits};
+//! use hdrcodec_rgbe::{decode, encode, RgbeDecodeOptions, RgbeEncodeOptions};
+//!
+//! let img = HdrImage::new(2, 1, Channels::Rgb, vec![1.0, 0.5, 0.25, 1000.0, 2.0, 0.0], ColorInfo::default())?;
+//! let file = encode(&img, &RgbeEncodeOptions::default())?;
+//! let back = decode(&file, &Limits::default(), &RgbeDecodeOptions::default())?;
+//! assert_eq!(back.pixel(0, 0), &[1.0, 0.5, 0.25]);
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
+
+mod color;
+mod decode;
+mod encode;
+mod header;
+
+pub use decode::decode_pixel;
+pub use encode::encode_pixel;
+pub use header::{Axis, Header, PixelFormat};
+
+use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+
+/// How a mantissa byte becomes a float.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MantissaDecode {
+    /// `m · 2^(e-136)`: Bruce Walter's rgbe.c, used by OpenImageIO, stb_image and most readers,
+    /// so that [0, 1] values round-trip to [0, 1]. The default: it matches OpenImageIO bit for bit.
+    #[default]
+    Truncated,
+    /// `(m + 0.5) · 2^(e-136)`: Radiance's own `colr_color`, the centre of the interval a
+    /// truncating encoder maps to `m`.
+    Centred,
+}
+
+impl MantissaDecode {
+    pub(crate) fn bias(self) -> f32 {
+        match self {
+            MantissaDecode::Truncated => 0.0,
+            MantissaDecode::Centred => 0.5,
+        }
+    }
+}
+
+/// Options of the decoder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RgbeDecodeOptions {
+    /// Divide the values by the file's cumulative `EXPOSURE` (and `COLORCORR`) to get the
+    /// original radiances, as Radiance's `pvalue -o` does. Default `true`. With `false` the
+    /// stored values are returned (what OpenImageIO does) and the image metadata says
+    /// `exposure_in_pixels=true`, so that writing it again keeps the `EXPOSURE` line.
+    pub apply_exposure: bool,
+    /// Mantissa interpretation. Default [`MantissaDecode::Truncated`].
+    pub mantissa: MantissaDecode,
+}
+
+impl Default for RgbeDecodeOptions {
+    fn default() -> Self {
+        RgbeDecodeOptions { apply_exposure: true, mantissa: MantissaDecode::Truncated }
+    }
+}
+
+/// How the encoder turns a float into a mantissa byte.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Rounding {
+    /// Truncation, byte-identical to rgbe.c's `float2rgbe` and so to OpenImageIO's writer.
+    /// Pairs with Radiance's centred decode; against a truncating reader its error is up to
+    /// one mantissa step.
+    Truncate,
+    /// Round to nearest: half the error of [`Rounding::Truncate`] with the truncating readers
+    /// that nearly everyone uses (OpenImageIO, stb_image, three.js, the `image` crate). The
+    /// default, because it is the more accurate file for those readers.
+    #[default]
+    Nearest,
+}
+
+/// Options of the encoder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RgbeEncodeOptions {
+    /// Mantissa rounding. Default [`Rounding::Nearest`].
+    pub rounding: Rounding,
+    /// RGBE (default) or XYZE.
+    pub format: PixelFormat,
+    /// New-style run-length scanlines (default `true`; scanlines shorter than 8 or longer than
+    /// 32767 pixels are always flat, as the format requires).
+    pub rle: bool,
+}
+
+impl Default for RgbeEncodeOptions {
+    fn default() -> Self {
+        RgbeEncodeOptions { rounding: Rounding::Nearest, format: PixelFormat::Rgbe, rle: true }
+    }
+}
+
+/// The option keys [`RgbeEncodeOptions::from_settings`] understands.
+pub const OPTION_KEYS: [&str; 3] = ["rounding", "format", "rle"];
+
+impl RgbeEncodeOptions {
+    /// Options from `key=value` settings: `rounding=truncate|nearest`, `format=rgbe|xyze`,
+    /// `rle=true|false`. An unknown key or value is an error.
+    pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
+        settings.check_options("rgbe", &OPTION_KEYS)?;
+        let mut o = RgbeEncodeOptions::default();
+        if let Some(v) = settings.option("rounding") {
+            o.rounding = match v.to_ascii_lowercase().as_str() {
+                "truncate" => Rounding::Truncate,
+                "nearest" => Rounding::Nearest,
+                _ => return Err(Error::invalid(format!("option rounding={v}: expected truncate or nearest"))),
+            };
+        }
+        if let Some(v) = settings.option("format") {
+            o.format = match v.to_ascii_lowercase().as_str() {
+                "rgbe" => PixelFormat::Rgbe,
+                "xyze" => PixelFormat::Xyze,
+                _ => return Err(Error::invalid(format!("option format={v}: expected rgbe or xyze"))),
+            };
+        }
+        if let Some(v) = settings.bool_option("rle")? {
+            o.rle = v;
+        }
+        Ok(o)
+    }
+}
+
+/// Decodes a Radiance picture held in memory. Never panics; checks `limits` before allocating.
+pub fn decode(data: &[u8], limits: &Limits, options: &RgbeDecodeOptions) -> Result<HdrImage> {
+    decode::decode(data, limits, options)
+}
+
+/// Reads only the header and resolution string.
+pub fn read_header(data: &[u8]) -> Result<Header> {
+    header::parse(data)
+}
+
+/// Encodes an image (alpha, if any, is dropped) as a Radiance picture.
+pub fn encode(image: &HdrImage, options: &RgbeEncodeOptions) -> Result<Vec<u8>> {
+    encode::encode(image, options)
+}
+
+/// The Radiance RGBE codec behind the family's [`ImageCodec`] trait.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RgbeCodec {
+    decode: RgbeDecodeOptions,
+}
+
+impl RgbeCodec {
+    /// The codec with default decode options (EXPOSURE applied, truncated mantissas).
+    pub fn new() -> Self {
+        RgbeCodec::default()
+    }
+    /// The codec with these decode options.
+    pub fn with_decode_options(decode: RgbeDecodeOptions) -> Self {
+        RgbeCodec { decode }
+    }
+    /// The codec that returns the stored values: EXPOSURE not applied, truncated mantissas
+    /// (exactly what OpenImageIO returns).
+    pub fn raw() -> Self {
+        RgbeCodec { decode: RgbeDecodeOptions { apply_exposure: false, mantissa: MantissaDecode::Truncated } }
+    }
+    /// The decode options in use.
+    pub fn decode_options(&self) -> RgbeDecodeOptions {
+        self.decode
+    }
+}
+
+impl ImageCodec for RgbeCodec {
+    fn name(&self) -> &'static str {
+        "rgbe"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"RGBE"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["hdr", "pic"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        header::sniff(head)
+    }
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        decode::decode(data, limits, &self.decode)
+    }
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        encode::encode(image, &RgbeEncodeOptions::from_settings(settings)?)
+    }
+}

@@ -1,0 +1,258 @@
+//! Scanline decoding (new-style adaptive RLE, old-style RLE, flat) and the RGBE → float
+//! conversion.
+
+use crate::header::{self, Axis, Header, PixelFormat};
+use crate::{color, MantissaDecode, RgbeDecodeOptions};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
+
+/// New-style RLE is used only for scanlines of 8 to 0x7fff pixels (Radiance's MINELEN and
+/// MAXELEN); shorter or longer ones are always old-style or flat.
+pub(crate) const MIN_RLE_LEN: usize = 8;
+pub(crate) const MAX_RLE_LEN: usize = 0x7fff;
+
+/// The 256 scale factors `2^(e - 136)` (index 0: the zero pixel), so that a sample is
+/// `(mantissa + bias) * table[exponent]` with bias 0 (rgbe.c) or 0.5 (Radiance).
+fn exponent_table() -> [f32; 256] {
+    let mut t = [0.0f32; 256];
+    for (e, v) in t.iter_mut().enumerate().skip(1) {
+        // 2^(e-136) for e in 1..=255 spans 2^-135 .. 2^119: exact in f32 (2^-135 is subnormal
+        // but a power of two, so still exact; every mantissa 0..=255 times it is exact too).
+        *v = (2.0f64).powi(e as i32 - 136) as f32;
+    }
+    t
+}
+
+/// Decodes one RGBE pixel to floats, exactly as the bulk decoder does.
+pub fn decode_pixel(rgbe: [u8; 4], mantissa: MantissaDecode) -> [f32; 3] {
+    if rgbe[3] == 0 {
+        return [0.0; 3];
+    }
+    let s = (2.0f64).powi(i32::from(rgbe[3]) - 136) as f32;
+    let bias = mantissa.bias();
+    [(f32::from(rgbe[0]) + bias) * s, (f32::from(rgbe[1]) + bias) * s, (f32::from(rgbe[2]) + bias) * s]
+}
+
+/// Converts one scanline held as four planes (R, G, B, E; `n` bytes each) to interleaved RGB.
+/// Written as a plain zip so that the compiler can vectorise the arithmetic.
+fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
+    let (r, rest) = planes.split_at(n);
+    let (g, rest) = rest.split_at(n);
+    let (b, e) = rest.split_at(n);
+    for ((((o, &r), &g), &b), &e) in out.chunks_exact_mut(3).zip(r).zip(g).zip(b).zip(&e[..n]) {
+        let s = table[usize::from(e)];
+        o[0] = (f32::from(r) + bias) * s;
+        o[1] = (f32::from(g) + bias) * s;
+        o[2] = (f32::from(b) + bias) * s;
+    }
+}
+
+/// Decodes one new-style RLE channel of `plane.len()` bytes starting at `*pos`.
+fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], y: usize) -> Result<()> {
+    let n = plane.len();
+    let mut x = 0;
+    let mut p = *pos;
+    while x < n {
+        let code = usize::from(*data.get(p).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?);
+        p += 1;
+        if code > 128 {
+            let count = code - 128;
+            let value = *data.get(p).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?;
+            p += 1;
+            if count > n - x {
+                return Err(Error::invalid(format!("scanline {y}: a run of {count} overflows the {n}-pixel scanline")));
+            }
+            plane[x..x + count].fill(value);
+            x += count;
+        } else {
+            if code == 0 {
+                return Err(Error::invalid(format!("scanline {y}: zero-length literal in the RLE data")));
+            }
+            if code > n - x {
+                return Err(Error::invalid(format!(
+                    "scanline {y}: a literal of {code} bytes overflows the {n}-pixel scanline"
+                )));
+            }
+            let src = data.get(p..p + code).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?;
+            plane[x..x + code].copy_from_slice(src);
+            p += code;
+            x += code;
+        }
+    }
+    *pos = p;
+    Ok(())
+}
+
+/// Decodes a flat or old-style RLE scanline: plain RGBE pixels, where a pixel (1, 1, 1, c)
+/// repeats the previous one `c << shift` times and consecutive repeat pixels shift by 8 more
+/// bits each (Radiance's `oldreadcolrs`).
+fn read_old_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
+    let mut x = 0;
+    let mut shift = 0u32;
+    let mut p = *pos;
+    while x < n {
+        let px = data.get(p..p + 4).ok_or_else(|| Error::truncated(format!("scanline {y}")))?;
+        p += 4;
+        if px[0] == 1 && px[1] == 1 && px[2] == 1 {
+            if x == 0 {
+                return Err(Error::invalid(format!("scanline {y}: a repeat code with no pixel before it")));
+            }
+            if shift > 24 {
+                return Err(Error::invalid(format!("scanline {y}: too many consecutive repeat codes")));
+            }
+            let count = (u64::from(px[3]) << shift) as usize;
+            if count > n - x {
+                return Err(Error::invalid(format!(
+                    "scanline {y}: a repeat of {count} overflows the {n}-pixel scanline"
+                )));
+            }
+            for c in 0..4 {
+                let plane = &mut planes[c * n..(c + 1) * n];
+                let v = plane[x - 1];
+                plane[x..x + count].fill(v);
+            }
+            x += count;
+            shift += 8;
+        } else {
+            for (c, &v) in px.iter().enumerate() {
+                planes[c * n + x] = v;
+            }
+            x += 1;
+            shift = 0;
+        }
+    }
+    *pos = p;
+    Ok(())
+}
+
+/// Decodes the scanline at `*pos` into four planes of `n` bytes (R, G, B, E).
+fn read_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
+    if (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&n) {
+        if let Some(h) = data.get(*pos..*pos + 4) {
+            if h[0] == 2 && h[1] == 2 && h[2] & 0x80 == 0 {
+                let len = usize::from(h[2]) << 8 | usize::from(h[3]);
+                if len != n {
+                    return Err(Error::invalid(format!(
+                        "scanline {y}: RLE length {len} differs from the declared {n} pixels"
+                    )));
+                }
+                *pos += 4;
+                for c in 0..4 {
+                    read_rle_plane(data, pos, &mut planes[c * n..(c + 1) * n], y)?;
+                }
+                return Ok(());
+            }
+        }
+    }
+    read_old_scanline(data, pos, planes, n, y)
+}
+
+/// Where scanline `i`, element `j` lands: pixel index `base + j * step` (row-major, top row
+/// first, x to the right).
+fn placement(major: Axis, minor: Axis, width: usize, i: usize) -> (isize, isize) {
+    // "Forward" when the file order runs with our memory order; along Y, '+' means bottom to
+    // top while our rows go top to bottom.
+    let forward = |a: Axis| if a.is_y { !a.increasing } else { a.increasing };
+    let w = width as isize;
+    let major_pos = if forward(major) { i } else { major.len as usize - 1 - i } as isize;
+    let (j0, dir) = if forward(minor) { (0, 1) } else { (minor.len as isize - 1, -1) };
+    if major.is_y {
+        (major_pos * w + j0, dir)
+    } else {
+        (j0 * w + major_pos, dir * w)
+    }
+}
+
+/// Decodes a whole file.
+pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<HdrImage> {
+    let hdr = header::parse(data)?;
+    let (width, height) = (hdr.width() as usize, hdr.height() as usize);
+    limits.check_image(width as u64, height as u64, Channels::Rgb)?;
+    let nscan = hdr.major.len as usize;
+    let n = hdr.minor.len as usize;
+    // Every scanline takes at least 4 bytes whatever its encoding: refuse lying dimensions
+    // before allocating the image.
+    let available = data.len() - hdr.data_start;
+    if available / 4 < nscan {
+        return Err(Error::truncated(format!(
+            "the pixel data ({available} bytes cannot hold {nscan} scanlines of {n} pixels)"
+        )));
+    }
+    limits.check_alloc(n as u64 * 4 + n as u64 * 12, "the RGBE scanline buffers")?;
+    let mut samples = vec![0.0f32; width * height * 3];
+    let mut planes = vec![0u8; n * 4];
+    let table = exponent_table();
+    let bias = opts.mantissa.bias();
+    let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
+    let mut scratch = if standard { Vec::new() } else { vec![0.0f32; n * 3] };
+    let mut pos = hdr.data_start;
+    for i in 0..nscan {
+        read_scanline(data, &mut pos, &mut planes, n, i)?;
+        if standard {
+            planes_to_f32(&planes, n, &table, bias, &mut samples[i * n * 3..(i + 1) * n * 3]);
+        } else {
+            planes_to_f32(&planes, n, &table, bias, &mut scratch);
+            let (base, step) = placement(hdr.major, hdr.minor, width, i);
+            for (j, px) in scratch.chunks_exact(3).enumerate() {
+                let k = (base + j as isize * step) as usize * 3;
+                samples[k..k + 3].copy_from_slice(px);
+            }
+        }
+    }
+    finish(hdr, width as u32, height as u32, samples, opts)
+}
+
+/// Colour conversion, exposure and metadata.
+fn finish(hdr: Header, width: u32, height: u32, mut samples: Vec<f32>, opts: &RgbeDecodeOptions) -> Result<HdrImage> {
+    let primaries = match hdr.primaries {
+        Some(ch) => ColorPrimaries::from_chromaticities(ch),
+        None => ColorPrimaries::Bt709,
+    };
+    if hdr.format == PixelFormat::Xyze {
+        let to_xyz = color::primaries_to_xyz(&primaries)
+            .ok_or_else(|| Error::invalid("PRIMARIES cannot convert XYZ to RGB (degenerate chromaticities)"))?;
+        let m = color::invert(&to_xyz).ok_or_else(|| Error::invalid("PRIMARIES give a singular RGB→XYZ matrix"))?;
+        color::apply(&m, &mut samples, 3);
+    }
+    let factors = [0, 1, 2].map(|c| hdr.exposure * hdr.colorcorr[c]);
+    let scaled = factors != [1.0; 3];
+    if opts.apply_exposure && scaled {
+        // EXPOSURE and COLORCORR record multipliers already applied to the values: divide
+        // them out to get the original radiances (what Radiance's `pvalue -o` does).
+        let inv = factors.map(|f| (1.0 / f) as f32);
+        for px in samples.chunks_exact_mut(3) {
+            for (v, f) in px.iter_mut().zip(inv) {
+                *v *= f;
+            }
+        }
+    }
+    let mut image =
+        HdrImage::new(width, height, Channels::Rgb, samples, ColorInfo { primaries, ..ColorInfo::default() })?;
+    image.metadata = hdr.metadata;
+    if hdr.format == PixelFormat::Xyze {
+        image.set_metadata("format", PixelFormat::Xyze.format_string());
+    }
+    if !opts.apply_exposure && scaled {
+        image.set_metadata("exposure_in_pixels", "true");
+    }
+    let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
+    if !standard {
+        let ax =
+            |a: Axis| format!("{}{} {}", if a.increasing { '+' } else { '-' }, if a.is_y { 'Y' } else { 'X' }, a.len);
+        image.set_metadata("orientation", format!("{} {}", ax(hdr.major), ax(hdr.minor)));
+    }
+    Ok(image)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_is_exact_powers_of_two() {
+        let t = exponent_table();
+        assert_eq!(t[0], 0.0);
+        assert_eq!(t[136], 1.0);
+        assert_eq!(t[128 + 1], 1.0 / 128.0);
+        assert_eq!(t[1], f32::from_bits(1 << 14)); // 2^-135 = 2^14 * 2^-149, the subnormal unit
+    }
+}
