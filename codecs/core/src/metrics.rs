@@ -1,1 +1,410 @@
-//! (to be written)
+//! Image-quality metrics for HDR images, used by `hdrcodec compare`, `bench`, tests and benches.
+//!
+//! All perceptual metrics work on absolute luminance: a sample value `v` means
+//! `v · ColorInfo::nits_per_unit` cd/m². Common rules:
+//! - The two images must have the same width and height ([`Error::Invalid`] names both sizes).
+//! - Alpha is ignored.
+//! - NaN samples count as 0 and ±∞ as ±`f32::MAX`, so that one bad sample cannot turn a
+//!   figure into NaN or panic; [`Comparison::identical`] still sees them as they are.
+//! - When the test image has other primaries or another `nits_per_unit` than the reference,
+//!   it is converted into the reference's primaries and units first (a 3x3 matrix per pixel,
+//!   no allocation). ΔE ITP converts both images to BT.2020 cd/m² instead.
+//! - No allocation per pixel; only ΔE ITP keeps one `f32` per pixel (for its percentile).
+
+use crate::color::{mat_apply, mat_mul, rgb2020_to_ictcp, rgb_to_rgb, Mat3};
+use crate::{ColorPrimaries, Error, HdrImage, Result};
+
+/// The PU21 "banding_glare" parameters p1..p7 (Mantiuk & Azimi 2021; pu21_encoder.m of the
+/// authors' reference code, the variant they recommend).
+pub const PU21_PARAMS: [f64; 7] =
+    [0.353487901, 0.3734658629, 8.277049286e-05, 0.9062562627, 0.09150303166, 0.9099517204, 596.3148142];
+/// The smallest luminance PU21 encodes, cd/m² (lower values are clamped to it).
+pub const PU21_L_MIN: f64 = 0.005;
+/// The largest luminance PU21 encodes, cd/m² (higher values are clamped to it).
+pub const PU21_L_MAX: f64 = 10000.0;
+/// The peak used for PSNR on PU21 values (pu21_metric.m: `psnr(T, R, 256)`).
+pub const PU21_PEAK: f64 = 256.0;
+
+/// PU21 encoding of a luminance in cd/m²: Y is clamped to [0.005, 10 000] (NaN → 0.005), then
+/// V = p7·(((p1 + p2·Y^p4) / (1 + p3·Y^p4))^p5 − p6). V runs from 0 at 0.005 cd/m² to about
+/// 595 at 10 000 cd/m²; 100 cd/m² encodes to about 256.
+pub fn pu21_encode(y_nits: f64) -> f64 {
+    let p = &PU21_PARAMS;
+    // f64::clamp keeps NaN; NaN means "no light" here.
+    let y = if y_nits.is_nan() { PU21_L_MIN } else { y_nits.clamp(PU21_L_MIN, PU21_L_MAX) };
+    let yp = y.powf(p[3]);
+    p[6] * (((p[0] + p[1] * yp) / (1.0 + p[2] * yp)).powf(p[4]) - p[5])
+}
+
+/// The inverse of [`pu21_encode`] (the `decode` of pu21_encoder.m), in cd/m².
+pub fn pu21_decode(v: f64) -> f64 {
+    let p = &PU21_PARAMS;
+    let vp = (v / p[6] + p[5]).max(0.0).powf(1.0 / p[4]);
+    ((vp - p[0]).max(0.0) / (p[1] - p[2] * vp)).powf(1.0 / p[3])
+}
+
+/// Replaces NaN by 0 and ±∞ by ±`f32::MAX`.
+#[inline]
+fn clean(v: f32) -> f64 {
+    if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(-f32::MAX, f32::MAX) as f64
+    }
+}
+
+fn check_sizes(reference: &HdrImage, test: &HdrImage) -> Result<()> {
+    if reference.width() != test.width() || reference.height() != test.height() {
+        return Err(Error::invalid(format!(
+            "image sizes differ: reference is {}x{}, test is {}x{}",
+            reference.width(),
+            reference.height(),
+            test.width(),
+            test.height()
+        )));
+    }
+    Ok(())
+}
+
+/// The matrix that takes the test image's samples into the reference's primaries and units,
+/// or `None` when they already agree.
+fn test_to_reference(reference: &HdrImage, test: &HdrImage) -> Option<Mat3> {
+    let (rc, tc) = (&reference.color, &test.color);
+    if rc.primaries == tc.primaries && rc.nits_per_unit == tc.nits_per_unit {
+        return None;
+    }
+    let scale = tc.nits_per_unit as f64 / rc.nits_per_unit as f64;
+    let m = rgb_to_rgb(&tc.primaries, &rc.primaries);
+    Some(m.map(|row| row.map(|v| v * scale)))
+}
+
+/// Calls `f(reference_rgb, test_rgb)` for every pixel, both cleaned and in reference units.
+fn for_each_pair(reference: &HdrImage, test: &HdrImage, mut f: impl FnMut([f64; 3], [f64; 3])) -> Result<()> {
+    check_sizes(reference, test)?;
+    let m = test_to_reference(reference, test);
+    let (nr, nt) = (reference.channels().count(), test.channels().count());
+    let rs = reference.samples().chunks_exact(nr);
+    let ts = test.samples().chunks_exact(nt);
+    for (r, t) in rs.zip(ts) {
+        let r = [clean(r[0]), clean(r[1]), clean(r[2])];
+        let mut t = [clean(t[0]), clean(t[1]), clean(t[2])];
+        if let Some(m) = &m {
+            t = mat_apply(m, t);
+        }
+        f(r, t);
+    }
+    Ok(())
+}
+
+/// 10·log10(peak² / MSE); infinite when the MSE is 0 (also for an empty image).
+fn psnr_from(sum_sq: f64, count: usize, peak: f64) -> f64 {
+    if sum_sq == 0.0 || count == 0 {
+        return f64::INFINITY;
+    }
+    10.0 * (peak * peak / (sum_sq / count as f64)).log10()
+}
+
+/// PU21-PSNR on luminance: Y = the Y row of the reference's RGB→XYZ matrix (the test is in
+/// the reference's primaries, see the module notes) times `nits_per_unit`, PU21-encoded,
+/// PSNR with peak 256. Infinite for identical luminance.
+pub fn pu21_psnr(reference: &HdrImage, test: &HdrImage) -> Result<f64> {
+    let w = crate::color::luminance_weights(&reference.color.primaries);
+    let nits = reference.color.nits_per_unit as f64;
+    let y = |p: [f64; 3]| (w[0] * p[0] + w[1] * p[1] + w[2] * p[2]) * nits;
+    let mut sum = 0.0;
+    for_each_pair(reference, test, |r, t| {
+        let d = pu21_encode(y(r)) - pu21_encode(y(t));
+        sum += d * d;
+    })?;
+    Ok(psnr_from(sum, reference.pixel_count(), PU21_PEAK))
+}
+
+/// PU21-PSNR per channel (the "PSNR (colour)" of the PU21 reference code): each of R, G and B
+/// times `nits_per_unit` is PU21-encoded; the MSE is over all three channels.
+pub fn pu21_psnr_rgb(reference: &HdrImage, test: &HdrImage) -> Result<f64> {
+    let nits = reference.color.nits_per_unit as f64;
+    let mut sum = 0.0;
+    for_each_pair(reference, test, |r, t| {
+        for c in 0..3 {
+            let d = pu21_encode(r[c] * nits) - pu21_encode(t[c] * nits);
+            sum += d * d;
+        }
+    })?;
+    Ok(psnr_from(sum, 3 * reference.pixel_count(), PU21_PEAK))
+}
+
+/// The matrix from an image's samples to linear BT.2020 RGB in cd/m².
+fn to_bt2020_nits(image: &HdrImage) -> Mat3 {
+    let m = rgb_to_rgb(&image.color.primaries, &ColorPrimaries::Bt2020);
+    let s = image.color.nits_per_unit as f64;
+    mat_mul(&[[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, s]], &m)
+}
+
+/// ΔE ITP (ITU-R BT.2124) per pixel: both images are converted to linear BT.2020 in cd/m²
+/// (their own primaries and `nits_per_unit`), then to ICtCp through PQ (BT.2100), and
+/// ΔE = 720·√(ΔI² + (0.5·ΔCt)² + ΔCp²). Returns (mean, 99th percentile); the percentile is the
+/// nearest-rank one (the ⌈0.99·N⌉-th smallest value). One unit is about one JND.
+pub fn delta_e_itp(reference: &HdrImage, test: &HdrImage) -> Result<(f64, f64)> {
+    check_sizes(reference, test)?;
+    let (mr, mt) = (to_bt2020_nits(reference), to_bt2020_nits(test));
+    let (nr, nt) = (reference.channels().count(), test.channels().count());
+    let mut de: Vec<f32> = Vec::with_capacity(reference.pixel_count());
+    let mut sum = 0.0;
+    for (r, t) in reference.samples().chunks_exact(nr).zip(test.samples().chunks_exact(nt)) {
+        let r = [clean(r[0]), clean(r[1]), clean(r[2])];
+        let t = [clean(t[0]), clean(t[1]), clean(t[2])];
+        let e = if r == t && mr == mt {
+            0.0
+        } else {
+            crate::color::delta_e_itp_ictcp(rgb2020_to_ictcp(mat_apply(&mr, r)), rgb2020_to_ictcp(mat_apply(&mt, t)))
+        };
+        sum += e;
+        de.push(e as f32);
+    }
+    if de.is_empty() {
+        return Ok((0.0, 0.0));
+    }
+    let mean = sum / de.len() as f64;
+    let rank = ((0.99 * de.len() as f64).ceil() as usize).clamp(1, de.len()) - 1;
+    let (_, p99, _) = de.select_nth_unstable_by(rank, f32::total_cmp);
+    Ok((mean, *p99 as f64))
+}
+
+/// RMSLE, the figure of the published BC6H comparisons: √(mean over all R, G, B samples of
+/// log2((t + 1) / (r + 1))²), on the raw sample values (not cd/m²), as the BC6H literature
+/// computes it on texture values. Negative samples are taken as 0.
+pub fn log_rmse(reference: &HdrImage, test: &HdrImage) -> Result<f64> {
+    let mut sum = 0.0;
+    for_each_pair(reference, test, |r, t| {
+        for c in 0..3 {
+            let d = ((t[c].max(0.0) + 1.0) / (r[c].max(0.0) + 1.0)).log2();
+            sum += d * d;
+        }
+    })?;
+    let n = 3 * reference.pixel_count();
+    Ok(if n == 0 { 0.0 } else { (sum / n as f64).sqrt() })
+}
+
+/// Linear PSNR over all R, G, B samples against `peak` (in sample units):
+/// 10·log10(peak² / MSE). Infinite when the images agree.
+pub fn psnr(reference: &HdrImage, test: &HdrImage, peak: f64) -> Result<f64> {
+    let mut sum = 0.0;
+    for_each_pair(reference, test, |r, t| {
+        for c in 0..3 {
+            let d = t[c] - r[c];
+            sum += d * d;
+        }
+    })?;
+    Ok(psnr_from(sum, 3 * reference.pixel_count(), peak))
+}
+
+/// The luminance below which relative errors are measured against a floor instead of the
+/// reference value, cd/m²: PU21's L_min, below which differences are invisible.
+pub const REL_ERR_FLOOR_NITS: f64 = PU21_L_MIN;
+
+/// The largest relative error over all R, G, B samples: |t − r| / max(|r|, floor), where the
+/// floor is [`REL_ERR_FLOOR_NITS`] (0.005 cd/m²) in the reference's sample units, so that
+/// near-black samples do not make the figure explode.
+pub fn max_rel_err(reference: &HdrImage, test: &HdrImage) -> Result<f64> {
+    let floor = REL_ERR_FLOOR_NITS / reference.color.nits_per_unit as f64;
+    let mut worst = 0.0f64;
+    for_each_pair(reference, test, |r, t| {
+        for c in 0..3 {
+            worst = worst.max((t[c] - r[c]).abs() / r[c].abs().max(floor));
+        }
+    })?;
+    Ok(worst)
+}
+
+/// Every metric of this module for one pair of images.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Comparison {
+    /// PU21-PSNR on luminance, dB ([`pu21_psnr`]).
+    pub pu21_psnr: f64,
+    /// PU21-PSNR per channel, dB ([`pu21_psnr_rgb`]).
+    pub pu21_psnr_rgb: f64,
+    /// Mean ΔE ITP ([`delta_e_itp`]).
+    pub de_itp_mean: f64,
+    /// 99th percentile of ΔE ITP.
+    pub de_itp_p99: f64,
+    /// RMSLE ([`log_rmse`]).
+    pub log_rmse: f64,
+    /// Linear PSNR with the reference's largest sample as peak, dB ([`psnr`]).
+    pub psnr: f64,
+    /// Largest relative error ([`max_rel_err`]).
+    pub max_rel_err: f64,
+    /// Every R, G, B sample is equal (NaN equals NaN) and so are primaries and `nits_per_unit`.
+    pub identical: bool,
+}
+
+/// All metrics at once. The linear PSNR's peak is the largest R, G or B sample of the reference
+/// (1.0 if it has no positive sample). Identical images give infinite PSNRs, zero errors and
+/// `identical = true`.
+pub fn compare(reference: &HdrImage, test: &HdrImage) -> Result<Comparison> {
+    check_sizes(reference, test)?;
+    let peak = reference.rgb().flatten().map(clean).fold(0.0f64, f64::max);
+    let peak = if peak > 0.0 { peak } else { 1.0 };
+    let (de_itp_mean, de_itp_p99) = delta_e_itp(reference, test)?;
+    let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
+    let identical = reference.color.primaries == test.color.primaries
+        && reference.color.nits_per_unit == test.color.nits_per_unit
+        && reference.rgb().zip(test.rgb()).all(|(r, t)| (0..3).all(|c| same(r[c], t[c])));
+    Ok(Comparison {
+        pu21_psnr: pu21_psnr(reference, test)?,
+        pu21_psnr_rgb: pu21_psnr_rgb(reference, test)?,
+        de_itp_mean,
+        de_itp_p99,
+        log_rmse: log_rmse(reference, test)?,
+        psnr: psnr(reference, test, peak)?,
+        max_rel_err: max_rel_err(reference, test)?,
+        identical,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::ictcp_to_rgb2020;
+    use crate::{Channels, ColorInfo};
+
+    fn grey(w: u32, h: u32, v: f32) -> HdrImage {
+        HdrImage::new(w, h, Channels::Rgb, vec![v; (w * h * 3) as usize], ColorInfo::default()).unwrap()
+    }
+
+    fn from_pixels(pixels: &[[f32; 3]], color: ColorInfo) -> HdrImage {
+        let samples = pixels.iter().flatten().copied().collect();
+        HdrImage::new(pixels.len() as u32, 1, Channels::Rgb, samples, color).unwrap()
+    }
+
+    #[test]
+    fn pu21_encoding_properties() {
+        // No input/output pair is published for PU21 (neither the PCS 2021 paper nor the
+        // gfxdisp/pu21 repository lists one), so this pins the properties the reference code
+        // (pu21_encoder.m) defines: the clamp to [0.005, 10000], monotonicity, its own decode
+        // as the inverse, V = 0 at L_min, and ~256 at 100 cd/m² (why pu21_metric.m uses
+        // PSNR peak 256: an SDR display's white lands on the 8-bit range).
+        assert!(pu21_encode(PU21_L_MIN).abs() < 1e-6);
+        let v100 = pu21_encode(100.0);
+        assert!((255.0..258.0).contains(&v100), "V(100) = {v100}");
+        assert_eq!(pu21_encode(0.0), pu21_encode(PU21_L_MIN));
+        assert_eq!(pu21_encode(-5.0), pu21_encode(PU21_L_MIN));
+        assert_eq!(pu21_encode(f64::NAN), pu21_encode(PU21_L_MIN));
+        assert_eq!(pu21_encode(1e6), pu21_encode(PU21_L_MAX));
+        let vmax = pu21_encode(PU21_L_MAX);
+        assert!((590.0..600.0).contains(&vmax), "V(10000) = {vmax}");
+        let mut prev = f64::NEG_INFINITY;
+        for i in 0..=600 {
+            let y = PU21_L_MIN * 10f64.powf(i as f64 * (PU21_L_MAX / PU21_L_MIN).log10() / 600.0);
+            let v = pu21_encode(y);
+            assert!(v > prev, "not increasing at {y}");
+            prev = v;
+            let back = pu21_decode(v);
+            assert!((back - y).abs() <= 1e-8 * y, "{y} -> {v} -> {back}");
+        }
+    }
+
+    #[test]
+    fn pu21_psnr_of_a_one_unit_shift() {
+        // A test image whose PU21 value is the reference's plus exactly 1 everywhere has
+        // MSE 1, so PSNR = 20·log10(256) = 48.1648 dB (pu21_metric.m's psnr(T, R, 256)).
+        let reference = grey(4, 3, 1.0); // 100 cd/m² grey
+        let shifted = (pu21_decode(pu21_encode(100.0) + 1.0) / 100.0) as f32;
+        let test = grey(4, 3, shifted);
+        let want = 20.0 * 256f64.log10();
+        assert!((pu21_psnr(&reference, &test).unwrap() - want).abs() < 1e-3);
+        assert!((pu21_psnr_rgb(&reference, &test).unwrap() - want).abs() < 1e-3);
+        assert_eq!(pu21_psnr(&reference, &reference).unwrap(), f64::INFINITY);
+    }
+
+    #[test]
+    fn delta_e_itp_matches_the_reference_example_on_images() {
+        // colour-science delta_E_ITP docs example: these two ICtCp values differ by 1.42657228.
+        let a = ictcp_to_rgb2020([0.488_546_807_2, -0.047_393_506_75, 0.074_754_013_02]);
+        let b = ictcp_to_rgb2020([0.489_920_323_1, -0.045_675_082_03, 0.073_613_417_75]);
+        let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 1.0, hdr10: None };
+        let px = |v: [f64; 3]| v.map(|c| c as f32);
+        let reference = from_pixels(&[px(a)], color.clone());
+        let test = from_pixels(&[px(b)], color.clone());
+        let (mean, p99) = delta_e_itp(&reference, &test).unwrap();
+        assert!((mean - 1.426_572_28).abs() < 2e-3, "{mean}");
+        assert_eq!(mean as f32, p99 as f32);
+        // Nearest-rank 99th percentile of 100 pixels is the 99th smallest: with one differing
+        // pixel it is 0, with two it is that pixel's ΔE.
+        let mut r = vec![px(a); 100];
+        let mut t = r.clone();
+        t[7] = px(b);
+        let (mean1, p99_1) = delta_e_itp(&from_pixels(&r, color.clone()), &from_pixels(&t, color.clone())).unwrap();
+        assert!((mean1 - mean / 100.0).abs() < 1e-9 && p99_1 == 0.0);
+        t[50] = px(b);
+        r[0] = px(a);
+        let (_, p99_2) = delta_e_itp(&from_pixels(&r, color.clone()), &from_pixels(&t, color)).unwrap();
+        assert_eq!(p99_2 as f32, p99 as f32);
+    }
+
+    #[test]
+    fn delta_e_itp_sees_through_primaries() {
+        // The same colours stored in BT.709 and in BT.2020 are (nearly) the same colours.
+        let reference = from_pixels(&[[1.0, 0.2, 0.05], [0.1, 0.5, 3.0]], ColorInfo::default());
+        let test = crate::color::convert_primaries(&reference, ColorPrimaries::Bt2020);
+        let (mean, p99) = delta_e_itp(&reference, &test).unwrap();
+        assert!(mean < 0.01 && p99 < 0.01, "{mean} {p99}");
+        let c = compare(&reference, &test).unwrap();
+        assert!(!c.identical && c.psnr > 100.0, "{c:?}");
+    }
+
+    #[test]
+    fn log_rmse_psnr_and_relative_error_by_hand() {
+        // RMSLE: one of three samples goes 1 → 3, log2(4/2) = 1, so √(1/3).
+        let reference = from_pixels(&[[1.0, 1.0, 1.0]], ColorInfo::default());
+        let test = from_pixels(&[[3.0, 1.0, 1.0]], ColorInfo::default());
+        assert!((log_rmse(&reference, &test).unwrap() - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        // PSNR: one of 12 samples off by 0.5 against peak 1: MSE = 0.25/12, 10·log10(48).
+        let reference = grey(2, 2, 1.0);
+        let mut test = reference.clone();
+        test.samples_mut()[5] = 1.5;
+        assert!((psnr(&reference, &test, 1.0).unwrap() - 10.0 * 48f64.log10()).abs() < 1e-12);
+        assert!((max_rel_err(&reference, &test).unwrap() - 0.5).abs() < 1e-12);
+        // Near zero the floor (0.005 cd/m² = 5e-5 at 100 cd/m² per unit) is the denominator.
+        let reference = grey(1, 1, 0.0);
+        let test = grey(1, 1, 1e-5);
+        assert!((max_rel_err(&reference, &test).unwrap() - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn identical_images_compare_perfectly() {
+        let samples: Vec<f32> = (0..24).map(|i| i as f32 * 0.37).collect();
+        let a = HdrImage::new(3, 2, Channels::Rgba, samples.clone(), ColorInfo::default()).unwrap();
+        let mut b = a.clone();
+        b.samples_mut()[3] = 0.123; // alpha is ignored
+        let c = compare(&a, &b).unwrap();
+        assert!(c.identical);
+        assert_eq!((c.pu21_psnr, c.pu21_psnr_rgb, c.psnr), (f64::INFINITY, f64::INFINITY, f64::INFINITY));
+        assert_eq!((c.de_itp_mean, c.de_itp_p99, c.log_rmse, c.max_rel_err), (0.0, 0.0, 0.0, 0.0));
+        // RGB against RGBA of the same picture is still identical.
+        assert!(compare(&a, &a.with_channels(Channels::Rgb)).unwrap().identical);
+    }
+
+    #[test]
+    fn sizes_units_and_nan() {
+        let e = compare(&grey(2, 2, 1.0), &grey(3, 2, 1.0)).unwrap_err();
+        assert!(matches!(e, Error::Invalid { .. }));
+        let msg = e.to_string();
+        assert!(msg.contains("2x2") && msg.contains("3x2"), "{msg}");
+        // The same light at 100 and at 200 cd/m² per unit: not identical, but no error.
+        let a = grey(2, 2, 1.0);
+        let mut b = grey(2, 2, 0.5);
+        b.color.nits_per_unit = 200.0;
+        let c = compare(&a, &b).unwrap();
+        assert!(!c.identical && c.psnr == f64::INFINITY && c.de_itp_mean == 0.0, "{c:?}");
+        // NaN and infinity neither panic nor poison the figures.
+        let mut n = grey(2, 2, 1.0);
+        n.samples_mut()[0] = f32::NAN;
+        n.samples_mut()[4] = f32::INFINITY;
+        let c = compare(&a, &n).unwrap();
+        assert!(!c.identical);
+        for v in [c.pu21_psnr, c.pu21_psnr_rgb, c.de_itp_mean, c.de_itp_p99, c.log_rmse, c.psnr, c.max_rel_err] {
+            assert!(!v.is_nan(), "{c:?}");
+        }
+        assert!(compare(&n, &n).unwrap().identical);
+    }
+}
