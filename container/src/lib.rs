@@ -1,1 +1,35 @@
-//! (to be written)
+//! `hdrcodec-container`: `.hdrc`, the chunked file format of the hdrcodec family, for streams
+//! that have no standard file of their own (tiled payloads, frame sequences) and to carry colour
+//! and HDR10 metadata uniformly. README.md is the byte-level specification.
+//!
+//! - [`Writer`] streams chunks to any `std::io::Write` (it never seeks); [`Reader`] validates a
+//!   whole file in memory (every length, CRC-32C, tile and index) before handing anything out.
+//! - [`encode_image`] / [`decode_image`] and [`encode_frames`] / [`decode_frames`] code whole
+//!   images, each tile a stand-alone encoding by another codec, in parallel.
+//! - [`RawF32Codec`] and [`RawF16Codec`]: built-in payload codecs; [`HdrcCodec`]: the
+//!   container as an [`ImageCodec`](hdrcodec_core::ImageCodec).
+//!
+//! ```
+//! use hdrcodec_container::{decode_image, encode_image, RawF32Codec};
+//! use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
+//! let samples = (0..5 * 3 * 3).map(|i| i as f32 * 0.5).collect();
+//! let img = HdrImage::new(5, 3, Channels::Rgb, samples, ColorInfo::default())?;
+//! let file = encode_image(&img, &RawF32Codec, &EncodeSettings::default(), Some(2))?;
+//! let back = decode_image(&file, &Limits::default(), &|id| (id == *b"RF32").then_some(&RawF32Codec as &dyn ImageCodec))?;
+//! assert_eq!(back, img);
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
+
+mod crc;
+mod format;
+mod image;
+mod raw;
+mod reader;
+mod writer;
+
+pub use crc::{crc32c, Crc32c};
+pub use format::{DataHeader, Head, IndexEntry, SIGNATURE, VERSION};
+pub use image::{decode_frames, decode_image, encode_frames, encode_image, HdrcCodec};
+pub use raw::{RawF16Codec, RawF32Codec};
+pub use reader::{DataRef, Reader};
+pub use writer::Writer;

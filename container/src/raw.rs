@@ -1,0 +1,179 @@
+//! The built-in payload codecs, so that the container works on its own: raw little-endian
+//! `f32` (lossless) and IEEE binary16 (`half`) samples.
+//!
+//! Stand-alone form (the whole payload of a DATA chunk, or a file of its own):
+//!
+//! | bytes | field |
+//! | --- | --- |
+//! | 4 | id: `RF32` or `RF16` |
+//! | 4 | width, u32 little-endian |
+//! | 4 | height, u32 little-endian |
+//! | 1 | channels: 3 (RGB) or 4 (RGBA) |
+//! | w·h·c·4 or w·h·c·2 | interleaved samples, rows top to bottom, little-endian |
+//!
+//! Colour information is not stored: inside `.hdrc` it lives in COLR/HDRM.
+
+use half::f16;
+use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+
+const HEADER_LEN: usize = 13;
+
+/// Lossless raw `f32` samples, id `RF32`, name `raw-f32`. No encode options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RawF32Codec;
+
+/// Raw IEEE 754 binary16 samples, id `RF16`, name `raw-f16`: half the size of `raw-f32`,
+/// 11 significant bits (relative error ≤ 2⁻¹¹ for normal values), range ±65504 (larger
+/// values become infinity), subnormals down to 2⁻²⁴. No encode options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RawF16Codec;
+
+/// How one raw sample format is stored.
+trait Sample {
+    const ID: [u8; 4];
+    const NAME: &'static str;
+    const BYTES: usize;
+    fn put(v: f32, out: &mut Vec<u8>);
+    fn get(b: &[u8]) -> f32;
+}
+
+impl Sample for RawF32Codec {
+    const ID: [u8; 4] = *b"RF32";
+    const NAME: &'static str = "raw-f32";
+    const BYTES: usize = 4;
+    fn put(v: f32, out: &mut Vec<u8>) {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    fn get(b: &[u8]) -> f32 {
+        f32::from_le_bytes([b[0], b[1], b[2], b[3]])
+    }
+}
+
+impl Sample for RawF16Codec {
+    const ID: [u8; 4] = *b"RF16";
+    const NAME: &'static str = "raw-f16";
+    const BYTES: usize = 2;
+    fn put(v: f32, out: &mut Vec<u8>) {
+        out.extend_from_slice(&f16::from_f32(v).to_le_bytes());
+    }
+    fn get(b: &[u8]) -> f32 {
+        f16::from_le_bytes([b[0], b[1]]).to_f32()
+    }
+}
+
+fn encode<S: Sample>(image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+    settings.check_options(S::NAME, &[])?;
+    let mut out = Vec::with_capacity(HEADER_LEN + image.samples().len() * S::BYTES);
+    out.extend_from_slice(&S::ID);
+    out.extend_from_slice(&image.width().to_le_bytes());
+    out.extend_from_slice(&image.height().to_le_bytes());
+    out.push(image.channels().count() as u8);
+    for &v in image.samples() {
+        S::put(v, &mut out);
+    }
+    Ok(out)
+}
+
+fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    if data.len() < HEADER_LEN {
+        return Err(Error::truncated(format!("the {}-byte {} header", HEADER_LEN, S::NAME)));
+    }
+    if data[..4] != S::ID {
+        return Err(Error::invalid(format!("not a {} payload (wrong id)", S::NAME)));
+    }
+    let width = u32::from_le_bytes([data[4], data[5], data[6], data[7]]);
+    let height = u32::from_le_bytes([data[8], data[9], data[10], data[11]]);
+    let channels = Channels::from_count(usize::from(data[12]))
+        .ok_or_else(|| Error::invalid(format!("{} header: {} channels (expected 3 or 4)", S::NAME, data[12])))?;
+    limits.check_image(u64::from(width), u64::from(height), channels)?;
+    let count = width as usize * height as usize * channels.count();
+    let body = &data[HEADER_LEN..];
+    let need = count * S::BYTES;
+    if body.len() < need {
+        return Err(Error::truncated(format!(
+            "the {} samples of a {width}x{height} image ({need} bytes, {} present)",
+            S::NAME,
+            body.len()
+        )));
+    }
+    if body.len() > need {
+        return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() - need, S::NAME)));
+    }
+    let samples = body.chunks_exact(S::BYTES).map(S::get).collect();
+    HdrImage::new(width, height, channels, samples, ColorInfo::default())
+}
+
+macro_rules! raw_codec {
+    ($t:ty) => {
+        impl ImageCodec for $t {
+            fn name(&self) -> &'static str {
+                <$t as Sample>::NAME
+            }
+            fn id(&self) -> [u8; 4] {
+                <$t as Sample>::ID
+            }
+            fn extensions(&self) -> &'static [&'static str] {
+                &[]
+            }
+            fn sniff(&self, head: &[u8]) -> bool {
+                head.starts_with(&<$t as Sample>::ID)
+            }
+            fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+                decode::<$t>(data, limits)
+            }
+            fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+                encode::<$t>(image, settings)
+            }
+        }
+    };
+}
+
+raw_codec!(RawF32Codec);
+raw_codec!(RawF16Codec);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f16_bytes_are_ieee_binary16() {
+        // IEEE 754-2008 binary16 encodings: 1.0 = 0x3C00, -2.0 = 0xC000, 65504 (largest finite)
+        // = 0x7BFF, 2^-24 (smallest subnormal) = 0x0001, 0.5 = 0x3800.
+        let img = HdrImage::new(1, 1, Channels::Rgba, vec![1.0, -2.0, 65504.0, 2f32.powi(-24)], ColorInfo::default())
+            .unwrap();
+        let b = RawF16Codec.encode(&img, &EncodeSettings::default()).unwrap();
+        assert_eq!(&b[..13], &[b'R', b'F', b'1', b'6', 1, 0, 0, 0, 1, 0, 0, 0, 4]);
+        assert_eq!(&b[13..], &[0x00, 0x3C, 0x00, 0xC0, 0xFF, 0x7B, 0x01, 0x00]);
+        assert_eq!(RawF16Codec.decode(&b, &Limits::default()).unwrap().samples(), img.samples());
+    }
+
+    #[test]
+    fn f32_is_lossless_and_little_endian() {
+        let v = vec![1.0, f32::MIN_POSITIVE, 1e30, -0.0, 3.5, f32::INFINITY];
+        let img = HdrImage::new(2, 1, Channels::Rgb, v.clone(), ColorInfo::default()).unwrap();
+        let b = RawF32Codec.encode(&img, &EncodeSettings::default()).unwrap();
+        // 1.0f32 is 0x3F800000 (IEEE 754 binary32), little-endian on disk.
+        assert_eq!(&b[13..17], &[0x00, 0x00, 0x80, 0x3F]);
+        let back = RawF32Codec.decode(&b, &Limits::default()).unwrap();
+        assert!(back.samples().iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
+    #[test]
+    fn bad_payloads_are_errors() {
+        let img = HdrImage::zeroed(3, 2, Channels::Rgb);
+        let b = RawF32Codec.encode(&img, &EncodeSettings::default()).unwrap();
+        for n in 0..b.len() {
+            assert!(RawF32Codec.decode(&b[..n], &Limits::default()).is_err(), "truncated to {n}");
+        }
+        let mut long = b.clone();
+        long.push(0);
+        assert!(RawF32Codec.decode(&long, &Limits::default()).is_err());
+        assert!(RawF16Codec.decode(&b, &Limits::default()).is_err(), "wrong id");
+        let mut huge = b[..13].to_vec();
+        huge[4..8].copy_from_slice(&1_000_000u32.to_le_bytes());
+        huge[8..12].copy_from_slice(&1_000_000u32.to_le_bytes());
+        assert!(matches!(RawF32Codec.decode(&huge, &Limits::default()), Err(Error::LimitExceeded { .. })));
+        let opts = EncodeSettings::default().with_option("bogus", "1");
+        assert!(RawF32Codec.encode(&img, &opts).is_err());
+    }
+}

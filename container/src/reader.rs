@@ -1,0 +1,326 @@
+//! The validating reader over a file held in memory.
+
+use crate::crc::crc32c;
+use crate::format::{self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, MAX_CHUNK_LEN, SIGNATURE};
+use hdrcodec_core::{ColorInfo, Error, Hdr10Metadata, Limits, Result};
+
+/// One DATA chunk of a file: its tile header and the codec payload, borrowed from the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DataRef<'a> {
+    /// Frame and rectangle of the tile.
+    pub header: DataHeader,
+    /// Offset of the chunk (its length field) in the file.
+    pub offset: u64,
+    /// The stand-alone encoding of the tile by the HEAD's codec.
+    pub payload: &'a [u8],
+}
+
+/// A validated `.hdrc` file.
+///
+/// [`Reader::new`] checks everything before returning: the signature, every chunk length
+/// against the remaining bytes, every CRC, the HEAD dimensions against [`Limits`] (before any
+/// allocation), that the DATA chunks are exactly the tiles of the HEAD's grid (each once, for
+/// every frame), that INDX agrees with the DATA chunks, and that END ends the file. Errors name
+/// the chunk, e.g. `DATA chunk #3 at offset 1234: CRC mismatch` (chunks are counted per type,
+/// from 0).
+#[derive(Clone, Debug)]
+pub struct Reader<'a> {
+    head: Head,
+    color: Option<ColorInfo>,
+    hdr10: Option<Hdr10Metadata>,
+    metadata: Vec<(String, String)>,
+    data: Vec<DataRef<'a>>,
+    /// (grid key, position in `data`), sorted by key: the random-access map.
+    grid: Vec<(u64, usize)>,
+    has_index: bool,
+}
+
+/// Prefixes an error's message with the chunk it concerns, keeping its kind.
+pub(crate) fn in_chunk(ctx: &str, e: Error) -> Error {
+    match e {
+        Error::Truncated { what } => Error::truncated(format!("{ctx}: {what}")),
+        Error::Unsupported { what } => Error::unsupported(format!("{ctx}: {what}")),
+        Error::LimitExceeded { what } => Error::limit(format!("{ctx}: {what}")),
+        Error::Invalid { what } => Error::invalid(format!("{ctx}: {what}")),
+        other => Error::invalid(format!("{ctx}: {other}")),
+    }
+}
+
+#[derive(Default)]
+struct Counts {
+    per_type: Vec<([u8; 4], usize)>,
+}
+
+impl Counts {
+    /// The 0-based number of this chunk among the chunks of its type.
+    fn next(&mut self, t: [u8; 4]) -> usize {
+        match self.per_type.iter_mut().find(|(k, _)| *k == t) {
+            Some((_, n)) => {
+                *n += 1;
+                *n - 1
+            }
+            None => {
+                self.per_type.push((t, 1));
+                0
+            }
+        }
+    }
+}
+
+impl<'a> Reader<'a> {
+    /// Parses and validates a whole file.
+    pub fn new(data: &'a [u8], limits: &Limits) -> Result<Self> {
+        if data.len() < SIGNATURE.len() {
+            if SIGNATURE.starts_with(data) {
+                return Err(Error::truncated("the .hdrc signature"));
+            }
+        } else if data[..8] == SIGNATURE {
+            return Self::chunks(data, limits);
+        }
+        let n = data.len().min(8);
+        Err(Error::invalid(match &data[..n] {
+            d if d.len() == 8 && d[1..5] == SIGNATURE[1..5] && d[0] == SIGNATURE[0] & 0x7F => {
+                "the .hdrc signature has lost its high bit (sent through a 7-bit channel)".to_string()
+            }
+            d if d.len() >= 5 && d[1..5] == SIGNATURE[1..5] => {
+                "the .hdrc signature is damaged (line endings converted by a text-mode transfer?)".to_string()
+            }
+            _ => "not an .hdrc file (wrong signature)".to_string(),
+        }))
+    }
+
+    fn chunks(data: &'a [u8], limits: &Limits) -> Result<Self> {
+        let mut pos = SIGNATURE.len();
+        let mut counts = Counts::default();
+        let mut head: Option<Head> = None;
+        let mut r = Reader {
+            head: Head::new([0; 4], 1, 1, hdrcodec_core::Channels::Rgb),
+            color: None,
+            hdr10: None,
+            metadata: Vec::new(),
+            data: Vec::new(),
+            grid: Vec::new(),
+            has_index: false,
+        };
+        let mut index: Option<(u64, Vec<IndexEntry>)> = None;
+        let mut end_index_offset: Option<u64> = None;
+        loop {
+            let left = data.len() - pos;
+            if left < 8 {
+                return Err(Error::truncated(format!(
+                    "the chunk header at offset {pos} (the file ends before the END chunk)"
+                )));
+            }
+            let len = u32::from_be_bytes([data[pos], data[pos + 1], data[pos + 2], data[pos + 3]]);
+            let ty = [data[pos + 4], data[pos + 5], data[pos + 6], data[pos + 7]];
+            let ctx = format!("{} chunk #{} at offset {pos}", type_name(ty), counts.next(ty));
+            if len > MAX_CHUNK_LEN {
+                return Err(Error::invalid(format!("{ctx}: length {len} exceeds the {MAX_CHUNK_LEN}-byte maximum")));
+            }
+            let len = len as usize;
+            if left < len + CHUNK_OVERHEAD {
+                return Err(Error::truncated(format!(
+                    "{ctx} (the chunk needs {} bytes, {left} remain)",
+                    len + CHUNK_OVERHEAD
+                )));
+            }
+            let body = &data[pos + 4..pos + 8 + len];
+            let stored = u32::from_be_bytes(data[pos + 8 + len..pos + 12 + len].try_into().expect("4 bytes"));
+            if crc32c(body) != stored {
+                return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
+            }
+            if !ty.iter().all(|b| b.is_ascii_alphabetic() || *b == b' ') || !ty[0].is_ascii_alphabetic() {
+                return Err(Error::invalid(format!("{ctx}: the chunk type is not ASCII letters")));
+            }
+            let payload = &body[4..];
+            let chunk_offset = pos as u64;
+            pos += len + CHUNK_OVERHEAD;
+
+            let Some(h) = head else {
+                if ty != format::HEAD {
+                    return Err(Error::invalid(format!("{ctx}: the first chunk must be HEAD")));
+                }
+                let h = Head::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
+                // The whole image must fit the limits before anything of its size is allocated.
+                limits
+                    .check_image(u64::from(h.width), u64::from(h.height), h.channels)
+                    .map_err(|e| in_chunk(&ctx, e))?;
+                head = Some(h);
+                r.head = h;
+                continue;
+            };
+            let dup = |ctx: &str| Error::invalid(format!("{ctx}: a second chunk of this type"));
+            match ty {
+                format::HEAD => return Err(dup(&ctx)),
+                format::DATA => {
+                    let (header, p) = DataHeader::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
+                    let key = header.grid_key(&h).map_err(|e| in_chunk(&ctx, e))?;
+                    r.grid.push((key, r.data.len()));
+                    r.data.push(DataRef { header, offset: chunk_offset, payload: p });
+                }
+                format::COLR => {
+                    if r.color.is_some() {
+                        return Err(dup(&ctx));
+                    }
+                    r.color = Some(format::parse_color(payload).map_err(|e| in_chunk(&ctx, e))?);
+                }
+                format::HDRM => {
+                    if r.hdr10.is_some() {
+                        return Err(dup(&ctx));
+                    }
+                    r.hdr10 = Some(format::parse_hdr10(payload).map_err(|e| in_chunk(&ctx, e))?);
+                }
+                format::META => {
+                    if !r.metadata.is_empty() {
+                        return Err(dup(&ctx));
+                    }
+                    r.metadata = format::parse_meta(payload).map_err(|e| in_chunk(&ctx, e))?;
+                }
+                format::INDX => {
+                    if index.is_some() {
+                        return Err(dup(&ctx));
+                    }
+                    index = Some((chunk_offset, format::parse_index(payload).map_err(|e| in_chunk(&ctx, e))?));
+                }
+                format::END => {
+                    match payload.len() {
+                        0 => {}
+                        8 => end_index_offset = Some(u64::from_be_bytes(payload.try_into().expect("8 bytes"))),
+                        n => return Err(Error::invalid(format!("{ctx}: payload of {n} bytes (expected 0 or 8)"))),
+                    }
+                    if pos != data.len() {
+                        return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", data.len() - pos)));
+                    }
+                    break;
+                }
+                t if t[0].is_ascii_lowercase() => {} // unknown ancillary chunk: skipped
+                _ => return Err(Error::unsupported(format!("{ctx}: unknown critical chunk type"))),
+            }
+        }
+        r.check_tiles()?;
+        match (index, end_index_offset) {
+            (Some((at, entries)), end) => {
+                if end.is_some_and(|e| e != at) {
+                    return Err(Error::invalid(format!(
+                        "END chunk: points at the index at offset {}, but INDX is at offset {at}",
+                        end.unwrap_or(0)
+                    )));
+                }
+                let ctx = format!("INDX chunk #0 at offset {at}");
+                if entries.len() != r.data.len() {
+                    return Err(Error::invalid(format!(
+                        "{ctx}: {} entries for {} DATA chunks",
+                        entries.len(),
+                        r.data.len()
+                    )));
+                }
+                for (i, (e, d)) in entries.iter().zip(&r.data).enumerate() {
+                    let actual = IndexEntry { offset: d.offset, frame: d.header.frame, x: d.header.x, y: d.header.y };
+                    if *e != actual {
+                        return Err(Error::invalid(format!(
+                            "{ctx}: entry {i} says {e:?}, the DATA chunk is {actual:?}"
+                        )));
+                    }
+                }
+                r.has_index = true;
+            }
+            (None, Some(e)) => {
+                return Err(Error::invalid(format!(
+                    "END chunk: points at an index at offset {e}, but there is no INDX"
+                )))
+            }
+            (None, None) => {}
+        }
+        Ok(r)
+    }
+
+    /// Every tile of every frame present exactly once.
+    fn check_tiles(&mut self) -> Result<()> {
+        let h = self.head;
+        let expected = u64::from(h.frames) * h.tiles_per_frame();
+        self.grid.sort_unstable();
+        for w in self.grid.windows(2) {
+            if w[0].0 == w[1].0 {
+                let d = &self.data[w[1].1];
+                return Err(Error::invalid(format!(
+                    "DATA chunk at offset {}: tile ({}, {}) of frame {} appears twice",
+                    d.offset, d.header.x, d.header.y, d.header.frame
+                )));
+            }
+        }
+        if self.grid.len() as u64 != expected {
+            // Keys are unique and below `expected`, so the first gap names a missing tile.
+            let missing = self
+                .grid
+                .iter()
+                .enumerate()
+                .find(|&(i, &(k, _))| i as u64 != k)
+                .map_or(self.grid.len() as u64, |(i, _)| i as u64);
+            let per = h.tiles_per_frame();
+            let (frame, cell) = (missing / per, missing % per);
+            let cols = u64::from(h.tile_columns());
+            return Err(Error::invalid(format!(
+                "the file has {} of its {expected} tiles; tile ({}, {}) of frame {frame} is missing",
+                self.grid.len(),
+                cell % cols * u64::from(h.tile_width),
+                cell / cols * u64::from(h.tile_height)
+            )));
+        }
+        Ok(())
+    }
+
+    /// The HEAD chunk.
+    pub fn head(&self) -> &Head {
+        &self.head
+    }
+
+    /// The COLR chunk, if present (its `hdr10` is always `None`: see [`Reader::hdr10`]).
+    pub fn color(&self) -> Option<&ColorInfo> {
+        self.color.as_ref()
+    }
+
+    /// The HDRM chunk, if present.
+    pub fn hdr10(&self) -> Option<&Hdr10Metadata> {
+        self.hdr10.as_ref()
+    }
+
+    /// COLR (or the default: BT.709, 100 nits per unit) with HDRM merged in.
+    pub fn color_info(&self) -> ColorInfo {
+        ColorInfo { hdr10: self.hdr10, ..self.color.clone().unwrap_or_default() }
+    }
+
+    /// The META pairs (empty without a META chunk).
+    pub fn metadata(&self) -> &[(String, String)] {
+        &self.metadata
+    }
+
+    /// Every DATA chunk, in file order.
+    pub fn data_chunks(&self) -> &[DataRef<'a>] {
+        &self.data
+    }
+
+    /// True if the file had an INDX chunk (it then agreed with the DATA chunks).
+    pub fn has_index(&self) -> bool {
+        self.has_index
+    }
+
+    /// Random access: the tile at grid position (`column`, `row`) of `frame`.
+    pub fn tile(&self, frame: u32, column: u32, row: u32) -> Option<&DataRef<'a>> {
+        let h = &self.head;
+        if frame >= h.frames || column >= h.tile_columns() || row >= h.tile_rows() {
+            return None;
+        }
+        let key =
+            u64::from(frame) * h.tiles_per_frame() + u64::from(row) * u64::from(h.tile_columns()) + u64::from(column);
+        let i = self.grid.binary_search_by_key(&key, |&(k, _)| k).ok()?;
+        Some(&self.data[self.grid[i].1])
+    }
+
+    /// The tiles of `frame` in grid order (row by row).
+    pub fn frame_tiles(&self, frame: u32) -> impl Iterator<Item = &DataRef<'a>> + '_ {
+        let per = self.head.tiles_per_frame() as usize;
+        let start = (frame as usize).saturating_mul(per).min(self.grid.len());
+        let end = start.saturating_add(per).min(self.grid.len());
+        self.grid[start..end].iter().map(|&(_, i)| &self.data[i])
+    }
+}
