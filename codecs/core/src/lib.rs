@@ -25,8 +25,11 @@ pub mod tonemap;
 pub mod transfer;
 
 pub use codec::{EncodeSettings, ImageCodec};
-pub use color::{Chromaticities, ColorPrimaries};
+pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};
-pub use hdr10::{ContentLightLevel, Hdr10Metadata, MasteringDisplay};
+pub use hdr10::{Av1MdcvUnits, ContentLightLevel, Hdr10Metadata, MasteringDisplay, St2086Units};
 pub use image::{Channels, ColorInfo, HdrImage};
 pub use limits::Limits;
+pub use metrics::Comparison;
+pub use tonemap::{GtToneCurve, GtToneLut};
+pub use transfer::{Bt1886Transfer, HlgTransfer, PqTransfer, SrgbTransfer};
