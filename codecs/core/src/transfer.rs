@@ -4,6 +4,7 @@
 //! Pixels in memory are always linear; these functions are for the edges (codecs, export,
 //! metrics). Absolute curves (PQ, the HLG EOTF) take and return cd/m²; relative ones take
 //! [0, 1] (sRGB extends past 1 and mirrors negatives, for HDR and wide-gamut data).
+//! NaN: PQ, HLG and BT.1886 clamp it to 0 like any out-of-range input; sRGB passes it through.
 
 /// Clamps to [0, 1], NaN to 0 (`f64::clamp` would keep NaN).
 fn unit(v: f64) -> f64 {
