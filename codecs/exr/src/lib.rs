@@ -1,1 +1,248 @@
-//! OpenEXR reading and writing for hdrcodec, through the exr crate (being written)
+//! OpenEXR reading and writing for hdrcodec, through the [`exr`] crate.
+//!
+//! - Reading: the R, G, B(, A) channels (names matched case-insensitively; a `layer.R` prefix
+//!   is accepted when there are no plain R, G, B) of the first part; a luminance-only `Y` file
+//!   becomes grey RGB. Half, float and uint samples become `f32` (uint keeps its numeric value).
+//!   Tiled files give their largest mip/rip level. The **data window** is returned (its size is
+//!   the image size; like OpenImageIO, pixels are neither cropped nor padded to the display
+//!   window); when the two windows differ, both are recorded in the metadata
+//!   `exr.data_window` / `exr.display_window` as `xmin ymin xmax ymax`. The `chromaticities`
+//!   attribute sets [`ColorInfo::primaries`](hdrcodec_core::ColorInfo) (absent: BT.709) and
+//!   `whiteLuminance` sets `nits_per_unit`. Every compression `exr` decodes is read: none, RLE,
+//!   ZIPS, ZIP, PIZ, PXR24, B44, B44A, DWAA, DWAB (not HTJ2K).
+//! - Writing: one scan-line part, `R, G, B(, A)`, half or float, any [`ExrCompression`];
+//!   `chromaticities` is written when the primaries are not BT.709, `whiteLuminance` when
+//!   `nits_per_unit` is not 100.
+//!
+//! ```
+//! use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
+//! use hdrcodec_exr::ExrCodec;
+//! let img = HdrImage::new(2, 1, Channels::Rgb, vec![0.5, 1.0, 2.0, 1000.0, 0.0, 0.25], ColorInfo::default())?;
+//! let settings = EncodeSettings::default().with_option("compression", "piz").with_option("pixel", "float");
+//! let bytes = ExrCodec.encode(&img, &settings)?;
+//! let back = ExrCodec.decode(&bytes, &Limits::default())?;
+//! assert_eq!(back.samples(), img.samples());
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
+
+mod decode;
+mod encode;
+
+/// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
+pub use exr;
+
+pub use decode::decode_exr;
+pub use encode::encode_exr;
+
+use exr::compression::Compression;
+use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use std::fmt;
+use std::str::FromStr;
+
+/// The OpenEXR magic number, the first four bytes of every file.
+pub const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// How the pixels of a written file are compressed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum ExrCompression {
+    /// Uncompressed.
+    None,
+    /// Run-length encoding (lossless).
+    Rle,
+    /// Zlib, one scan line per block ("ZIPS", lossless).
+    Zip1,
+    /// Zlib, 16 scan lines per block ("ZIP", lossless). The default: the common VFX choice,
+    /// fast to decode and, unlike PIZ, good on smooth renders as well as on grain.
+    #[default]
+    Zip16,
+    /// Wavelet + Huffman, 32 lines per block (lossless; best on noisy photographs).
+    Piz,
+    /// 24-bit float + zlib: lossless for half, lossy (16-bit mantissa) for float.
+    Pxr24,
+    /// 4x4 blocks at a fixed ratio: lossy for half; float channels are stored uncompressed.
+    B44,
+    /// B44 with flat blocks stored in 3 bytes (lossy for half).
+    B44A,
+    /// Lossy DCT, 32 lines per block, at `exr`'s default level 45.
+    Dwaa,
+    /// Lossy DCT, 256 lines per block, at `exr`'s default level 45.
+    Dwab,
+}
+
+impl ExrCompression {
+    /// Every compression, in the order of the OpenEXR compression ids.
+    pub const ALL: [ExrCompression; 10] = [
+        ExrCompression::None,
+        ExrCompression::Rle,
+        ExrCompression::Zip1,
+        ExrCompression::Zip16,
+        ExrCompression::Piz,
+        ExrCompression::Pxr24,
+        ExrCompression::B44,
+        ExrCompression::B44A,
+        ExrCompression::Dwaa,
+        ExrCompression::Dwab,
+    ];
+
+    /// The name used in options and by OpenEXR's tools (`none`, `rle`, `zips`, `zip`, `piz`,
+    /// `pxr24`, `b44`, `b44a`, `dwaa`, `dwab`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ExrCompression::None => "none",
+            ExrCompression::Rle => "rle",
+            ExrCompression::Zip1 => "zips",
+            ExrCompression::Zip16 => "zip",
+            ExrCompression::Piz => "piz",
+            ExrCompression::Pxr24 => "pxr24",
+            ExrCompression::B44 => "b44",
+            ExrCompression::B44A => "b44a",
+            ExrCompression::Dwaa => "dwaa",
+            ExrCompression::Dwab => "dwab",
+        }
+    }
+
+    /// True when decoding gives back exactly the written half samples.
+    pub fn is_lossless_for_half(self) -> bool {
+        !matches!(self, ExrCompression::B44 | ExrCompression::B44A | ExrCompression::Dwaa | ExrCompression::Dwab)
+    }
+
+    /// True when decoding gives back exactly the written float samples.
+    pub fn is_lossless_for_float(self) -> bool {
+        // B44 leaves float channels uncompressed; DWA and PXR24 quantise them.
+        !matches!(self, ExrCompression::Pxr24 | ExrCompression::Dwaa | ExrCompression::Dwab)
+    }
+
+    pub(crate) fn to_exr(self) -> Compression {
+        match self {
+            ExrCompression::None => Compression::Uncompressed,
+            ExrCompression::Rle => Compression::RLE,
+            ExrCompression::Zip1 => Compression::ZIP1,
+            ExrCompression::Zip16 => Compression::ZIP16,
+            ExrCompression::Piz => Compression::PIZ,
+            ExrCompression::Pxr24 => Compression::PXR24,
+            ExrCompression::B44 => Compression::B44,
+            ExrCompression::B44A => Compression::B44A,
+            ExrCompression::Dwaa => Compression::DWAA(None),
+            ExrCompression::Dwab => Compression::DWAB(None),
+        }
+    }
+}
+
+impl fmt::Display for ExrCompression {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for ExrCompression {
+    type Err = Error;
+    /// Accepts the names of [`ExrCompression::name`], case-insensitively, plus `uncompressed`,
+    /// `zip1`, `zip16`.
+    fn from_str(s: &str) -> Result<Self> {
+        let lower = s.to_ascii_lowercase();
+        let alias = match lower.as_str() {
+            "uncompressed" => "none",
+            "zip1" => "zips",
+            "zip16" => "zip",
+            other => other,
+        };
+        ExrCompression::ALL.into_iter().find(|c| c.name() == alias).ok_or_else(|| {
+            let names: Vec<&str> = ExrCompression::ALL.iter().map(|c| c.name()).collect();
+            Error::invalid(format!("unknown OpenEXR compression '{s}' (known: {})", names.join(", ")))
+        })
+    }
+}
+
+/// The sample type of a written file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum ExrPixelType {
+    /// 16-bit half float (about 3.3 significant digits, range ±65504; values beyond become
+    /// ±infinity). The default: what VFX pipelines exchange, half the size of float.
+    #[default]
+    Half,
+    /// 32-bit float: exact.
+    Float,
+}
+
+impl FromStr for ExrPixelType {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "half" | "f16" => Ok(ExrPixelType::Half),
+            "float" | "f32" => Ok(ExrPixelType::Float),
+            _ => Err(Error::invalid(format!("unknown OpenEXR pixel type '{s}' (known: half, float)"))),
+        }
+    }
+}
+
+/// Options of the OpenEXR writer. The default, ZIP (16 lines) + half, is the common VFX choice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct ExrEncodeOptions {
+    /// Pixel compression.
+    pub compression: ExrCompression,
+    /// Sample type.
+    pub pixel: ExrPixelType,
+}
+
+impl ExrEncodeOptions {
+    /// The options given in `settings` (`compression=...`, `pixel=half|float`); any other key
+    /// is an error.
+    pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
+        settings.check_options("exr", &["compression", "pixel"])?;
+        let mut o = ExrEncodeOptions::default();
+        if let Some(c) = settings.option("compression") {
+            o.compression = c.parse()?;
+        }
+        if let Some(p) = settings.option("pixel") {
+            o.pixel = p.parse()?;
+        }
+        Ok(o)
+    }
+}
+
+/// Human-readable name of an `exr` compression, for metadata.
+pub(crate) fn compression_name(c: Compression) -> &'static str {
+    match c {
+        Compression::Uncompressed => "none",
+        Compression::RLE => "rle",
+        Compression::ZIP1 => "zips",
+        Compression::ZIP16 => "zip",
+        Compression::PIZ => "piz",
+        Compression::PXR24 => "pxr24",
+        Compression::B44 => "b44",
+        Compression::B44A => "b44a",
+        Compression::DWAA(_) => "dwaa",
+        Compression::DWAB(_) => "dwab",
+        Compression::HTJ2K32 => "htj2k32",
+        Compression::HTJ2K256 => "htj2k256",
+    }
+}
+
+/// The OpenEXR codec of the family (`exr`, id `OEXR`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ExrCodec;
+
+impl ImageCodec for ExrCodec {
+    fn name(&self) -> &'static str {
+        "exr"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"OEXR"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["exr"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        head.starts_with(&MAGIC)
+    }
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        decode_exr(data, limits)
+    }
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        let options = ExrEncodeOptions::from_settings(settings)?;
+        encode_exr(image, &options, settings.threads)
+    }
+}
+
+#[cfg(test)]
+mod tests;

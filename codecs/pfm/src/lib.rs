@@ -1,1 +1,188 @@
-//! Portable float map (PFM) reading and writing for hdrcodec (being written)
+//! Portable float map (PFM) reading and writing for hdrcodec.
+//!
+//! PFM is the three-line ASCII header `PF` (RGB) or `Pf` (grey), `width height`, `scale`,
+//! then raw 32-bit floats, rows **bottom to top**. The sign of `scale` gives the byte order
+//! (negative: little-endian, positive: big-endian); its magnitude has no agreed meaning (some
+//! tools store an exposure in it) and is kept, when it is not 1, as metadata `pfm.scale`
+//! without touching the samples.
+//!
+//! - Reading: `PF` and `Pf` in either byte order; grey becomes R = G = B. The header is parsed
+//!   strictly (one whitespace-separated token per field, decimal unsigned sizes, a finite
+//!   non-zero scale, exactly one whitespace byte before the data); the size is checked against
+//!   [`Limits`] before anything is allocated; short data is [`Error::Truncated`]. Bytes after
+//!   the pixels are ignored (some writers pad).
+//! - Writing: `PF`, little-endian (scale `-1`). PFM has no alpha channel: **alpha is dropped**.
+//!   Samples are written as they are (NaN and infinities included).
+//!
+//! ```
+//! use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
+//! use hdrcodec_pfm::PfmCodec;
+//! let img = HdrImage::new(1, 2, Channels::Rgb, vec![1.0, 2.0, 3.0, 1e6, 0.0, -1.0], ColorInfo::default())?;
+//! let bytes = PfmCodec.encode(&img, &EncodeSettings::default())?;
+//! assert!(bytes.starts_with(b"PF\n1 2\n-1\n"));
+//! assert_eq!(PfmCodec.decode(&bytes, &Limits::default())?, img);
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
+
+use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+
+/// The PFM codec of the family (`pfm`, id `PFM `).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PfmCodec;
+
+/// The longest header accepted: three short lines. Anything longer is not a PFM header.
+const MAX_HEADER: usize = 256;
+
+/// A parsed header.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Header {
+    grey: bool,
+    width: u32,
+    height: u32,
+    little_endian: bool,
+    scale: f32,
+    /// Offset of the first pixel byte.
+    data_start: usize,
+}
+
+/// Reads one whitespace-separated token starting at `*pos` (after skipping whitespace); the
+/// token must end with a whitespace byte within the first [`MAX_HEADER`] bytes.
+fn token<'a>(data: &'a [u8], pos: &mut usize, what: &str) -> Result<&'a [u8]> {
+    let end = data.len().min(MAX_HEADER);
+    while *pos < end && data[*pos].is_ascii_whitespace() {
+        *pos += 1;
+    }
+    let start = *pos;
+    while *pos < end && !data[*pos].is_ascii_whitespace() {
+        *pos += 1;
+    }
+    if *pos == end {
+        return Err(if end == data.len() {
+            Error::truncated(format!("the PFM header ({what})"))
+        } else {
+            Error::invalid(format!("PFM header: {what} is missing or the header is longer than {MAX_HEADER} bytes"))
+        });
+    }
+    Ok(&data[start..*pos])
+}
+
+fn parse_size(t: &[u8], what: &str) -> Result<u32> {
+    let s = std::str::from_utf8(t).ok().filter(|s| s.bytes().all(|b| b.is_ascii_digit()));
+    s.and_then(|s| s.parse::<u32>().ok())
+        .filter(|&v| v > 0)
+        .ok_or_else(|| Error::invalid(format!("PFM header: {what} '{}' is not a positive integer", show(t))))
+}
+
+fn show(t: &[u8]) -> String {
+    String::from_utf8_lossy(&t[..t.len().min(16)]).into_owned()
+}
+
+fn parse_header(data: &[u8]) -> Result<Header> {
+    if data.len() < 3 {
+        return Err(Error::truncated("the PFM magic"));
+    }
+    let grey = match &data[..2] {
+        b"PF" => false,
+        b"Pf" => true,
+        _ => return Err(Error::invalid("not a PFM file (it does not start with PF or Pf)")),
+    };
+    if !data[2].is_ascii_whitespace() {
+        return Err(Error::invalid("not a PFM file (no whitespace after PF/Pf)"));
+    }
+    let mut pos = 2;
+    let width = parse_size(token(data, &mut pos, "the width")?, "width")?;
+    let height = parse_size(token(data, &mut pos, "the height")?, "height")?;
+    let scale_tok = token(data, &mut pos, "the scale")?;
+    let scale = std::str::from_utf8(scale_tok)
+        .ok()
+        .and_then(|s| s.parse::<f32>().ok())
+        .filter(|s| s.is_finite() && *s != 0.0)
+        .ok_or_else(|| {
+            Error::invalid(format!("PFM header: scale '{}' is not a finite non-zero number", show(scale_tok)))
+        })?;
+    // `token` stopped on the single whitespace byte that ends the header.
+    Ok(Header { grey, width, height, little_endian: scale < 0.0, scale: scale.abs(), data_start: pos + 1 })
+}
+
+/// Decodes a PFM file held in memory.
+pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    let h = parse_header(data)?;
+    let (w, ht) = (h.width as usize, h.height as usize);
+    limits.check_image(w as u64, ht as u64, Channels::Rgb)?;
+    let per_pixel = if h.grey { 1 } else { 3 };
+    let need = (w as u64) * (ht as u64) * per_pixel * 4;
+    let avail = (data.len() - h.data_start) as u64;
+    if avail < need {
+        return Err(Error::truncated(format!("the PFM pixels ({need} bytes needed, {avail} present)")));
+    }
+    let pixels = &data[h.data_start..h.data_start + need as usize];
+    let read = |b: &[u8]| {
+        let b = [b[0], b[1], b[2], b[3]];
+        if h.little_endian {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    };
+    let row_bytes = w * per_pixel as usize * 4;
+    let mut samples = Vec::with_capacity(w * ht * 3);
+    // Rows are stored bottom to top.
+    for row in pixels.chunks_exact(row_bytes).rev() {
+        if h.grey {
+            samples.extend(row.chunks_exact(4).flat_map(|b| [read(b); 3]));
+        } else {
+            samples.extend(row.chunks_exact(4).map(read));
+        }
+    }
+    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, ColorInfo::default())?;
+    if h.scale != 1.0 {
+        image.set_metadata("pfm.scale", h.scale.to_string());
+    }
+    Ok(image)
+}
+
+/// Encodes `image` as a little-endian `PF` file (alpha, if any, is dropped).
+pub fn encode_pfm(image: &HdrImage) -> Result<Vec<u8>> {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    if w == 0 || h == 0 {
+        return Err(Error::invalid(format!("cannot write an empty {w}x{h} image")));
+    }
+    let header = format!("PF\n{w} {h}\n-1\n");
+    let mut out = Vec::with_capacity(header.len() + w * h * 12);
+    out.extend_from_slice(header.as_bytes());
+    let n = image.channels().count();
+    for y in (0..h).rev() {
+        for px in image.row(y as u32).chunks_exact(n) {
+            for v in &px[..3] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl ImageCodec for PfmCodec {
+    fn name(&self) -> &'static str {
+        "pfm"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"PFM "
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["pfm"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        head.len() >= 3 && (head.starts_with(b"PF") || head.starts_with(b"Pf")) && head[2].is_ascii_whitespace()
+    }
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        decode_pfm(data, limits)
+    }
+    /// PFM has no options; any `key=value` is an error.
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        settings.check_options("pfm", &[])?;
+        encode_pfm(image)
+    }
+}
+
+#[cfg(test)]
+mod tests;

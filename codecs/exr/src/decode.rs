@@ -1,0 +1,312 @@
+//! Reading: the `exr` crate parses headers and decompresses chunks; this module checks the
+//! declared sizes against [`Limits`] first, picks the R, G, B(, A) or Y channels, and copies the
+//! samples of the largest resolution level of the first part into an [`HdrImage`].
+//!
+//! The block-level API of `exr` is used instead of its high-level image reader for three
+//! reasons: only the chosen channels of level 0 are converted (no per-channel buffers of the
+//! whole image), nothing is allocated before the limits are checked, and the parallel
+//! decompression runs on rayon's global pool where a panic inside `exr` is caught per chunk
+//! (the high-level reader builds its own pool, in which a panicking task aborts the process).
+
+use exr::block::chunk::Chunk;
+use exr::block::reader::ChunksReader;
+use exr::block::UncompressedBlock;
+use exr::meta::attribute::SampleType;
+use exr::meta::header::Header;
+use exr::meta::MetaData;
+use hdrcodec_core::{Channels, Chromaticities, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
+use rayon::prelude::*;
+use std::io::Cursor;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use crate::{compression_name, MAGIC};
+
+/// Chunks decompressed per parallel batch: bounds the memory held in decompressed blocks
+/// to a few dozen blocks while keeping both cores busy.
+const BATCH: usize = 32;
+
+/// Decodes an OpenEXR file held in memory. Never panics: a panic inside the `exr` crate is
+/// turned into [`Error::Invalid`].
+pub fn decode_exr(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    guarded("reading the OpenEXR file", || decode_inner(data, limits))
+}
+
+/// Runs `f`, turning a panic into an `Invalid` error that names `what` and the panic message.
+pub(crate) fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let msg = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".to_string());
+            Err(Error::invalid(format!("malformed OpenEXR data: the exr crate panicked while {what} ({msg})")))
+        }
+    }
+}
+
+/// Maps an error of the `exr` crate onto the family's error.
+pub(crate) fn map_err(e: exr::error::Error) -> Error {
+    use exr::error::Error as E;
+    match e {
+        E::NotSupported(what) => Error::unsupported(format!("OpenEXR: {what}")),
+        E::Invalid(what) => Error::invalid(format!("OpenEXR: {what}")),
+        E::Aborted => Error::invalid("OpenEXR: reading was aborted"),
+        E::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => Error::truncated("the OpenEXR file"),
+        E::Io(io) => Error::invalid(format!("OpenEXR: {io}")),
+    }
+}
+
+/// Where one output sample comes from.
+#[derive(Clone, Copy)]
+struct Source {
+    /// Byte offset of the channel's samples inside one line of a block, per pixel of block width.
+    bytes_before: usize,
+    sample_type: SampleType,
+}
+
+/// The channels chosen from the first part.
+struct Selection {
+    /// R, G, B (the same Y channel three times for a luminance image), then A if present.
+    sources: Vec<Source>,
+    channels: Channels,
+}
+
+fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    if data.len() < 4 {
+        return Err(Error::truncated("the OpenEXR magic number"));
+    }
+    if data[..4] != MAGIC {
+        return Err(Error::invalid("not an OpenEXR file (the magic number 76 2f 31 01 is missing)"));
+    }
+    let reader = exr::block::read(Cursor::new(data), false).map_err(map_err)?;
+    let meta = reader.meta_data().clone();
+    let header = meta.headers.first().ok_or_else(|| Error::invalid("OpenEXR file without a header"))?;
+    if header.deep {
+        return Err(Error::unsupported("deep OpenEXR data (samples per pixel vary); only flat images are read"));
+    }
+    let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+    let selection = select_channels(header)?;
+    limits.check_image(w, h, selection.channels)?;
+    // The offset tables of every part are read before any chunk: 8 bytes each in the file, so
+    // a table longer than the file is a truncation, found before `exr` allocates it.
+    let offsets: u64 = meta.headers.iter().map(|h| h.chunk_count as u64).sum::<u64>().saturating_mul(8);
+    if offsets > data.len() as u64 {
+        return Err(Error::truncated(format!("the OpenEXR offset tables ({offsets} bytes declared)")));
+    }
+    let block_bytes = header.max_block_pixel_size().area() as u64 * header.channels.bytes_per_pixel as u64;
+    limits.check_alloc(block_bytes.saturating_mul(BATCH as u64), "the decompressed OpenEXR blocks")?;
+
+    let chunks = reader
+        .filter_chunks(false, |_, _, block| block.layer == 0 && block.level == exr::math::Vec2(0, 0))
+        .map_err(map_err)?;
+    let expected = chunks.expected_chunk_count();
+    let chunks: Vec<Chunk> = chunks.collect::<std::result::Result<_, _>>().map_err(map_err)?;
+    if chunks.len() != expected {
+        return Err(Error::truncated("the OpenEXR chunks"));
+    }
+
+    let (w, h) = (w as usize, h as usize);
+    let n = selection.channels.count();
+    let mut samples = vec![0.0f32; w * h * n];
+    let mut covered = 0usize;
+    let mut seen = std::collections::HashSet::new();
+    // Large files decompress on both cores; small ones (most fuzz inputs) stay on this thread.
+    let parallel = chunks.len() > 2 && data.len() > 1 << 16;
+    let mut iter = chunks.into_iter();
+    loop {
+        let batch: Vec<Chunk> = iter.by_ref().take(BATCH).collect();
+        if batch.is_empty() {
+            break;
+        }
+        let decompress = |c: Chunk| {
+            guarded("decompressing a chunk", || UncompressedBlock::decompress_chunk(c, &meta, false).map_err(map_err))
+        };
+        let blocks: Vec<Result<UncompressedBlock>> = if parallel {
+            batch.into_par_iter().map(decompress).collect()
+        } else {
+            batch.into_iter().map(decompress).collect()
+        };
+        for block in blocks {
+            let block = block?;
+            let idx = block.index;
+            if !seen.insert((idx.pixel_position.x(), idx.pixel_position.y())) {
+                return Err(Error::invalid("OpenEXR: two chunks hold the same block"));
+            }
+            copy_block(&block, header, &selection, w, h, &mut samples)?;
+            covered += idx.pixel_size.area();
+        }
+    }
+    if covered != w * h {
+        return Err(Error::invalid(format!("OpenEXR: the chunks cover {covered} of {} pixels", w * h)));
+    }
+
+    let mut image = HdrImage::new(w as u32, h as u32, selection.channels, samples, color_info(&meta))?;
+    set_metadata(&mut image, header);
+    Ok(image)
+}
+
+/// Picks R, G, B (and A) by name, case-insensitively, from the channels without a layer
+/// prefix, else from the first prefix (`diffuse.R`, ...) that has all three; a luminance-only
+/// image (Y, no RY/BY chroma) becomes grey RGB.
+fn select_channels(header: &Header) -> Result<Selection> {
+    let list = &header.channels.list;
+    if let Some(c) = list.iter().find(|c| c.sampling != exr::math::Vec2(1, 1)) {
+        return Err(Error::unsupported(format!(
+            "OpenEXR channel {} is subsampled ({}x{}); luminance/chroma images are not supported",
+            c.name,
+            c.sampling.x(),
+            c.sampling.y()
+        )));
+    }
+    // Byte offset of each channel inside a line, per pixel of width (channels are stored in
+    // the order of the list, which `exr` keeps sorted as the file has them).
+    let mut before = Vec::with_capacity(list.len());
+    let mut acc = 0usize;
+    for c in list.iter() {
+        before.push(acc);
+        acc += c.sample_type.bytes_per_sample();
+    }
+    let names: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
+    let split = |name: &str| match name.rfind('.') {
+        Some(i) => (name[..i].to_string(), name[i + 1..].to_ascii_uppercase()),
+        None => (String::new(), name.to_ascii_uppercase()),
+    };
+    let parts: Vec<(String, String)> = names.iter().map(|n| split(n)).collect();
+    let find = |prefix: &str, base: &str| parts.iter().position(|(p, b)| p == prefix && b == base);
+    let source = |i: usize| Source { bytes_before: before[i], sample_type: list[i].sample_type };
+
+    // R, G, B (or Y three times) plus the alpha of the same prefix, if any.
+    let select = |prefix: &str, rgb: [usize; 3]| {
+        let mut sources: Vec<Source> = rgb.iter().map(|&i| source(i)).collect();
+        let alpha = find(prefix, "A").map(|a| sources.push(source(a)));
+        Selection { sources, channels: if alpha.is_some() { Channels::Rgba } else { Channels::Rgb } }
+    };
+
+    let mut prefixes: Vec<&str> = parts.iter().map(|(p, _)| p.as_str()).collect();
+    prefixes.sort_unstable();
+    prefixes.dedup(); // the empty prefix sorts first, so unprefixed channels win
+    for prefix in &prefixes {
+        if let (Some(r), Some(g), Some(b)) = (find(prefix, "R"), find(prefix, "G"), find(prefix, "B")) {
+            return Ok(select(prefix, [r, g, b]));
+        }
+    }
+    for prefix in &prefixes {
+        if let Some(y) = find(prefix, "Y") {
+            if find(prefix, "RY").is_some() || find(prefix, "BY").is_some() {
+                return Err(Error::unsupported("OpenEXR luminance/chroma (Y, RY, BY) images are not supported"));
+            }
+            return Ok(select(prefix, [y; 3]));
+        }
+    }
+    Err(Error::unsupported(format!("OpenEXR part without R, G, B or Y channels (it has: {})", names.join(", "))))
+}
+
+/// Copies the chosen channels of one decompressed block (lines of `width` samples per channel,
+/// channel after channel) into the interleaved output.
+fn copy_block(
+    block: &UncompressedBlock,
+    header: &Header,
+    sel: &Selection,
+    w: usize,
+    h: usize,
+    out: &mut [f32],
+) -> Result<()> {
+    let idx = block.index;
+    let (bx, by) = (idx.pixel_position.x(), idx.pixel_position.y());
+    let (bw, bh) = (idx.pixel_size.x(), idx.pixel_size.y());
+    if bx + bw > w || by + bh > h {
+        return Err(Error::invalid("OpenEXR: a chunk lies outside the data window"));
+    }
+    let line = bw * header.channels.bytes_per_pixel;
+    if block.data.len() != line * bh {
+        return Err(Error::invalid("OpenEXR: a decompressed chunk has the wrong size"));
+    }
+    let n = sel.channels.count();
+    for (row, src_line) in block.data.chunks_exact(line).enumerate() {
+        let dst = &mut out[((by + row) * w + bx) * n..((by + row) * w + bx + bw) * n];
+        for (c, s) in sel.sources.iter().enumerate() {
+            let start = s.bytes_before * bw;
+            let size = s.sample_type.bytes_per_sample();
+            let src = &src_line[start..start + size * bw];
+            let dst = dst.iter_mut().skip(c).step_by(n);
+            match s.sample_type {
+                SampleType::F16 => {
+                    for (d, b) in dst.zip(src.chunks_exact(2)) {
+                        *d = exr::prelude::f16::from_bits(u16::from_ne_bytes([b[0], b[1]])).to_f32();
+                    }
+                }
+                SampleType::F32 => {
+                    for (d, b) in dst.zip(src.chunks_exact(4)) {
+                        *d = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+                    }
+                }
+                // Unsigned integers (object ids, counts) keep their numeric value.
+                SampleType::U32 => {
+                    for (d, b) in dst.zip(src.chunks_exact(4)) {
+                        *d = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as f32;
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// An `f32` attribute value as the decimal number it was written as (0.64f32 → 0.64f64, not
+/// 0.63999998569...), so that named colour spaces and custom ones read back cleanly.
+fn clean(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(v as f64)
+}
+
+fn color_info(meta: &MetaData) -> ColorInfo {
+    let header = &meta.headers[0];
+    let mut color = ColorInfo::default();
+    if let Some(c) = header.shared_attributes.chromaticities {
+        let xy = |v: exr::math::Vec2<f32>| [clean(v.x()), clean(v.y())];
+        color.primaries = ColorPrimaries::from_chromaticities(Chromaticities {
+            red: xy(c.red),
+            green: xy(c.green),
+            blue: xy(c.blue),
+            white: xy(c.white),
+        });
+    }
+    if let Some(l) = header.own_attributes.white_luminance {
+        if l.is_finite() && l > 0.0 {
+            color.nits_per_unit = l;
+        }
+    }
+    color
+}
+
+/// Records what `hdrcodec info` shows and what the pixels alone do not say.
+fn set_metadata(image: &mut HdrImage, header: &Header) {
+    image.set_metadata("exr.compression", compression_name(header.compression));
+    let types: Vec<&str> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| match c.sample_type {
+            SampleType::F16 => "half",
+            SampleType::F32 => "float",
+            SampleType::U32 => "uint",
+        })
+        .collect();
+    let mut dedup = types.clone();
+    dedup.dedup();
+    image.set_metadata("exr.pixel", if dedup.len() == 1 { dedup[0].to_string() } else { types.join(",") });
+    let data = header.data_window();
+    let display = header.shared_attributes.display_window;
+    if data != display {
+        let rect = |b: exr::meta::attribute::IntegerBounds| {
+            let end = b.max();
+            format!("{} {} {} {}", b.position.x(), b.position.y(), end.x(), end.y())
+        };
+        image.set_metadata("exr.data_window", rect(data));
+        image.set_metadata("exr.display_window", rect(display));
+    }
+    if let exr::meta::BlockDescription::Tiles(t) = header.blocks {
+        image.set_metadata("exr.tiles", format!("{}x{}", t.tile_size.x(), t.tile_size.y()));
+    }
+}

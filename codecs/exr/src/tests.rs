@@ -1,0 +1,258 @@
+//! Unit tests. Files that are not ours to write (luminance-only, offset data windows, odd
+//! channel names) are made with the `exr` crate's own writer, an independent implementation.
+//! The bit-exact comparison with OpenImageIO on the shared corpus is in the workspace test
+//! `tests/exr_oiio.rs`.
+
+use super::*;
+use exr::image::{AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer};
+use exr::math::Vec2;
+use exr::meta::attribute::IntegerBounds;
+use exr::meta::header::LayerAttributes;
+use exr::prelude::{f16, SmallVec, WritableImage};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries};
+
+fn picture(w: u32, h: u32, channels: Channels) -> HdrImage {
+    let n = channels.count();
+    let s = (0..w * h * n as u32)
+        .map(|i| {
+            let v = (i as f32 * 0.7311).sin();
+            if i % 5 == 0 {
+                v * 3.0e4
+            } else {
+                v.abs() * 1.7e-3 + (i % n as u32) as f32
+            }
+        })
+        .collect();
+    HdrImage::new(w, h, channels, s, ColorInfo::default()).unwrap()
+}
+
+fn settings(c: ExrCompression, pixel: &str) -> EncodeSettings {
+    EncodeSettings::default().with_option("compression", c.name()).with_option("pixel", pixel)
+}
+
+/// Writes a one-part file with the given channels through the `exr` crate.
+fn exr_file(size: (usize, usize), position: (i32, i32), channels: Vec<(&str, Vec<f32>)>) -> Vec<u8> {
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+        channels.into_iter().map(|(n, v)| AnyChannel::new(n, FlatSamples::F32(v))).collect();
+    let attributes = LayerAttributes { layer_position: Vec2(position.0, position.1), ..Default::default() };
+    let layer = Layer::new(Vec2(size.0, size.1), attributes, Encoding::FAST_LOSSLESS, AnyChannels::sort(list));
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new(Vec2(0, 0), Vec2(8, 8));
+    let mut out = std::io::Cursor::new(Vec::new());
+    image.write().non_parallel().to_buffered(&mut out).unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn lossless_compressions_round_trip_exactly() {
+    for c in ExrCompression::ALL {
+        for channels in [Channels::Rgb, Channels::Rgba] {
+            let img = picture(19, 37, channels);
+            if c.is_lossless_for_float() {
+                let bytes = ExrCodec.encode(&img, &settings(c, "float")).unwrap();
+                let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+                assert_eq!(back.samples(), img.samples(), "{c} float");
+            }
+            if c.is_lossless_for_half() {
+                let bytes = ExrCodec.encode(&img, &settings(c, "half")).unwrap();
+                let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+                let want: Vec<f32> = img.samples().iter().map(|&v| f16::from_f32(v).to_f32()).collect();
+                assert_eq!(back.samples(), &want[..], "{c} half");
+                assert_eq!(back.metadata_value("exr.compression"), Some(c.name()));
+                assert_eq!(back.metadata_value("exr.pixel"), Some("half"));
+            }
+        }
+    }
+}
+
+#[test]
+fn lossy_compressions_stay_close() {
+    // A smooth picture, the kind B44 and DWA are made for.
+    let (w, h) = (40u32, 24u32);
+    let s = (0..w * h).flat_map(|i| {
+        let (x, y) = ((i % w) as f32 / w as f32, (i / w) as f32 / h as f32);
+        [0.2 + x, 0.5 + 0.3 * y, 1.0 + x * y]
+    });
+    let img = HdrImage::new(w, h, Channels::Rgb, s.collect(), ColorInfo::default()).unwrap();
+    for c in [ExrCompression::B44, ExrCompression::B44A, ExrCompression::Dwaa, ExrCompression::Dwab] {
+        let bytes = ExrCodec.encode(&img, &settings(c, "half")).unwrap();
+        let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+        let worst = img.samples().iter().zip(back.samples()).map(|(a, b)| ((a - b) / a).abs()).fold(0.0, f32::max);
+        assert!(worst < 0.02, "{c}: max relative error {worst}");
+    }
+}
+
+#[test]
+fn options_are_parsed_and_checked() {
+    let o = ExrEncodeOptions::from_settings(&EncodeSettings::default()).unwrap();
+    assert_eq!(o, ExrEncodeOptions { compression: ExrCompression::Zip16, pixel: ExrPixelType::Half });
+    let o = ExrEncodeOptions::from_settings(&settings(ExrCompression::Pxr24, "FLOAT")).unwrap();
+    assert_eq!((o.compression, o.pixel), (ExrCompression::Pxr24, ExrPixelType::Float));
+    assert_eq!("ZIP1".parse::<ExrCompression>().unwrap(), ExrCompression::Zip1);
+    assert_eq!("uncompressed".parse::<ExrCompression>().unwrap(), ExrCompression::None);
+    let e = ExrCodec.encode(&picture(2, 2, Channels::Rgb), &EncodeSettings::default().with_option("quality", "3"));
+    assert!(e.unwrap_err().to_string().contains("unknown option 'quality' for codec exr"));
+    let e = "lzw".parse::<ExrCompression>().unwrap_err().to_string();
+    assert!(e.contains("'lzw'") && e.contains("dwab"), "{e}");
+    assert!("double".parse::<ExrPixelType>().is_err());
+}
+
+#[test]
+fn colour_attributes_round_trip() {
+    let mut img = picture(3, 2, Channels::Rgb);
+    img.color.primaries = ColorPrimaries::Bt2020;
+    img.color.nits_per_unit = 203.0;
+    let bytes = ExrCodec.encode(&img, &EncodeSettings::default()).unwrap();
+    let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(back.color.primaries, ColorPrimaries::Bt2020);
+    assert_eq!(back.color.nits_per_unit, 203.0);
+    // The `exr` crate reads what we wrote as the standard attributes.
+    let meta = exr::meta::MetaData::read_from_buffered(&bytes[..], true).unwrap();
+    let h = &meta.headers[0];
+    assert_eq!(h.own_attributes.white_luminance, Some(203.0));
+    assert_eq!(h.shared_attributes.chromaticities.unwrap().green, Vec2(0.170, 0.797));
+    // BT.709 and 100 nits are the defaults: nothing is written.
+    let bytes = ExrCodec.encode(&picture(3, 2, Channels::Rgb), &EncodeSettings::default()).unwrap();
+    let meta = exr::meta::MetaData::read_from_buffered(&bytes[..], true).unwrap();
+    assert!(meta.headers[0].shared_attributes.chromaticities.is_none());
+    assert!(meta.headers[0].own_attributes.white_luminance.is_none());
+    // Custom chromaticities come back as the decimal numbers written.
+    let custom = hdrcodec_core::Chromaticities {
+        red: [0.69, 0.31],
+        green: [0.2, 0.75],
+        blue: [0.14, 0.05],
+        white: [0.3127, 0.329],
+    };
+    img.color.primaries = ColorPrimaries::Custom(custom);
+    let bytes = ExrCodec.encode(&img, &EncodeSettings::default()).unwrap();
+    assert_eq!(ExrCodec.decode(&bytes, &Limits::default()).unwrap().color.primaries, ColorPrimaries::Custom(custom));
+}
+
+#[test]
+fn luminance_only_becomes_grey() {
+    let y = vec![0.25, 1.5, 1e4, 0.0, -2.0, 3.0];
+    let bytes = exr_file((3, 2), (0, 0), vec![("Y", y.clone())]);
+    let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(img.channels(), Channels::Rgb);
+    let want: Vec<f32> = y.iter().flat_map(|&v| [v; 3]).collect();
+    assert_eq!(img.samples(), &want[..]);
+    let bytes = exr_file((3, 2), (0, 0), vec![("y", y.clone()), ("a", vec![0.5; 6])]);
+    let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(img.channels(), Channels::Rgba);
+    assert_eq!(img.pixel(2, 0), &[1e4, 1e4, 1e4, 0.5]);
+}
+
+#[test]
+fn channel_names_are_matched_case_insensitively_and_by_layer() {
+    let plane = |k: f32| (0..4).map(|i| i as f32 + k).collect::<Vec<f32>>();
+    let bytes =
+        exr_file((2, 2), (0, 0), vec![("r", plane(0.1)), ("g", plane(0.2)), ("b", plane(0.3)), ("Z", plane(9.0))]);
+    let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!((img.channels(), img.pixel(1, 1)), (Channels::Rgb, &[3.1, 3.2, 3.3][..]));
+    let bytes =
+        exr_file((2, 2), (0, 0), vec![("diffuse.R", plane(0.1)), ("diffuse.G", plane(0.2)), ("diffuse.B", plane(0.3))]);
+    let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(img.pixel(0, 1), &[2.1, 2.2, 2.3]);
+    let bytes = exr_file((2, 2), (0, 0), vec![("Z", plane(0.0)), ("N.x", plane(0.0))]);
+    let e = ExrCodec.decode(&bytes, &Limits::default()).unwrap_err();
+    assert!(matches!(e, Error::Unsupported { .. }), "{e}");
+    assert!(e.to_string().contains("N.x, Z"), "{e}");
+}
+
+#[test]
+fn the_data_window_is_returned() {
+    let v: Vec<f32> = (0..6).map(|i| i as f32).collect();
+    let bytes = exr_file((3, 2), (5, -1), vec![("R", v.clone()), ("G", v.clone()), ("B", v)]);
+    let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!((img.width(), img.height()), (3, 2));
+    assert_eq!(img.pixel(2, 1), &[5.0, 5.0, 5.0]);
+    assert_eq!(img.metadata_value("exr.data_window"), Some("5 -1 7 0"));
+    assert_eq!(img.metadata_value("exr.display_window"), Some("0 0 7 7"));
+}
+
+#[test]
+fn limits_are_checked_before_allocating() {
+    let bytes = ExrCodec.encode(&picture(8, 8, Channels::Rgb), &EncodeSettings::default()).unwrap();
+    let e = ExrCodec.decode(&bytes, &Limits { max_pixels: 63, ..Limits::default() }).unwrap_err();
+    assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
+    // A data window of 16000 x 16000 in a file of a few hundred bytes.
+    let mut big = bytes.clone();
+    let key = b"dataWindow\0box2i\0";
+    let at = big.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    big[at + 8..at + 12].copy_from_slice(&15999i32.to_le_bytes());
+    big[at + 12..at + 16].copy_from_slice(&15999i32.to_le_bytes());
+    // `exr` writes the optional chunkCount attribute; keep it consistent (16000 / 16 lines).
+    let key = b"chunkCount\0int\0";
+    if let Some(at) = big.windows(key.len()).position(|w| w == key) {
+        let at = at + key.len() + 4;
+        big[at..at + 4].copy_from_slice(&1000i32.to_le_bytes());
+    }
+    let e = ExrCodec.decode(&big, &Limits::fuzzing()).unwrap_err();
+    assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
+    // Within the default limits the offset table alone would be longer than the file.
+    let e = ExrCodec.decode(&big, &Limits::default()).unwrap_err();
+    assert!(matches!(e, Error::Truncated { .. } | Error::Invalid { .. }), "{e}");
+}
+
+#[test]
+fn not_exr_is_rejected() {
+    assert!(matches!(ExrCodec.decode(b"v/1", &Limits::default()), Err(Error::Truncated { .. })));
+    assert!(matches!(ExrCodec.decode(b"PF\n1 1\n-1\n", &Limits::default()), Err(Error::Invalid { .. })));
+    assert!(ExrCodec.sniff(&MAGIC) && !ExrCodec.sniff(b"v/1"));
+    assert_eq!((ExrCodec.name(), ExrCodec.id(), ExrCodec.extensions()), ("exr", *b"OEXR", &["exr"][..]));
+}
+
+/// Decodes `data`; any result is fine except a panic caught by our guard, which is counted.
+fn caught_panic(data: &[u8]) -> bool {
+    match ExrCodec.decode(data, &Limits::fuzzing()) {
+        Err(Error::Invalid { what }) => what.contains("panicked"),
+        _ => false,
+    }
+}
+
+#[test]
+fn every_truncation_is_an_error() {
+    for (c, pixel, channels) in [
+        (ExrCompression::Piz, "half", Channels::Rgba),
+        (ExrCompression::Zip16, "float", Channels::Rgb),
+        (ExrCompression::Dwaa, "half", Channels::Rgb),
+    ] {
+        let bytes = ExrCodec.encode(&picture(9, 35, channels), &settings(c, pixel)).unwrap();
+        let mut panics = 0;
+        for len in 0..bytes.len() {
+            let r = ExrCodec.decode(&bytes[..len], &Limits::fuzzing());
+            assert!(r.is_err(), "{c}: truncation to {len} of {} bytes decoded", bytes.len());
+            panics += caught_panic(&bytes[..len]) as usize;
+        }
+        assert_eq!(panics, 0, "{c}: the exr crate panicked on {panics} truncations");
+    }
+}
+
+#[test]
+fn corrupted_bytes_never_panic() {
+    let mut panics = Vec::new();
+    for (c, pixel) in [
+        (ExrCompression::Piz, "half"),
+        (ExrCompression::Rle, "half"),
+        (ExrCompression::Pxr24, "float"),
+        (ExrCompression::B44A, "half"),
+        (ExrCompression::Dwab, "half"),
+    ] {
+        let bytes = ExrCodec.encode(&picture(11, 7, Channels::Rgba), &settings(c, pixel)).unwrap();
+        let mut data = bytes.clone();
+        for i in 0..bytes.len() {
+            for flip in [0x01u8, 0x80, 0xff] {
+                data[i] ^= flip;
+                if caught_panic(&data) {
+                    panics.push(format!("{c} byte {i} ^ {flip:#x}"));
+                }
+                data[i] = bytes[i];
+            }
+        }
+    }
+    // A panic is caught and reported as Invalid, never unwound into the caller; this lists the
+    // inputs on which the `exr` crate itself panicked.
+    if !panics.is_empty() {
+        eprintln!("exr crate panics caught ({}): {:?}", panics.len(), &panics[..panics.len().min(20)]);
+    }
+}

@@ -1,0 +1,103 @@
+//! The byte layouts below are written out by hand from the format's definition (Paul
+//! Debevec's PFM page, as used by HDRShop and pfstools): "PF"/"Pf", width height, scale whose
+//! sign gives the byte order, then rows of 32-bit floats from the bottom row up.
+
+use super::*;
+
+fn file(magic: &str, w: u32, h: u32, scale: &str, floats: &[f32], big_endian: bool) -> Vec<u8> {
+    let mut v = format!("{magic}\n{w} {h}\n{scale}\n").into_bytes();
+    for f in floats {
+        v.extend_from_slice(&if big_endian { f.to_be_bytes() } else { f.to_le_bytes() });
+    }
+    v
+}
+
+#[test]
+fn grey_big_endian_bottom_up() {
+    // Stored rows: bottom (1, 2), then top (3, 4).
+    let data = file("Pf", 2, 2, "1.0", &[1.0, 2.0, 3.0, 4.0], true);
+    let img = PfmCodec.decode(&data, &Limits::default()).unwrap();
+    assert_eq!((img.width(), img.height(), img.channels()), (2, 2, Channels::Rgb));
+    assert_eq!(img.pixel(0, 0), &[3.0, 3.0, 3.0]);
+    assert_eq!(img.pixel(1, 1), &[2.0, 2.0, 2.0]);
+    assert!(img.metadata.is_empty());
+}
+
+#[test]
+fn colour_little_endian_with_scale() {
+    let data = file("PF", 1, 2, "-2.5", &[1.0, 2.0, 3.0, 1e30, -0.5, f32::INFINITY], false);
+    let img = PfmCodec.decode(&data, &Limits::default()).unwrap();
+    assert_eq!(img.pixel(0, 0), &[1e30, -0.5, f32::INFINITY]);
+    assert_eq!(img.pixel(0, 1), &[1.0, 2.0, 3.0]);
+    assert_eq!(img.metadata_value("pfm.scale"), Some("2.5"));
+}
+
+#[test]
+fn writes_little_endian_pf_and_drops_alpha() {
+    let img = HdrImage::new(2, 1, Channels::Rgba, vec![1.0, 2.0, 3.0, 0.5, 4.0, 5.0, 6.0, 0.25], ColorInfo::default())
+        .unwrap();
+    let bytes = PfmCodec.encode(&img, &EncodeSettings::default()).unwrap();
+    assert_eq!(bytes, file("PF", 2, 1, "-1", &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], false));
+    let back = PfmCodec.decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(back, img.with_channels(Channels::Rgb));
+    assert!(PfmCodec.encode(&img, &EncodeSettings::default().with_option("x", "1")).is_err());
+}
+
+#[test]
+fn header_is_parsed_strictly() {
+    let bad = |d: &[u8]| PfmCodec.decode(d, &Limits::default()).unwrap_err();
+    for h in [
+        &b"PF\n-1 2\n-1\n"[..],
+        b"PF\n0 2\n-1\n",
+        b"PF\n1x 2\n-1\n",
+        b"PF\n1 2\n0\n",
+        b"PF\n1 2\nnan\n",
+        b"PF\n1 2\ninf\n",
+        b"PF\n99999999999 2\n-1\n",
+        b"P6\n1 1\n255\n",
+        b"PFX\n1 1\n-1\n",
+    ] {
+        let e = bad(h);
+        assert!(matches!(e, Error::Invalid { .. }), "{:?}: {e}", String::from_utf8_lossy(h));
+    }
+    let mut long = b"PF\n1 1\n-1".to_vec();
+    long.extend(std::iter::repeat_n(b'0', 300));
+    long.push(b'\n');
+    assert!(matches!(bad(&long), Error::Invalid { .. }));
+    // Whitespace variants that writers produce are accepted.
+    let ok = b"PF\r\n1  1\r\n-1.000000\n\x00\x00\x80\x3f\x00\x00\x00\x40\x00\x00\x40\x40";
+    assert_eq!(PfmCodec.decode(ok, &Limits::default()).unwrap().samples(), &[1.0, 2.0, 3.0]);
+}
+
+#[test]
+fn limits_come_before_allocation() {
+    let data = b"PF\n100000 100000\n-1\n";
+    let e = PfmCodec.decode(data, &Limits::default()).unwrap_err();
+    assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
+    let e = PfmCodec.decode(b"PF\n4000 4000\n-1\n", &Limits::default()).unwrap_err();
+    assert!(matches!(e, Error::Truncated { .. }), "{e}");
+}
+
+#[test]
+fn every_truncation_is_an_error_and_flips_never_panic() {
+    let img =
+        HdrImage::new(3, 2, Channels::Rgb, (0..18).map(|i| i as f32 * 0.5).collect(), ColorInfo::default()).unwrap();
+    let bytes = PfmCodec.encode(&img, &EncodeSettings::default()).unwrap();
+    for len in 0..bytes.len() {
+        assert!(PfmCodec.decode(&bytes[..len], &Limits::fuzzing()).is_err(), "truncated to {len}");
+    }
+    let mut data = bytes.clone();
+    for i in 0..bytes.len() {
+        for flip in [0x01u8, 0x20, 0x80, 0xff] {
+            data[i] ^= flip;
+            let _ = PfmCodec.decode(&data, &Limits::fuzzing());
+            data[i] = bytes[i];
+        }
+    }
+}
+
+#[test]
+fn codec_identity() {
+    assert_eq!((PfmCodec.name(), PfmCodec.id(), PfmCodec.extensions()), ("pfm", *b"PFM ", &["pfm"][..]));
+    assert!(PfmCodec.sniff(b"PF\n") && PfmCodec.sniff(b"Pf\n") && !PfmCodec.sniff(b"PFM") && !PfmCodec.sniff(b"P6\n"));
+}
