@@ -1,0 +1,172 @@
+//! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
+//! optional mip chains.
+use crate::encode::{encode_surface, EncodeOptions};
+use crate::files::{is_bc6h_dds, is_bc6h_ktx2, level_size, read_dds, read_ktx2, write_dds, write_ktx2, Bc6hTexture};
+use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits, Result};
+
+/// The options both codecs understand.
+const OPTIONS: &[&str] = &["signed", "mips"];
+
+/// Downsamples an interleaved RGB surface to `dw` x `dh` with a box filter in linear light:
+/// each output texel is the area-weighted mean of the source texels its footprint covers, so odd
+/// sizes (a 5-wide row halving to 2) weight the shared middle texel by half on each side.
+pub fn downsample_box(src: &[f32], sw: u32, sh: u32, dw: u32, dh: u32) -> Vec<f32> {
+    let (sw, sh, dw, dh) = (sw as usize, sh as usize, dw as usize, dh as usize);
+    let (tx, ty) = (box_taps(sw, dw), box_taps(sh, dh));
+    // Separable: rows first (sw -> dw), then columns (sh -> dh).
+    let mut horiz = vec![0f32; dw * sh * 3];
+    for y in 0..sh {
+        for (x, taps) in tx.iter().enumerate() {
+            for &(i, w) in taps {
+                for c in 0..3 {
+                    horiz[(y * dw + x) * 3 + c] += w * src[(y * sw + i) * 3 + c];
+                }
+            }
+        }
+    }
+    let mut out = vec![0f32; dw * dh * 3];
+    for (y, taps) in ty.iter().enumerate() {
+        for &(i, w) in taps {
+            for x in 0..dw * 3 {
+                out[y * dw * 3 + x] += w * horiz[i * dw * 3 + x];
+            }
+        }
+    }
+    out
+}
+
+/// For each of `m` outputs, the source samples its footprint `[j*n/m, (j+1)*n/m)` overlaps and
+/// the overlap fractions (summing to 1).
+fn box_taps(n: usize, m: usize) -> Vec<Vec<(usize, f32)>> {
+    let scale = n as f64 / m as f64;
+    (0..m)
+        .map(|j| {
+            let (a, b) = (j as f64 * scale, (j + 1) as f64 * scale);
+            (a.floor() as usize..(b.ceil() as usize).min(n))
+                .filter_map(|i| {
+                    let w = (b.min(i as f64 + 1.0) - a.max(i as f64)) / scale;
+                    (w > 0.0).then_some((i, w as f32))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Encodes `rgb` (level 0) and, if `mips`, every smaller level down to 1x1.
+pub fn encode_texture(
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    options: &EncodeOptions,
+    mips: bool,
+) -> Result<Bc6hTexture> {
+    let mut levels = vec![encode_surface(width, height, rgb, options)?];
+    if mips {
+        let mut prev = rgb.to_vec();
+        let mut size = (width, height);
+        for i in 1..crate::files::full_mip_count(width, height) {
+            let (w, h) = level_size(width, height, i);
+            prev = downsample_box(&prev, size.0, size.1, w, h);
+            size = (w, h);
+            levels.push(encode_surface(w, h, &prev, options)?);
+        }
+    }
+    Ok(Bc6hTexture { width, height, signed: options.signed, levels })
+}
+
+fn encode_with(image: &HdrImage, settings: &EncodeSettings, codec: &str) -> Result<Bc6hTexture> {
+    settings.check_options(codec, OPTIONS)?;
+    let signed = settings.bool_option("signed")?.unwrap_or(false);
+    let mips = settings.bool_option("mips")?.unwrap_or(false);
+    let options =
+        EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), threads: settings.threads };
+    let rgb = image.with_channels(Channels::Rgb);
+    encode_texture(image.width(), image.height(), rgb.samples(), &options, mips)
+}
+
+fn to_image(tex: &Bc6hTexture, limits: &Limits) -> Result<HdrImage> {
+    let samples = tex.decode_level(0, limits)?;
+    HdrImage::new(tex.width, tex.height, Channels::Rgb, samples, ColorInfo::default())
+}
+
+/// BC6H in a DDS file (DX10 header, DXGI 95/96). Decoding returns mip level 0.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Bc6hDdsCodec;
+
+impl ImageCodec for Bc6hDdsCodec {
+    fn name(&self) -> &'static str {
+        "bc6h"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"BC6H"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["dds"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        is_bc6h_dds(head)
+    }
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        to_image(&read_dds(data, limits)?, limits)
+    }
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        write_dds(&encode_with(image, settings, self.name())?)
+    }
+}
+
+/// BC6H in a KTX2 file (vkFormat 143/144). Decoding returns mip level 0.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Bc6hKtx2Codec;
+
+impl ImageCodec for Bc6hKtx2Codec {
+    fn name(&self) -> &'static str {
+        "bc6h-ktx2"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"BC6K"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["ktx2"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        is_bc6h_ktx2(head)
+    }
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        to_image(&read_ktx2(data, limits)?, limits)
+    }
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        write_ktx2(&encode_with(image, settings, self.name())?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::Error;
+
+    #[test]
+    fn box_filter_handles_odd_sizes() {
+        // A 5x1 row halving to 2x1: footprints of 2.5 texels, the middle one shared.
+        let src: Vec<f32> = [1.0f32, 2.0, 3.0, 4.0, 5.0].iter().flat_map(|&v| [v, 2.0 * v, 0.0]).collect();
+        let out = downsample_box(&src, 5, 1, 2, 1);
+        let left = (1.0 + 2.0 + 0.5 * 3.0) / 2.5;
+        let right = (0.5 * 3.0 + 4.0 + 5.0) / 2.5;
+        assert!((out[0] - left).abs() < 1e-6 && (out[3] - right).abs() < 1e-6, "{out:?}");
+        assert!((out[1] - 2.0 * left).abs() < 1e-5);
+        // 3x3 -> 1x1 is the plain mean; a constant stays constant in any size.
+        let sq: Vec<f32> = (0..9).flat_map(|i| [i as f32, 1.0, 7.0]).collect();
+        let one = downsample_box(&sq, 3, 3, 1, 1);
+        assert!((one[0] - 4.0).abs() < 1e-5 && (one[1] - 1.0).abs() < 1e-6 && (one[2] - 7.0).abs() < 1e-5);
+        let flat = vec![0.25f32; 7 * 5 * 3];
+        assert!(downsample_box(&flat, 7, 5, 3, 2).iter().all(|&v| (v - 0.25).abs() < 1e-6));
+    }
+
+    #[test]
+    fn unknown_options_are_rejected() {
+        let img = HdrImage::zeroed(4, 4, Channels::Rgb);
+        let s = EncodeSettings::default().with_option("quality", "3");
+        assert!(matches!(Bc6hDdsCodec.encode(&img, &s), Err(Error::Invalid { .. })));
+        let s = EncodeSettings::default().with_option("signed", "maybe");
+        assert!(Bc6hKtx2Codec.encode(&img, &s).is_err());
+    }
+}
