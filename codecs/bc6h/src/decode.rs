@@ -167,18 +167,20 @@ pub fn surface_bytes(width: u32, height: u32) -> Option<usize> {
 /// `width * height * 3` samples, cropping partial edge blocks. Block rows are decoded in parallel
 /// on rayon's pool. `blocks` must hold exactly [`surface_bytes`] bytes.
 pub fn decode_surface(width: u32, height: u32, blocks: &[u8], signed: bool) -> Result<Vec<f32>> {
+    decode_surface_with(width, height, blocks, signed, true)
+}
+
+/// [`decode_surface`] on the calling thread only (for single-thread measurements and callers
+/// that parallelise over surfaces themselves).
+pub fn decode_surface_single_thread(width: u32, height: u32, blocks: &[u8], signed: bool) -> Result<Vec<f32>> {
+    decode_surface_with(width, height, blocks, signed, false)
+}
+
+fn decode_surface_with(width: u32, height: u32, blocks: &[u8], signed: bool, parallel: bool) -> Result<Vec<f32>> {
     let need = surface_bytes(width, height).ok_or_else(|| Error::invalid("BC6H surface size overflows"))?;
-    if blocks.len() < need {
-        return Err(Error::truncated(format!(
-            "BC6H data: {} bytes for a {width}x{height} surface that needs {need}",
-            blocks.len()
-        )));
-    }
-    if blocks.len() > need {
-        return Err(Error::invalid(format!(
-            "BC6H data: {} bytes for a {width}x{height} surface that needs {need}",
-            blocks.len()
-        )));
+    if blocks.len() != need {
+        let what = format!("BC6H data: {} bytes for a {width}x{height} surface that needs {need}", blocks.len());
+        return Err(if blocks.len() < need { Error::truncated(what) } else { Error::invalid(what) });
     }
     let samples = (width as usize)
         .checked_mul(height as usize)
@@ -190,9 +192,16 @@ pub fn decode_surface(width: u32, height: u32, blocks: &[u8], signed: bool) -> R
     }
     let (bx, _) = block_dims(width, height);
     let row_floats = width as usize * 3 * 4;
-    out.par_chunks_mut(row_floats)
-        .zip(blocks.par_chunks(bx * 16))
-        .for_each(|(rows, row_blocks)| decode_block_row(width as usize, row_blocks, rows, signed));
+    let w = width as usize;
+    if parallel {
+        out.par_chunks_mut(row_floats)
+            .zip(blocks.par_chunks(bx * 16))
+            .for_each(|(rows, row_blocks)| decode_block_row(w, row_blocks, rows, signed));
+    } else {
+        for (rows, row_blocks) in out.chunks_mut(row_floats).zip(blocks.chunks(bx * 16)) {
+            decode_block_row(w, row_blocks, rows, signed);
+        }
+    }
     Ok(out)
 }
 
