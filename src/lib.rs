@@ -1,2 +1,303 @@
-//! hdrcodec: the facade of the hdrcodec family.
+//! hdrcodec: the facade of the hdrcodec family of HDR image codecs.
+//!
+//! It re-exports every codec crate and offers a [`Registry`] that picks a codec by name, by
+//! file extension or by sniffing the first bytes of a file, so that tools (the `hdrcodec` CLI,
+//! benches, fuzzers) can read and write any format of the family alike.
+//!
+//! ```no_run
+//! use hdrcodec::core::{EncodeSettings, Limits};
+//! let reg = hdrcodec::registry();
+//! let (_codec, image) = reg.read(std::path::Path::new("in.exr"), &Limits::default())?;
+//! let pfm = reg.for_output(std::path::Path::new("out.pfm"))?.encode(&image, &EncodeSettings::default())?;
+//! hdrcodec::write_atomic(std::path::Path::new("out.pfm"), &pfm)?;
+//! # Ok::<(), hdrcodec::core::Error>(())
+//! ```
+
+pub use hdrcodec_container as container;
 pub use hdrcodec_core as core;
+pub use hdrcodec_exr as exr;
+pub use hdrcodec_pfm as pfm;
+
+pub mod bench;
+pub mod corpus;
+
+use crate::core::{Error, HdrImage, ImageCodec, Limits, Result};
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Every codec of the family that has a file format of its own. **Registering a codec is one
+/// line here.** The `.hdrc` container is built on top of these by [`Registry::default`].
+fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
+    vec![Arc::new(exr::ExrCodec), Arc::new(pfm::PfmCodec)]
+}
+
+/// A set of codecs, looked up by name, file extension or sniffed bytes.
+#[derive(Clone)]
+pub struct Registry {
+    codecs: Vec<Arc<dyn ImageCodec>>,
+}
+
+impl Default for Registry {
+    /// Every codec of the family, plus the `.hdrc` container that can carry any of them.
+    fn default() -> Self {
+        let mut codecs = standard_codecs();
+        // The container adds its own raw payload codecs (raw-f32, raw-f16).
+        codecs.push(Arc::new(container::HdrcCodec::new(codecs.clone())));
+        Registry { codecs }
+    }
+}
+
+impl std::fmt::Debug for Registry {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.codecs.iter().map(|c| c.name())).finish()
+    }
+}
+
+/// The default [`Registry`]: every codec of the family.
+pub fn registry() -> Registry {
+    Registry::default()
+}
+
+/// The lower-case extension of `path` without the dot, if it has one.
+fn extension_of(path: &Path) -> Option<String> {
+    path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase)
+}
+
+impl Registry {
+    /// A registry of exactly these codecs (earlier ones win ties on extension and sniffing).
+    pub fn new(codecs: Vec<Arc<dyn ImageCodec>>) -> Self {
+        Registry { codecs }
+    }
+
+    /// Adds a codec after the existing ones.
+    pub fn register(&mut self, codec: Arc<dyn ImageCodec>) {
+        self.codecs.push(codec);
+    }
+
+    /// All codecs, in registration order.
+    pub fn codecs(&self) -> &[Arc<dyn ImageCodec>] {
+        &self.codecs
+    }
+
+    /// The names of all codecs.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.codecs.iter().map(|c| c.name()).collect()
+    }
+
+    /// Every extension some codec handles, sorted, without duplicates.
+    pub fn extensions(&self) -> Vec<&'static str> {
+        let mut v: Vec<&'static str> = self.codecs.iter().flat_map(|c| c.extensions().iter().copied()).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// The codec called `name` (case-insensitive).
+    pub fn by_name(&self, name: &str) -> Result<Arc<dyn ImageCodec>> {
+        self.codecs
+            .iter()
+            .find(|c| c.name().eq_ignore_ascii_case(name))
+            .cloned()
+            .ok_or_else(|| Error::unsupported(format!("unknown codec '{name}' (known: {})", self.names().join(", "))))
+    }
+
+    /// The codecs that handle extension `ext` (without the dot, any case), in order.
+    pub fn by_extension(&self, ext: &str) -> Vec<Arc<dyn ImageCodec>> {
+        let ext = ext.trim_start_matches('.');
+        self.codecs.iter().filter(|c| c.extensions().iter().any(|e| e.eq_ignore_ascii_case(ext))).cloned().collect()
+    }
+
+    /// The first codec whose magic-number test accepts `head`.
+    pub fn sniff(&self, head: &[u8]) -> Option<Arc<dyn ImageCodec>> {
+        self.codecs.iter().find(|c| c.sniff(head)).cloned()
+    }
+
+    fn unknown_extension(&self, path: &Path) -> Error {
+        let known = self.extensions().join(", ");
+        match extension_of(path) {
+            Some(ext) => Error::unsupported(format!("unknown file extension '.{ext}' (known: {known})")),
+            None => Error::unsupported(format!("'{}' has no file extension (known: {known})", path.display())),
+        }
+    }
+
+    /// The codec that writes `path`, chosen by its extension.
+    pub fn for_output(&self, path: &Path) -> Result<Arc<dyn ImageCodec>> {
+        extension_of(path)
+            .and_then(|ext| self.by_extension(&ext).into_iter().next())
+            .ok_or_else(|| self.unknown_extension(path))
+    }
+
+    /// The codec that reads `data`, which came from `path`: by extension first (when several
+    /// codecs share it, the one whose magic number matches), then by sniffing the bytes. A file
+    /// whose extension names one format but whose bytes are clearly another's (a mislabelled
+    /// file) is read as what its bytes say.
+    pub fn for_input(&self, path: &Path, data: &[u8]) -> Result<Arc<dyn ImageCodec>> {
+        let head = &data[..data.len().min(64)];
+        let by_ext = extension_of(path).map(|e| self.by_extension(&e)).unwrap_or_default();
+        if let Some(c) = by_ext.iter().find(|c| c.sniff(head)) {
+            return Ok(c.clone());
+        }
+        if let Some(c) = self.sniff(head) {
+            return Ok(c);
+        }
+        by_ext.into_iter().next().ok_or_else(|| self.unknown_extension(path))
+    }
+
+    /// Decodes `data` (the contents of `path`) with the codec [`Registry::for_input`] picks.
+    pub fn decode(&self, path: &Path, data: &[u8], limits: &Limits) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
+        let codec = self.for_input(path, data)?;
+        let image = codec.decode(data, limits)?;
+        Ok((codec, image))
+    }
+
+    /// Reads and decodes the file at `path`.
+    pub fn read(&self, path: &Path, limits: &Limits) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
+        let data = read_file(path)?;
+        self.decode(path, &data, limits)
+    }
+}
+
+/// Reads a whole file, with an error that names it.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))))
+}
+
+/// Writes `bytes` to `path` so that `path` either gets the whole content or is left untouched:
+/// the data goes to a temporary file in the same directory, is flushed to disk (fsync) and
+/// renamed over `path` only on success; on any error the temporary file is removed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| Error::invalid(format!("'{}' is not a file name", path.display())))?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let io =
+        |e: std::io::Error, what: &Path| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", what.display())));
+    let result = (|| {
+        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| io(e, path))?;
+        f.write_all(bytes).map_err(|e| io(e, path))?;
+        f.sync_all().map_err(|e| io(e, path))?;
+        drop(f);
+        std::fs::rename(&tmp, path).map_err(|e| io(e, path))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// The absolute luminance of every pixel of `image`, in cd/m² (alpha is ignored).
+pub fn luminance(image: &HdrImage) -> Vec<f64> {
+    let [wr, wg, wb] = crate::core::color::luminance_weights(&image.color.primaries);
+    let k = f64::from(image.color.nits_per_unit);
+    image.rgb().map(|[r, g, b]| k * (wr * f64::from(r) + wg * f64::from(g) + wb * f64::from(b))).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::EncodeSettings;
+
+    /// A codec for registry tests: magic "FAKE", extensions fake / fk.
+    struct Fake(&'static str, &'static [&'static str], &'static [u8]);
+    impl ImageCodec for Fake {
+        fn name(&self) -> &'static str {
+            self.0
+        }
+        fn id(&self) -> [u8; 4] {
+            *b"fake"
+        }
+        fn extensions(&self) -> &'static [&'static str] {
+            self.1
+        }
+        fn sniff(&self, head: &[u8]) -> bool {
+            head.starts_with(self.2)
+        }
+        fn decode(&self, _: &[u8], _: &Limits) -> Result<HdrImage> {
+            Err(Error::unsupported(self.0))
+        }
+        fn encode(&self, _: &HdrImage, _: &EncodeSettings) -> Result<Vec<u8>> {
+            Ok(self.2.to_vec())
+        }
+    }
+
+    fn reg() -> Registry {
+        Registry::new(vec![
+            Arc::new(Fake("one", &["aa", "shared"], b"ONE")),
+            Arc::new(Fake("two", &["bb", "shared"], b"TWO")),
+        ])
+    }
+
+    #[test]
+    fn picks_by_name_and_extension_case_insensitively() {
+        let r = reg();
+        assert_eq!(r.by_name("TWO").unwrap().name(), "two");
+        let e = r.by_name("three").err().unwrap().to_string();
+        assert!(e.contains("unknown codec 'three'") && e.contains("one, two"), "{e}");
+        assert_eq!(r.for_output(Path::new("x/y.AA")).unwrap().name(), "one");
+        assert_eq!(r.for_output(Path::new("y.bb")).unwrap().name(), "two");
+        let e = r.for_output(Path::new("y.xyz")).err().unwrap().to_string();
+        assert!(e.contains("unknown file extension '.xyz' (known: aa, bb, shared)"), "{e}");
+        assert!(r.for_output(Path::new("noext")).err().unwrap().to_string().contains("no file extension"));
+    }
+
+    #[test]
+    fn input_uses_extension_then_bytes() {
+        let r = reg();
+        // Shared extension: the magic number decides.
+        assert_eq!(r.for_input(Path::new("a.shared"), b"TWO...").unwrap().name(), "two");
+        // Known extension, unrecognisable bytes: the extension's codec (which reports the damage).
+        assert_eq!(r.for_input(Path::new("a.bb"), b"junk").unwrap().name(), "two");
+        // Mislabelled file: the bytes win.
+        assert_eq!(r.for_input(Path::new("a.aa"), b"TWO").unwrap().name(), "two");
+        // Unknown extension: sniffing, else a clear error.
+        assert_eq!(r.for_input(Path::new("a.xyz"), b"ONE").unwrap().name(), "one");
+        let e = r.for_input(Path::new("a.xyz"), b"junk").err().unwrap().to_string();
+        assert!(e.contains("unknown file extension '.xyz'"), "{e}");
+    }
+
+    #[test]
+    fn default_registry_has_every_format_and_the_container() {
+        let r = registry();
+        for name in ["exr", "pfm", "hdrc"] {
+            assert!(r.by_name(name).is_ok(), "{name} missing from {r:?}");
+        }
+        for ext in ["exr", "pfm", "hdrc"] {
+            assert!(!r.by_extension(ext).is_empty(), "no codec for .{ext}");
+        }
+    }
+
+    #[test]
+    fn atomic_write_leaves_nothing_on_error() {
+        let dir = std::env::temp_dir().join(format!("hdrcodec-atomic-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.bin");
+        write_atomic(&p, b"hello").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"hello");
+        // Renaming onto a directory fails: the temporary file must not survive.
+        let sub = dir.join("sub.bin");
+        std::fs::create_dir(&sub).unwrap();
+        std::fs::write(sub.join("keep"), b"x").unwrap();
+        assert!(write_atomic(&sub, b"data").is_err());
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn luminance_is_absolute() {
+        // ITU-R BT.709-6 item 3.2: Y = 0.2126 R + 0.7152 G + 0.0722 B; 1.0 = nits_per_unit.
+        let mut img =
+            HdrImage::new(2, 1, crate::core::Channels::Rgb, vec![1.0, 0.0, 0.0, 2.0, 2.0, 2.0], Default::default())
+                .unwrap();
+        img.color.nits_per_unit = 80.0;
+        let l = luminance(&img);
+        assert!((l[0] - 80.0 * 0.2126).abs() < 0.01 && (l[1] - 160.0).abs() < 1e-3, "{l:?}");
+    }
+}

@@ -1,1 +1,148 @@
-fn main() {}
+//! The `hdrcodec` command-line tool. Its interface is a contract (DESIGN.md, "The CLI"):
+//! exit status 0 on success; otherwise exactly one line `hdrcodec: <reason>` on stderr, a
+//! non-zero status and no output file. `--json` prints exactly one JSON object on stdout.
+
+mod cli;
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// High-dynamic-range image codecs: convert, inspect, compare and benchmark HDR images.
+#[derive(Parser, Debug)]
+#[command(name = "hdrcodec", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Convert IN to OUT; formats are chosen by file extension, or OUT's by --codec.
+    Convert(ConvertArgs),
+    /// Print what a file holds: size, channels, colour, HDR10 metadata, luminance range.
+    Info {
+        /// The image file.
+        file: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Compare TEST against REFERENCE with HDR quality metrics.
+    ///
+    /// Metrics: pu21_psnr (PU21-encoded luminance, dB), pu21_psnr_rgb, de_itp_mean and
+    /// de_itp_p99 (ΔE ITP, BT.2124; 1 ≈ one JND), log_rmse (RMS of log2((t+1)/(r+1))), psnr
+    /// (linear, dB) and max_rel_err. Identical images are reported as identical; their PSNRs
+    /// are infinite, printed as "inf" in text and as null in JSON (JSON has no infinity), with
+    /// "identical": true.
+    Compare {
+        /// The reference image.
+        reference: PathBuf,
+        /// The image under test.
+        test: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmark every codec configuration on every image of DIR (default: the generated corpus).
+    ///
+    /// Reports bytes, bits per pixel, PU21-PSNR, ΔE ITP mean, log-RMSE and the median encode
+    /// and decode speed in megapixels per second. Non-finite values are null in JSON.
+    Bench(BenchArgs),
+    /// The project's generated corpus of synthetic HDR scenes.
+    #[command(subcommand)]
+    Corpus(CorpusCommand),
+}
+
+#[derive(Args, Debug)]
+struct ConvertArgs {
+    /// Input image.
+    input: PathBuf,
+    /// Output image (written only if the whole conversion succeeds).
+    output: PathBuf,
+    /// Codec for OUT, overriding its extension (see `hdrcodec info --help` for names).
+    #[arg(long)]
+    codec: Option<String>,
+    /// Quality 0-100 for lossy codecs.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=100))]
+    quality: Option<u8>,
+    /// Encoder effort 0-9 (0 fastest).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=9))]
+    effort: Option<u8>,
+    /// Worker threads (0 = one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Codec-specific option key=value (repeatable).
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+struct BenchArgs {
+    /// Directory of images (default: the generated corpus).
+    dir: Option<PathBuf>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Also draw bits per pixel against PU21-PSNR into this PNG file.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<PathBuf>,
+    /// Worker threads for the encoders (0 = one per core). One by default, so that speeds are
+    /// per core and comparable between codecs.
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Only configurations whose label contains this text.
+    #[arg(long)]
+    filter: Option<String>,
+    /// Timed runs per measurement (the median is reported).
+    #[arg(long, default_value_t = 3, hide = true)]
+    runs: usize,
+    /// One run per measurement and only the smaller images: for tests.
+    #[arg(long, hide = true)]
+    quick: bool,
+}
+
+#[derive(Subcommand, Debug)]
+enum CorpusCommand {
+    /// Write every generated scene as a 32-bit float OpenEXR file, plus MANIFEST.tsv.
+    Write {
+        /// Output directory (created if missing).
+        dir: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    cli::install_panic_hook();
+    cli::run_catching_panics(run)
+}
+
+fn run() -> ExitCode {
+    let args = match Cli::try_parse() {
+        Ok(a) => a,
+        Err(e) => return cli::clap_error(e),
+    };
+    let result = match args.command {
+        Command::Convert(a) => {
+            cli::convert(&a.input, &a.output, a.codec.as_deref(), a.quality, a.effort, a.threads, &a.opts)
+        }
+        Command::Info { file, json } => cli::info(&file, json),
+        Command::Compare { reference, test, json } => cli::compare(&reference, &test, json),
+        Command::Bench(a) => cli::bench(&cli::BenchOptions {
+            dir: a.dir,
+            json: a.json,
+            plot: a.plot,
+            threads: a.threads,
+            filter: a.filter,
+            runs: if a.quick { 1 } else { a.runs.max(1) },
+            quick: a.quick,
+        }),
+        Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            cli::fail(&e.to_string());
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,315 @@
+//! The `hdrcodec bench` engine: every configuration of every codec on every image, measuring
+//! size, quality and speed in one process.
+//!
+//! A [`Config`] is one row family of the table: a codec, the [`EncodeSettings`] it runs with
+//! and a label (`"exr:piz-half"`). Each codec contributes its configurations in
+//! [`configurations`] (one line per codec). Quality is measured with
+//! [`hdrcodec_core::metrics::compare`] on the RGB channels (lossy codecs may drop alpha), speed
+//! as the median wall time of a few runs.
+
+use crate::core::{metrics, Channels, EncodeSettings, HdrImage, ImageCodec, Limits};
+use crate::Registry;
+use serde::Serialize;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// One codec with one set of settings: a row family of the bench table.
+#[derive(Clone)]
+pub struct Config {
+    /// Row label, `codec:variant`.
+    pub label: String,
+    /// The codec.
+    pub codec: Arc<dyn ImageCodec>,
+    /// The settings it encodes with.
+    pub settings: EncodeSettings,
+}
+
+/// The OpenEXR compressions benchmarked as baselines (every one the `exr` crate writes).
+pub const EXR_COMPRESSIONS: &[&str] = &["none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a"];
+
+/// Every configuration the bench runs, for the codecs present in `registry`. Each codec adds
+/// its rows here, **one line per codec**.
+pub fn configurations(registry: &Registry) -> Vec<Config> {
+    let mut out = Vec::new();
+    let mut add = |codec: &str, label: String, settings: EncodeSettings| {
+        if let Ok(codec) = registry.by_name(codec) {
+            out.push(Config { label, codec, settings });
+        }
+    };
+    let opts = |kv: &[(&str, &str)]| kv.iter().fold(EncodeSettings::default(), |s, (k, v)| s.with_option(*k, *v));
+    // OpenEXR baselines: every compression, half and float samples.
+    for c in EXR_COMPRESSIONS {
+        for p in ["half", "float"] {
+            add("exr", format!("exr:{c}-{p}"), opts(&[("compression", c), ("pixel", p)]));
+        }
+    }
+    // Uncompressed half floats in the container: the size every lossy codec should beat.
+    add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
+    out
+}
+
+/// An image to benchmark on.
+#[derive(Clone, Debug)]
+pub struct Input {
+    /// Scene name or file name.
+    pub name: String,
+    /// The pixels.
+    pub image: HdrImage,
+}
+
+/// The generated corpus as bench inputs.
+pub fn generated_inputs() -> Vec<Input> {
+    crate::corpus::scenes().into_iter().map(|s| Input { name: s.name.to_string(), image: s.image }).collect()
+}
+
+/// A file under a bench directory that could not be used, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct Skipped {
+    /// The file name.
+    pub file: String,
+    /// Why it was skipped.
+    pub reason: String,
+}
+
+/// Every file directly in `dir` that some codec of `registry` decodes, sorted by name; files
+/// without a known extension or magic number, or that fail to decode, are listed as skipped.
+pub fn dir_inputs(dir: &Path, registry: &Registry, limits: &Limits) -> crate::core::Result<(Vec<Input>, Vec<Skipped>)> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| crate::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
+    let mut paths: Vec<_> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
+    paths.sort();
+    let (mut inputs, mut skipped) = (Vec::new(), Vec::new());
+    for p in paths {
+        let file = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let data = match crate::read_file(&p) {
+            Ok(d) => d,
+            Err(e) => {
+                skipped.push(Skipped { file, reason: e.to_string() });
+                continue;
+            }
+        };
+        match registry.for_input(&p, &data) {
+            // Not an image format we know (MANIFEST, README, ...): not worth a mention.
+            Err(_) => continue,
+            Ok(codec) => match codec.decode(&data, limits) {
+                Ok(image) => inputs.push(Input { name: file, image }),
+                Err(e) => skipped.push(Skipped { file, reason: e.to_string() }),
+            },
+        }
+    }
+    Ok((inputs, skipped))
+}
+
+/// One configuration on one image.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    /// The configuration label.
+    pub config: String,
+    /// The image name.
+    pub image: String,
+    /// Pixels in the image.
+    pub pixels: usize,
+    /// Encoded size in bytes.
+    pub bytes: usize,
+    /// Bits per pixel.
+    pub bpp: f64,
+    /// True if the decoded RGB equals the input exactly.
+    pub identical: bool,
+    /// PU21-PSNR of the luminance, dB (infinite, `null` in JSON, when identical).
+    pub pu21_psnr: f64,
+    /// Mean ΔE ITP (BT.2124).
+    pub de_itp_mean: f64,
+    /// Root mean square of log2((test + 1) / (reference + 1)) over the RGB samples.
+    pub log_rmse: f64,
+    /// Encode speed, megapixels per second (median run).
+    pub encode_mps: f64,
+    /// Decode speed, megapixels per second (median run).
+    pub decode_mps: f64,
+    /// Why this configuration failed on this image, if it did (then the numbers are zero).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// A configuration's figures over all images it could encode.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// The configuration label.
+    pub config: String,
+    /// Images encoded without error.
+    pub images: usize,
+    /// Images that failed.
+    pub failed: usize,
+    /// Images decoded bit-identical (RGB).
+    pub identical_images: usize,
+    /// Total encoded bytes.
+    pub bytes: usize,
+    /// Total bits over total pixels.
+    pub bpp: f64,
+    /// Mean PU21-PSNR over the images that are not identical (infinite when all are).
+    pub pu21_psnr: f64,
+    /// Mean of the per-image mean ΔE ITP.
+    pub de_itp_mean: f64,
+    /// Mean of the per-image log-RMSE.
+    pub log_rmse: f64,
+    /// Total pixels over total median encode time.
+    pub encode_mps: f64,
+    /// Total pixels over total median decode time.
+    pub decode_mps: f64,
+}
+
+/// Everything one bench run measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Where the images came from: "generated corpus" or the directory.
+    pub source: String,
+    /// Timed runs per measurement (the median is reported).
+    pub runs: usize,
+    /// One row per configuration and image.
+    pub rows: Vec<Row>,
+    /// One line per configuration.
+    pub summary: Vec<Summary>,
+    /// Directory files that were not used.
+    pub skipped: Vec<Skipped>,
+}
+
+/// The median of `runs` timings of `f` (which must succeed every time), and its last result.
+fn timed<T>(runs: usize, mut f: impl FnMut() -> crate::core::Result<T>) -> crate::core::Result<(Duration, T)> {
+    let mut times = Vec::with_capacity(runs);
+    let mut last = None;
+    for _ in 0..runs.max(1) {
+        let t = Instant::now();
+        let out = f()?;
+        times.push(t.elapsed());
+        last = Some(out);
+    }
+    times.sort();
+    Ok((times[times.len() / 2], last.expect("at least one run")))
+}
+
+fn mps(pixels: usize, t: Duration) -> f64 {
+    pixels as f64 / 1e6 / t.as_secs_f64().max(1e-9)
+}
+
+/// Runs one configuration on one image.
+fn measure(config: &Config, input: &Input, runs: usize) -> Row {
+    let pixels = input.image.pixel_count();
+    let mut row = Row {
+        config: config.label.clone(),
+        image: input.name.clone(),
+        pixels,
+        bytes: 0,
+        bpp: 0.0,
+        identical: false,
+        pu21_psnr: 0.0,
+        de_itp_mean: 0.0,
+        log_rmse: 0.0,
+        encode_mps: 0.0,
+        decode_mps: 0.0,
+        error: None,
+    };
+    let result = (|| -> crate::core::Result<()> {
+        let (enc_t, bytes) = timed(runs, || config.codec.encode(&input.image, &config.settings))?;
+        let (dec_t, decoded) = timed(runs, || config.codec.decode(&bytes, &Limits::default()))?;
+        // Lossy codecs may drop alpha: quality is always measured on RGB.
+        let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
+        row.bytes = bytes.len();
+        row.bpp = bytes.len() as f64 * 8.0 / pixels as f64;
+        row.identical = cmp.identical;
+        row.pu21_psnr = cmp.pu21_psnr;
+        row.de_itp_mean = cmp.de_itp_mean;
+        row.log_rmse = cmp.log_rmse;
+        row.encode_mps = mps(pixels, enc_t);
+        row.decode_mps = mps(pixels, dec_t);
+        Ok(())
+    })();
+    if let Err(e) = result {
+        row.error = Some(e.to_string());
+    }
+    row
+}
+
+fn summarize(label: &str, rows: &[&Row]) -> Summary {
+    let ok: Vec<&&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
+    let pixels: usize = ok.iter().map(|r| r.pixels).sum();
+    let bytes: usize = ok.iter().map(|r| r.bytes).sum();
+    let mean = |f: &dyn Fn(&Row) -> f64, rs: &[&&Row]| rs.iter().map(|r| f(r)).sum::<f64>() / rs.len().max(1) as f64;
+    let lossy: Vec<&&Row> = ok.iter().copied().filter(|r| !r.identical).collect();
+    let secs = |f: &dyn Fn(&Row) -> f64| ok.iter().map(|r| r.pixels as f64 / 1e6 / f(r).max(1e-12)).sum::<f64>();
+    Summary {
+        config: label.to_string(),
+        images: ok.len(),
+        failed: rows.len() - ok.len(),
+        identical_images: ok.len() - lossy.len(),
+        bytes,
+        bpp: bytes as f64 * 8.0 / pixels.max(1) as f64,
+        pu21_psnr: if lossy.is_empty() { f64::INFINITY } else { mean(&|r| r.pu21_psnr, &lossy) },
+        de_itp_mean: mean(&|r| r.de_itp_mean, &ok),
+        log_rmse: mean(&|r| r.log_rmse, &ok),
+        encode_mps: pixels as f64 / 1e6 / secs(&|r| r.encode_mps).max(1e-12),
+        decode_mps: pixels as f64 / 1e6 / secs(&|r| r.decode_mps).max(1e-12),
+    }
+}
+
+/// Runs every configuration on every input, `runs` timed runs each, calling `progress` after
+/// each (configuration, image) pair with the number done and the total.
+pub fn run(
+    configs: &[Config],
+    inputs: &[Input],
+    runs: usize,
+    source: &str,
+    skipped: Vec<Skipped>,
+    mut progress: impl FnMut(usize, usize, &str),
+) -> Report {
+    let total = configs.len() * inputs.len();
+    let mut rows = Vec::with_capacity(total);
+    for c in configs {
+        for i in inputs {
+            rows.push(measure(c, i, runs));
+            progress(rows.len(), total, &c.label);
+        }
+    }
+    let summary = configs
+        .iter()
+        .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
+        .collect();
+    Report { source: source.to_string(), runs, rows, summary, skipped }
+}
+
+fn fmt_db(v: f64) -> String {
+    if v.is_infinite() {
+        "lossless".to_string()
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// The report as a plain-text table, one line per configuration.
+pub fn table(report: &Report) -> String {
+    let mut s = format!(
+        "{:<20} {:>6} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9}\n",
+        "config", "images", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc MP/s", "dec MP/s"
+    );
+    for r in &report.summary {
+        let images = if r.failed > 0 { format!("{}/{}", r.images, r.images + r.failed) } else { r.images.to_string() };
+        s.push_str(&format!(
+            "{:<20} {:>6} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1}\n",
+            r.config,
+            images,
+            r.bytes,
+            r.bpp,
+            fmt_db(r.pu21_psnr),
+            r.de_itp_mean,
+            r.log_rmse,
+            r.encode_mps,
+            r.decode_mps
+        ));
+    }
+    for r in report.rows.iter().filter(|r| r.error.is_some()) {
+        s.push_str(&format!("{} on {}: {}\n", r.config, r.image, r.error.as_deref().unwrap_or("")));
+    }
+    for k in &report.skipped {
+        s.push_str(&format!("skipped {}: {}\n", k.file, k.reason));
+    }
+    s
+}

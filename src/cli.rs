@@ -1,0 +1,346 @@
+//! The commands of the `hdrcodec` binary. Each returns `Err` with a one-line reason; `main`
+//! prints it as `hdrcodec: <reason>` and exits non-zero.
+
+use hdrcodec::bench;
+use hdrcodec::core::{metrics, EncodeSettings, Error, HdrImage, Limits, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::{json, Map, Value};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Prints the one-line failure message: newlines in `reason` are folded so that the contract
+/// "exactly one line on stderr" holds whatever a library put into its message.
+pub fn fail(reason: &str) {
+    let line = reason.split(['\n', '\r']).map(str::trim).filter(|s| !s.is_empty()).collect::<Vec<_>>().join("; ");
+    eprintln!("hdrcodec: {line}");
+}
+
+/// The message of the last panic, kept by the hook for [`run_catching_panics`].
+static LAST_PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+/// Records panics instead of printing them: a library may catch its own panics (and turn them
+/// into errors), and those must not put a second line on stderr. A panic that reaches `main`
+/// is reported by [`run_catching_panics`] as one line.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown".into());
+        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        if let Ok(mut last) = LAST_PANIC.lock() {
+            *last = Some(format!("{msg}{at}"));
+        }
+    }));
+}
+
+/// Runs `f`; a panic that escapes it becomes the one-line failure with exit status 101.
+pub fn run_catching_panics(f: impl FnOnce() -> ExitCode) -> ExitCode {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(code) => code,
+        Err(_) => {
+            let msg = LAST_PANIC.lock().ok().and_then(|m| m.clone()).unwrap_or_else(|| "unknown".into());
+            fail(&format!("internal error (a bug, please report it): {msg}"));
+            ExitCode::from(101)
+        }
+    }
+}
+
+/// Help and version go to stdout as usual; a usage error becomes the one-line failure.
+pub fn clap_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    match e.kind() {
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            let _ = e.print();
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            }
+        }
+        _ => {
+            let text = e.render().to_string();
+            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+            let first = first.trim().trim_start_matches("error:").trim();
+            fail(&format!("{first} (see 'hdrcodec --help')"));
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// A progress bar on stderr when stdout is a terminal and the output is not JSON; else hidden.
+fn progress_bar(len: usize, json: bool) -> ProgressBar {
+    if json || !std::io::stdout().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len as u64);
+    if let Ok(style) = ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} {elapsed} {msg}") {
+        pb.set_style(style);
+    }
+    pb
+}
+
+/// Prints one JSON object on stdout.
+fn print_json(v: &Value) -> Result<()> {
+    let s = serde_json::to_string_pretty(v).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
+    println!("{s}");
+    Ok(())
+}
+
+/// A number for JSON: non-finite values (an infinite PSNR) become null, as documented.
+fn num(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map(Value::Number).unwrap_or(Value::Null)
+}
+
+/// `hdrcodec convert`.
+pub fn convert(
+    input: &Path,
+    output: &Path,
+    codec: Option<&str>,
+    quality: Option<u8>,
+    effort: Option<u8>,
+    threads: Option<usize>,
+    opts: &[String],
+) -> Result<()> {
+    let reg = hdrcodec::registry();
+    // Choose the output codec and check the options before reading anything.
+    let out_codec = match codec {
+        Some(name) => reg.by_name(name)?,
+        None => reg.for_output(output)?,
+    };
+    let mut settings = EncodeSettings::default();
+    if let Some(q) = quality {
+        settings.quality = q;
+    }
+    if let Some(e) = effort {
+        settings.effort = e;
+    }
+    if let Some(t) = threads {
+        settings.threads = t;
+    }
+    for kv in opts {
+        settings.push_option_str(kv)?;
+    }
+    let (_, image) = reg.read(input, &Limits::default())?;
+    let bytes = out_codec.encode(&image, &settings)?;
+    hdrcodec::write_atomic(output, &bytes)
+}
+
+fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
+    let lum = hdrcodec::luminance(image);
+    let finite: Vec<f64> = lum.iter().copied().filter(|v| v.is_finite()).collect();
+    let min = finite.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+    let nonfinite = image.samples().iter().filter(|v| !v.is_finite()).count();
+    (min, max, mean, nonfinite)
+}
+
+/// `hdrcodec info`.
+pub fn info(file: &Path, json: bool) -> Result<()> {
+    let reg = hdrcodec::registry();
+    let data = hdrcodec::read_file(file)?;
+    let (codec, image) = reg.decode(file, &data, &Limits::default())?;
+    let c = &image.color;
+    let ch = c.primaries.chromaticities();
+    let (min, max, mean, nonfinite) = luminance_stats(&image);
+    // CTA-861.3 light levels of this one frame (MaxFALL of a single frame is its average).
+    let measured_cll = hdrcodec::core::hdr10::max_cll_nits(&image);
+    let measured_fall = hdrcodec::core::hdr10::frame_average_light_level(&image);
+    let hdr10 = c.hdr10.map(|h| {
+        json!({
+            "mastering_display": h.mastering_display.map(|m| json!({
+                "primaries": m.primaries, "white": m.white,
+                "max_luminance": m.max_luminance, "min_luminance": m.min_luminance,
+            })),
+            "content_light_level": h.content_light_level.map(|l| json!({"max_cll": l.max_cll, "max_fall": l.max_fall})),
+        })
+    });
+    let metadata: Map<String, Value> =
+        image.metadata.iter().map(|(k, v)| (k.clone(), Value::String(v.clone()))).collect();
+    if json {
+        return print_json(&json!({
+            "file": file.display().to_string(),
+            "codec": codec.name(),
+            "file_size": data.len(),
+            "width": image.width(),
+            "height": image.height(),
+            "channels": image.channels().count(),
+            "layout": format!("{:?}", image.channels()).to_uppercase(),
+            "primaries": c.primaries.name(),
+            "chromaticities": {"red": ch.red, "green": ch.green, "blue": ch.blue, "white": ch.white},
+            "nits_per_unit": num(f64::from(c.nits_per_unit)),
+            "hdr10": hdr10,
+            "luminance_nits": {"min": num(min), "max": num(max), "mean": num(mean)},
+            "max_cll_measured_nits": num(measured_cll),
+            "max_fall_measured_nits": num(measured_fall),
+            "non_finite_samples": nonfinite,
+            "metadata": metadata,
+        }));
+    }
+    println!("file:          {} ({} bytes, {})", file.display(), data.len(), codec.name());
+    println!("dimensions:    {} x {}", image.width(), image.height());
+    println!("channels:      {} ({:?})", image.channels().count(), image.channels());
+    println!(
+        "primaries:     {} (R {:?} G {:?} B {:?} W {:?})",
+        c.primaries.name(),
+        ch.red,
+        ch.green,
+        ch.blue,
+        ch.white
+    );
+    println!("nits per unit: {}", c.nits_per_unit);
+    println!("luminance:     min {min:.4e}  max {max:.4e}  mean {mean:.4e} cd/m²");
+    println!("light level:   MaxCLL {measured_cll:.1}  MaxFALL {measured_fall:.1} cd/m² (measured)");
+    if nonfinite > 0 {
+        println!("non-finite samples: {nonfinite}");
+    }
+    match c.hdr10 {
+        None => println!("HDR10:         none"),
+        Some(h) => {
+            if let Some(m) = h.mastering_display {
+                println!(
+                    "mastering display: R {:?} G {:?} B {:?} W {:?}, {}-{} cd/m²",
+                    m.primaries[0], m.primaries[1], m.primaries[2], m.white, m.min_luminance, m.max_luminance
+                );
+            }
+            if let Some(l) = h.content_light_level {
+                println!("content light level: MaxCLL {} MaxFALL {} cd/m²", l.max_cll, l.max_fall);
+            }
+        }
+    }
+    if image.metadata.is_empty() {
+        println!("metadata:      none");
+    }
+    for (k, v) in &image.metadata {
+        let short: String = v.chars().take(60).collect();
+        let more = if v.chars().count() > 60 { "..." } else { "" };
+        println!("metadata:      {k} = {}{more}", short.replace(['\n', '\r'], " "));
+    }
+    Ok(())
+}
+
+/// `hdrcodec compare`.
+pub fn compare(reference: &Path, test: &Path, json: bool) -> Result<()> {
+    let reg = hdrcodec::registry();
+    let (_, r) = reg.read(reference, &Limits::default())?;
+    let (_, t) = reg.read(test, &Limits::default())?;
+    let m = metrics::compare(&r, &t)?;
+    let fields: [(&str, f64, &str); 7] = [
+        ("pu21_psnr", m.pu21_psnr, "dB"),
+        ("pu21_psnr_rgb", m.pu21_psnr_rgb, "dB"),
+        ("de_itp_mean", m.de_itp_mean, ""),
+        ("de_itp_p99", m.de_itp_p99, ""),
+        ("log_rmse", m.log_rmse, ""),
+        ("psnr", m.psnr, "dB"),
+        ("max_rel_err", m.max_rel_err, ""),
+    ];
+    if json {
+        let mut obj = Map::new();
+        obj.insert("reference".into(), Value::String(reference.display().to_string()));
+        obj.insert("test".into(), Value::String(test.display().to_string()));
+        obj.insert("identical".into(), Value::Bool(m.identical));
+        for (k, v, _) in fields {
+            obj.insert(k.into(), num(v));
+        }
+        return print_json(&Value::Object(obj));
+    }
+    if m.identical {
+        println!("identical: the images are identical ({} x {})", r.width(), r.height());
+    } else {
+        println!("identical: no");
+    }
+    for (k, v, unit) in fields {
+        println!("{k:<14} {v:.6} {unit}");
+    }
+    Ok(())
+}
+
+/// What `hdrcodec bench` was asked to do.
+pub struct BenchOptions {
+    pub dir: Option<PathBuf>,
+    pub json: bool,
+    pub plot: Option<PathBuf>,
+    pub threads: usize,
+    pub filter: Option<String>,
+    pub runs: usize,
+    pub quick: bool,
+}
+
+/// Images at most this large are used by `bench --quick`.
+const QUICK_MAX_PIXELS: usize = 70_000;
+
+/// `hdrcodec bench`.
+pub fn bench(o: &BenchOptions) -> Result<()> {
+    if let Some(p) = &o.plot {
+        crate::cli::check_plot_path(p)?;
+    }
+    let reg = hdrcodec::registry();
+    let mut configs = bench::configurations(&reg);
+    if let Some(f) = &o.filter {
+        configs.retain(|c| c.label.contains(f.as_str()));
+        if configs.is_empty() {
+            return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
+        }
+    }
+    for c in &mut configs {
+        c.settings.threads = o.threads;
+    }
+    let (mut inputs, skipped, source) = match &o.dir {
+        None => (bench::generated_inputs(), Vec::new(), "generated corpus".to_string()),
+        Some(d) => {
+            let (i, s) = bench::dir_inputs(d, &reg, &Limits::default())?;
+            (i, s, d.display().to_string())
+        }
+    };
+    if o.quick {
+        inputs.retain(|i| i.image.pixel_count() <= QUICK_MAX_PIXELS);
+    }
+    if inputs.is_empty() {
+        return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
+    }
+    let pb = progress_bar(configs.len() * inputs.len(), o.json);
+    let report = bench::run(&configs, &inputs, o.runs, &source, skipped, |done, _, label| {
+        pb.set_position(done as u64);
+        pb.set_message(label.to_string());
+    });
+    pb.finish_and_clear();
+    if let Some(p) = &o.plot {
+        plot(&report, p)?;
+    }
+    if o.json {
+        let v = serde_json::to_value(&report).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
+        return print_json(&v);
+    }
+    print!("{}", bench::table(&report));
+    Ok(())
+}
+
+/// Fails early (before any work) if a plot cannot be drawn into `path`.
+fn check_plot_path(path: &Path) -> Result<()> {
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        return Err(Error::unsupported(format!("--plot writes PNG files; '{}' does not end in .png", path.display())));
+    }
+    Err(Error::unsupported("--plot is not supported in this build"))
+}
+
+fn plot(_report: &bench::Report, _path: &Path) -> Result<()> {
+    Err(Error::unsupported("--plot is not supported in this build"))
+}
+
+/// `hdrcodec corpus write`.
+pub fn corpus_write(dir: &Path) -> Result<()> {
+    let reg = hdrcodec::registry();
+    let pb = progress_bar(hdrcodec::corpus::scene_names().len(), false);
+    let written = hdrcodec::corpus::write(dir, &reg, |name| {
+        pb.inc(1);
+        pb.set_message(name.to_string());
+    });
+    pb.finish_and_clear();
+    let written = written?;
+    println!("wrote {} files to {}", written.len(), dir.display());
+    Ok(())
+}

@@ -1,0 +1,286 @@
+//! The `hdrcodec` binary against its contract (DESIGN.md, "The CLI"): round trips, `info`,
+//! `compare`, `bench --json`, `corpus write`, and bad input that must give exactly one
+//! `hdrcodec: ...` line on stderr, a non-zero exit and no output file.
+
+mod common;
+
+use hdrcodec::core::Limits;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn hdrcodec(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args.iter().map(|a| a.as_ref())).output().expect("run hdrcodec")
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "hdrcodec failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout.clone()).expect("utf-8 stdout")
+}
+
+fn json(out: &Output) -> Value {
+    let s = ok(out);
+    serde_json::from_str(&s).unwrap_or_else(|e| panic!("not one JSON object ({e}):\n{s}"))
+}
+
+/// The generated corpus written once by `hdrcodec corpus write` (float EXR files).
+fn corpus() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = common::temp_dir("cli-corpus");
+        ok(&hdrcodec(&[&"corpus", &"write", &dir]));
+        dir
+    })
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// Runs a command that must fail by the contract: non-zero exit (not a panic's 101), exactly
+/// one stderr line starting "hdrcodec:", nothing on stdout, and `dir` unchanged.
+fn must_fail(args: &[&dyn AsRef<std::ffi::OsStr>], dir: &Path, reason_contains: &str) {
+    let before = names(dir);
+    let out = hdrcodec(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let shown: Vec<_> = args.iter().map(|a| a.as_ref().to_string_lossy().into_owned()).collect();
+    assert!(!out.status.success(), "succeeded: {shown:?}");
+    assert_ne!(out.status.code(), Some(101), "panicked: {err}");
+    assert_eq!(err.lines().count(), 1, "stderr must be one line: {err:?}");
+    assert!(err.starts_with("hdrcodec: "), "{err:?}");
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err:?}");
+    assert!(
+        err.to_lowercase().contains(&reason_contains.to_lowercase()),
+        "{shown:?}: expected '{reason_contains}' in {err:?}"
+    );
+    assert!(out.stdout.is_empty(), "stdout: {}", String::from_utf8_lossy(&out.stdout));
+    assert_eq!(names(dir), before, "the directory changed");
+}
+
+fn decode(path: &Path) -> hdrcodec::core::HdrImage {
+    hdrcodec::registry().read(path, &Limits::default()).expect("decode").1
+}
+
+#[test]
+fn exr_pfm_exr_round_trip_is_identical() {
+    let dir = common::temp_dir("cli-roundtrip");
+    let src = corpus().join("odd-257x129.exr");
+    let pfm = dir.join("a.pfm");
+    let back = dir.join("b.exr");
+    ok(&hdrcodec(&[&"convert", &src, &pfm]));
+    ok(&hdrcodec(&[&"convert", &pfm, &back, &"--opt", &"pixel=float", &"--opt", &"compression=piz"]));
+    // The float samples survive both formats exactly (PFM and float EXR are lossless).
+    let (a, b) = (decode(&src), decode(&back));
+    assert_eq!((a.width(), a.height()), (257, 129));
+    assert_eq!(a.samples(), b.samples());
+    // And the written PFM is what the PFM codec itself reads (the header is the standard one).
+    let pfm_bytes = std::fs::read(&pfm).unwrap();
+    assert!(pfm_bytes.starts_with(b"PF"), "{:?}", &pfm_bytes[..8]);
+    let v = json(&hdrcodec(&[&"compare", &src, &back, &"--json"]));
+    assert_eq!(v["identical"], Value::Bool(true), "{v}");
+}
+
+#[test]
+fn compare_of_a_file_with_itself_reports_identical() {
+    let x = corpus().join("sun-sky.exr");
+    let text = ok(&hdrcodec(&[&"compare", &x, &x]));
+    assert!(text.starts_with("identical: the images are identical"), "{text}");
+    let v = json(&hdrcodec(&[&"compare", &x, &x, &"--json"]));
+    assert_eq!(v["identical"], Value::Bool(true));
+    // Infinite PSNRs are null in JSON (documented in `hdrcodec compare --help`); errors are 0.
+    assert_eq!(v["pu21_psnr"], Value::Null);
+    assert_eq!(v["psnr"], Value::Null);
+    for k in ["de_itp_mean", "de_itp_p99", "log_rmse", "max_rel_err"] {
+        assert_eq!(v[k].as_f64(), Some(0.0), "{k}: {v}");
+    }
+}
+
+#[test]
+fn compare_of_a_half_float_copy_is_close_but_not_identical() {
+    let dir = common::temp_dir("cli-compare-half");
+    let src = corpus().join("specular.exr");
+    let half = dir.join("half.exr");
+    ok(&hdrcodec(&[&"convert", &src, &half, &"--opt", &"pixel=half"]));
+    let v = json(&hdrcodec(&[&"compare", &src, &half, &"--json"]));
+    assert_eq!(v["identical"], Value::Bool(false));
+    // binary16 keeps 11 significant bits: relative error at most 2^-11 (IEEE 754-2008) for
+    // these normal-range samples, far below one JND of ΔE ITP.
+    let rel = v["max_rel_err"].as_f64().unwrap();
+    assert!(rel > 0.0 && rel <= 1.0 / 2048.0 + 1e-9, "{v}");
+    assert!(v["de_itp_mean"].as_f64().unwrap() < 0.5, "{v}");
+    assert!(v["pu21_psnr"].as_f64().unwrap() > 50.0, "{v}");
+}
+
+#[test]
+fn info_json_describes_the_image() {
+    let v = json(&hdrcodec(&[&"info", &corpus().join("odd-257x129.exr"), &"--json"]));
+    assert_eq!(v["width"], 257);
+    assert_eq!(v["height"], 129);
+    assert_eq!(v["channels"], 3);
+    assert_eq!(v["primaries"], "BT.709");
+    assert_eq!(v["codec"], "exr");
+    assert!(v["file_size"].as_u64().unwrap() > 0);
+    assert!(v["luminance_nits"]["max"].as_f64().unwrap() > 5e3, "{v}");
+    let v = json(&hdrcodec(&[&"info", &corpus().join("bt2020-ramps.exr"), &"--json"]));
+    assert_eq!(v["primaries"], "BT.2020");
+    assert_eq!(v["chromaticities"]["green"][1].as_f64(), Some(0.797));
+    let v = json(&hdrcodec(&[&"info", &corpus().join("alpha.exr"), &"--json"]));
+    assert_eq!(v["channels"], 4);
+    let text = ok(&hdrcodec(&[&"info", &corpus().join("sun-sky.exr")]));
+    for needle in ["512 x 256", "channels:", "BT.709", "HDR10:"] {
+        assert!(text.contains(needle), "{needle} missing from:\n{text}");
+    }
+}
+
+#[test]
+fn info_agrees_with_exrheader() {
+    let Some(exrheader) = common::require(common::tool("exrheader"), "exrheader (Debian openexr)") else {
+        return;
+    };
+    let file = corpus().join("odd-3x5.exr");
+    let out = common::run_ok(Command::new(exrheader).arg(&file));
+    let text = String::from_utf8_lossy(&out.stdout);
+    // OpenEXR's own tool: data window (0 0) - (2 4), 32-bit float R, G, B, zip compression.
+    assert!(text.contains("(0 0) - (2 4)"), "{text}");
+    assert!(text.contains("32-bit floating-point"), "{text}");
+    assert!(text.contains("zip"), "{text}");
+    let v = json(&hdrcodec(&[&"info", &file, &"--json"]));
+    assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(3), Some(5)));
+}
+
+#[test]
+fn corpus_write_matches_the_committed_manifest() {
+    let written = std::fs::read_to_string(corpus().join("MANIFEST.tsv")).unwrap();
+    let committed = std::fs::read_to_string(common::workspace_root().join("corpus/MANIFEST.tsv")).unwrap();
+    assert_eq!(written, committed, "regenerate corpus/MANIFEST.tsv with `hdrcodec corpus write` and review the change");
+    // Every scene file decodes to exactly the generator's samples.
+    for s in hdrcodec::corpus::scenes() {
+        let img = decode(&corpus().join(format!("{}.exr", s.name)));
+        assert_eq!(img.samples(), s.image.samples(), "{}", s.name);
+        assert_eq!(img.color.primaries, s.image.color.primaries, "{}", s.name);
+    }
+}
+
+#[test]
+fn bench_json_on_the_generated_corpus() {
+    let v = json(&hdrcodec(&[&"bench", &"--json", &"--quick"]));
+    let rows = v["rows"].as_array().expect("rows");
+    let summary = v["summary"].as_array().expect("summary");
+    assert!(!rows.is_empty() && !summary.is_empty());
+    let by_label = |l: &str| summary.iter().find(|s| s["config"] == l).unwrap_or_else(|| panic!("{l} missing"));
+    // OpenEXR's lossless compressions give the float samples back exactly (OpenEXR technical
+    // introduction, "Data Compression": NONE, RLE, ZIPS, ZIP, PIZ are lossless).
+    for c in ["none", "rle", "zips", "zip", "piz"] {
+        let s = by_label(&format!("exr:{c}-float"));
+        assert_eq!(s["failed"], 0, "{s}");
+        assert_eq!(s["identical_images"], s["images"], "{s}");
+        assert_eq!(s["pu21_psnr"], Value::Null, "lossless PSNR is infinite: {s}");
+    }
+    // Uncompressed float stores at least 32 bits per sample.
+    for r in rows.iter().filter(|r| r["config"] == "exr:none-float") {
+        assert!(r["bpp"].as_f64().unwrap() >= 96.0, "{r}");
+    }
+    // B44 on half is lossy with a fixed ratio; its rows still carry finite metrics.
+    let b44 = by_label("exr:b44-half");
+    assert!(b44["bpp"].as_f64().unwrap() < by_label("exr:none-half")["bpp"].as_f64().unwrap());
+    // A configuration may fail on an image (the row says why); the others have speeds.
+    for r in rows.iter().filter(|r| r.get("error").is_none()) {
+        assert!(r["encode_mps"].as_f64().unwrap() > 0.0 && r["decode_mps"].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
+
+#[test]
+fn bench_on_a_directory_and_as_a_table() {
+    let dir = common::temp_dir("cli-bench-dir");
+    std::fs::copy(corpus().join("odd-3x5.exr"), dir.join("small.exr")).unwrap();
+    std::fs::write(dir.join("notes.txt"), "not an image").unwrap();
+    std::fs::write(dir.join("broken.exr"), [0x76, 0x2f, 0x31, 0x01, 2, 0]).unwrap();
+    let v = json(&hdrcodec(&[&"bench", &dir, &"--json", &"--quick", &"--filter", &"exr:zip"]));
+    let rows = v["rows"].as_array().unwrap();
+    assert!(rows.iter().all(|r| r["image"] == "small.exr"), "{v}");
+    assert_eq!(v["skipped"][0]["file"], "broken.exr", "{v}");
+    let table = ok(&hdrcodec(&[&"bench", &dir, &"--quick", &"--filter", &"exr:zip-float"]));
+    assert!(table.lines().next().unwrap().contains("PU21-PSNR"), "{table}");
+    assert!(table.contains("exr:zip-float") && table.contains("lossless"), "{table}");
+}
+
+#[test]
+fn missing_and_unknown_files_fail_cleanly() {
+    let dir = common::temp_dir("cli-missing");
+    let good = corpus().join("tiny-1x1.exr");
+    must_fail(&[&"info", &dir.join("nope.exr")], &dir, "nope.exr");
+    must_fail(&[&"convert", &dir.join("nope.exr"), &dir.join("out.pfm")], &dir, "nope.exr");
+    must_fail(&[&"convert", &good, &dir.join("out.xyz")], &dir, "unknown file extension '.xyz'");
+    must_fail(&[&"convert", &good, &dir.join("out.exr"), &"--codec", &"nosuch"], &dir, "unknown codec 'nosuch'");
+    must_fail(&[&"convert", &good, &dir.join("out.exr"), &"--opt", &"bogus=1"], &dir, "bogus");
+    must_fail(&[&"convert", &good, &dir.join("out.exr"), &"--opt", &"novalue"], &dir, "key=value");
+    std::fs::write(dir.join("junk.xyz"), b"0123456789").unwrap();
+    must_fail(&[&"info", &dir.join("junk.xyz")], &dir, "unknown file extension '.xyz'");
+    must_fail(&[&"convert", &good, &dir.join("no/such/dir/out.exr")], &dir, "out.exr");
+    must_fail(&[&"compare", &good, &corpus().join("odd-3x5.exr")], &dir, "");
+    // Usage errors follow the same one-line rule.
+    must_fail(&[&"convert", &good], &dir, "");
+    must_fail(&[&"frobnicate"], &dir, "");
+}
+
+#[test]
+fn corrupt_and_truncated_files_fail_cleanly() {
+    let dir = common::temp_dir("cli-corrupt");
+    let good = std::fs::read(corpus().join("edges.exr")).unwrap();
+    let out = dir.join("out.pfm");
+    // Truncated EXR: header complete, pixel data cut off.
+    std::fs::write(dir.join("trunc.exr"), &good[..good.len() / 2]).unwrap();
+    must_fail(&[&"convert", &dir.join("trunc.exr"), &out], &dir, "");
+    // Only the magic number.
+    std::fs::write(dir.join("magic.exr"), &good[..4]).unwrap();
+    must_fail(&[&"convert", &dir.join("magic.exr"), &out], &dir, "");
+    // Corrupt header: attribute names overwritten.
+    let mut bad = good.clone();
+    bad[8..40].fill(0xff);
+    std::fs::write(dir.join("corrupt.exr"), &bad).unwrap();
+    must_fail(&[&"convert", &dir.join("corrupt.exr"), &out], &dir, "");
+
+    // .hdrc written by the CLI, then truncated and corrupted.
+    let hdrc = dir.join("ok.hdrc");
+    ok(&hdrcodec(&[&"convert", &corpus().join("edges.exr"), &hdrc]));
+    let bytes = std::fs::read(&hdrc).unwrap();
+    assert_eq!(decode(&hdrc).samples(), decode(&corpus().join("edges.exr")).samples());
+    std::fs::write(dir.join("trunc.hdrc"), &bytes[..bytes.len() - 7]).unwrap();
+    must_fail(&[&"convert", &dir.join("trunc.hdrc"), &out], &dir, "");
+    let mut flipped = bytes.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 0x10;
+    std::fs::write(dir.join("crc.hdrc"), &flipped).unwrap();
+    must_fail(&[&"info", &dir.join("crc.hdrc")], &dir, "");
+    must_fail(&[&"convert", &dir.join("crc.hdrc"), &out], &dir, "");
+
+    // A PFM header declaring 10^8 x 10^8 pixels must be refused before allocating.
+    std::fs::write(dir.join("huge.pfm"), b"PF\n100000000 100000000\n-1.0\n\0\0\0\0").unwrap();
+    must_fail(&[&"convert", &dir.join("huge.pfm"), &dir.join("out.exr")], &dir, "");
+    must_fail(&[&"info", &dir.join("huge.pfm")], &dir, "");
+}
+
+#[test]
+fn failed_overwrite_keeps_the_old_file() {
+    let dir = common::temp_dir("cli-overwrite");
+    let target = dir.join("keep.exr");
+    std::fs::write(&target, b"precious").unwrap();
+    std::fs::write(dir.join("bad.exr"), b"\x76\x2f\x31\x01garbage").unwrap();
+    must_fail(&[&"convert", &dir.join("bad.exr"), &target], &dir, "");
+    assert_eq!(std::fs::read(&target).unwrap(), b"precious");
+}
+
+#[test]
+fn registry_reads_by_extension_and_by_bytes() {
+    let dir = common::temp_dir("cli-sniff");
+    // An EXR under a wrong name is still recognised by its magic number.
+    std::fs::copy(corpus().join("odd-3x5.exr"), dir.join("mislabelled.pfm")).unwrap();
+    let v = json(&hdrcodec(&[&"info", &dir.join("mislabelled.pfm"), &"--json"]));
+    assert_eq!(v["codec"], "exr");
+    let codec = hdrcodec::registry().by_name("exr").unwrap();
+    assert!(codec.sniff(&hdrcodec::exr::MAGIC));
+}
