@@ -2,7 +2,7 @@
 //! conversion.
 
 use crate::header::{self, Axis, Header, PixelFormat};
-use crate::{color, MantissaDecode, RgbeDecodeOptions};
+use crate::{MantissaDecode, RgbeDecodeOptions};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
 
 /// New-style RLE is used only for scanlines of 8 to 0x7fff pixels (Radiance's MINELEN and
@@ -208,10 +208,8 @@ fn finish(hdr: Header, width: u32, height: u32, mut samples: Vec<f32>, opts: &Rg
         None => ColorPrimaries::Bt709,
     };
     if hdr.format == PixelFormat::Xyze {
-        let to_xyz = color::primaries_to_xyz(&primaries)
-            .ok_or_else(|| Error::invalid("PRIMARIES cannot convert XYZ to RGB (degenerate chromaticities)"))?;
-        let m = color::invert(&to_xyz).ok_or_else(|| Error::invalid("PRIMARIES give a singular RGB→XYZ matrix"))?;
-        color::apply(&m, &mut samples, 3);
+        // The header parser accepted only valid PRIMARIES, so this is a true inverse.
+        crate::apply_matrix(&primaries.xyz_to_rgb(), &mut samples, 3);
     }
     let factors = [0, 1, 2].map(|c| hdr.exposure * hdr.colorcorr[c]);
     let scaled = factors != [1.0; 3];

@@ -2,7 +2,7 @@
 
 use crate::decode::{MAX_RLE_LEN, MIN_RLE_LEN};
 use crate::header::{self, PixelFormat, WriteHeader};
-use crate::{color, RgbeEncodeOptions, Rounding};
+use crate::{RgbeEncodeOptions, Rounding};
 use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result};
 
 /// Below this the pixel is written as zero, as rgbe.c does (`v < 1e-32`).
@@ -114,22 +114,15 @@ pub(crate) fn rle_plane(data: &[u8], out: &mut Vec<u8>) {
 
 /// Writes one scanline of RGBE pixels given as four planes, flat (interleaved pixels).
 ///
-/// Two pixel patterns would be misread by Radiance-style readers in a flat file and are
-/// rewritten to an equal value: (1, 1, 1, e), an old-style repeat code, becomes (2, 2, 2, e-1);
-/// a scanline that starts with (2, 2, b < 128, e), a new-style RLE marker, becomes
-/// (4, 4, 2b, e-1). Our encoder never writes exponent bytes below 22, so e-1 is always valid.
+/// Readers take a pixel (1, 1, 1, n) for an old-style repeat code and a scanline starting with
+/// (2, 2, b < 128, e) for a new-style RLE marker; neither can come out of [`encode_pixel`],
+/// whose largest mantissa is always at least 128 (zero pixels are all zero).
 fn write_flat(planes: &[u8], n: usize, out: &mut Vec<u8>) {
     let (r, rest) = planes.split_at(n);
     let (g, rest) = rest.split_at(n);
     let (b, e) = rest.split_at(n);
     for x in 0..n {
-        let mut px = [r[x], g[x], b[x], e[x]];
-        if px[..3] == [1, 1, 1] && px[3] > 1 {
-            px = [2, 2, 2, px[3] - 1];
-        } else if x == 0 && px[0] == 2 && px[1] == 2 && px[2] < 128 && px[3] > 1 {
-            px = [4, 4, px[2] * 2, px[3] - 1];
-        }
-        out.extend_from_slice(&px);
+        out.extend_from_slice(&[r[x], g[x], b[x], e[x]]);
     }
 }
 
@@ -144,18 +137,22 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
     let declare = (primaries != ColorPrimaries::Bt709).then(|| primaries.chromaticities());
     let to_xyz = match opts.format {
         PixelFormat::Rgbe => None,
-        PixelFormat::Xyze => Some(
-            color::primaries_to_xyz(&primaries)
-                .ok_or_else(|| Error::invalid("the image's primaries cannot be converted to XYZ"))?,
-        ),
+        PixelFormat::Xyze => {
+            if let ColorPrimaries::Custom(ch) = primaries {
+                if !ch.is_valid() {
+                    return Err(Error::invalid("the image's custom primaries cannot be converted to XYZ"));
+                }
+            }
+            Some(primaries.rgb_to_xyz())
+        }
     };
     // Values decoded without undoing EXPOSURE still contain it: say so in the file.
     let raw = image.metadata_value("exposure_in_pixels") == Some("true");
-    let exposure = raw.then(|| image.metadata_value("exposure").and_then(|v| v.trim().parse().ok())).flatten();
+    let factor = |t: &str| t.parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0);
+    let exposure = raw.then(|| image.metadata_value("exposure").and_then(|v| factor(v.trim()))).flatten();
     let colorcorr = raw
         .then(|| {
-            let v: Vec<f64> =
-                image.metadata_value("colorcorr")?.split_ascii_whitespace().filter_map(|t| t.parse().ok()).collect();
+            let v: Vec<f64> = image.metadata_value("colorcorr")?.split_ascii_whitespace().filter_map(factor).collect();
             <[f64; 3]>::try_from(v).ok()
         })
         .flatten();
@@ -180,7 +177,7 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
         if let Some(m) = &to_xyz {
             xyz.clear();
             xyz.extend_from_slice(row);
-            color::apply(m, &mut xyz, stride);
+            crate::apply_matrix(m, &mut xyz, stride);
             row = &xyz;
         }
         fill_planes(row, stride, opts.rounding, &mut planes);

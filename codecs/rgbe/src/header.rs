@@ -124,7 +124,7 @@ fn primaries_from(v: [f64; 8]) -> Option<Chromaticities> {
         return None;
     }
     let ch = Chromaticities { red: [v[0], v[1]], green: [v[2], v[3]], blue: [v[4], v[5]], white: [v[6], v[7]] };
-    crate::color::rgb_to_xyz(&ch).map(|_| ch)
+    ch.is_valid().then_some(ch)
 }
 
 fn parse_axis(sign: &str, name: &str, len: &str, line: &str) -> Result<Axis> {

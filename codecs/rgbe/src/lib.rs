@@ -18,7 +18,6 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
-mod color;
 mod decode;
 mod encode;
 mod header;
@@ -143,6 +142,15 @@ pub fn read_header(data: &[u8]) -> Result<Header> {
 /// Encodes an image (alpha, if any, is dropped) as a Radiance picture.
 pub fn encode(image: &HdrImage, options: &RgbeEncodeOptions) -> Result<Vec<u8>> {
     encode::encode(image, options)
+}
+
+/// Applies a colour matrix to every RGB triple of interleaved samples (`stride` per pixel).
+fn apply_matrix(m: &hdrcodec_core::color::Mat3, samples: &mut [f32], stride: usize) {
+    let m = hdrcodec_core::color::mat_to_f32(m);
+    for px in samples.chunks_exact_mut(stride) {
+        let v = hdrcodec_core::color::mat_apply_f32s(&m, [px[0], px[1], px[2]]);
+        px[..3].copy_from_slice(&v);
+    }
 }
 
 /// The Radiance RGBE codec behind the family's [`ImageCodec`] trait.
