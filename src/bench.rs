@@ -25,9 +25,6 @@ pub struct Config {
     pub settings: EncodeSettings,
 }
 
-/// The OpenEXR compressions benchmarked as baselines (every one the `exr` crate writes).
-pub const EXR_COMPRESSIONS: &[&str] = &["none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a"];
-
 /// Every configuration the bench runs, for the codecs present in `registry`. Each codec adds
 /// its rows here, **one line per codec**.
 pub fn configurations(registry: &Registry) -> Vec<Config> {
@@ -38,8 +35,8 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
         }
     };
     let opts = |kv: &[(&str, &str)]| kv.iter().fold(EncodeSettings::default(), |s, (k, v)| s.with_option(*k, *v));
-    // OpenEXR baselines: every compression, half and float samples.
-    for c in EXR_COMPRESSIONS {
+    // OpenEXR baselines: every compression the codec writes, half and float samples.
+    for c in crate::exr::ExrCompression::ALL.map(|c| c.name()) {
         for p in ["half", "float"] {
             add("exr", format!("exr:{c}-{p}"), opts(&[("compression", c), ("pixel", p)]));
         }

@@ -344,3 +344,20 @@ pub fn corpus_write(dir: &Path) -> Result<()> {
     println!("wrote {} files to {}", written.len(), dir.display());
     Ok(())
 }
+
+/// `hdrcodec codecs`.
+pub fn codecs(json: bool) -> Result<()> {
+    let reg = hdrcodec::registry();
+    let list: Vec<Value> = reg
+        .codecs()
+        .iter()
+        .map(|c| json!({"name": c.name(), "extensions": c.extensions(), "id": String::from_utf8_lossy(&c.id())}))
+        .collect();
+    if json {
+        return print_json(&json!({ "codecs": list }));
+    }
+    for c in reg.codecs() {
+        println!("{:<10} {:<6} .{}", c.name(), String::from_utf8_lossy(&c.id()), c.extensions().join(" ."));
+    }
+    Ok(())
+}

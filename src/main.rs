@@ -52,6 +52,12 @@ enum Command {
     /// The project's generated corpus of synthetic HDR scenes.
     #[command(subcommand)]
     Corpus(CorpusCommand),
+    /// List the codecs of this build: name, file extensions, container id.
+    Codecs {
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Args, Debug)]
@@ -60,7 +66,7 @@ struct ConvertArgs {
     input: PathBuf,
     /// Output image (written only if the whole conversion succeeds).
     output: PathBuf,
-    /// Codec for OUT, overriding its extension (see `hdrcodec info --help` for names).
+    /// Codec for OUT, overriding its extension (`hdrcodec codecs` lists them).
     #[arg(long)]
     codec: Option<String>,
     /// Quality 0-100 for lossy codecs.
@@ -137,6 +143,7 @@ fn run() -> ExitCode {
             quick: a.quick,
         }),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
+        Command::Codecs { json } => cli::codecs(json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
