@@ -25,6 +25,7 @@ mod rle;
 pub mod tiff;
 pub mod uvgrid;
 
+use hdrcodec_core::color::{mat_inverse, mat_to_f32, Mat3};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
 use pixel::Tables;
 
@@ -160,39 +161,16 @@ impl Default for EncodeOptions {
     }
 }
 
-/// The RGB→XYZ matrix of `p` (white → Y = 1), from its chromaticities as in SMPTE RP 177. The
-/// primaries' columns are (x, y, 1 − x − y) scaled to sum to the white, so XYZ itself works.
-fn rgb_to_xyz(p: &ColorPrimaries) -> Result<[[f64; 3]; 3]> {
-    if *p == ColorPrimaries::Xyz {
-        return Ok([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+/// The RGB→XYZ matrix of `p` (white → Y = 1; identity for XYZ), refusing degenerate custom
+/// chromaticities rather than silently using the identity.
+fn rgb_to_xyz(p: &ColorPrimaries) -> Result<Mat3> {
+    match p {
+        ColorPrimaries::Xyz => Ok(p.rgb_to_xyz()),
+        _ => p
+            .chromaticities()
+            .try_rgb_to_xyz()
+            .ok_or_else(|| Error::invalid(format!("degenerate {} chromaticities", p.name()))),
     }
-    let c = p.chromaticities();
-    let col = |q: [f64; 2]| [q[0], q[1], 1.0 - q[0] - q[1]];
-    let (r, g, b) = (col(c.red), col(c.green), col(c.blue));
-    let m = [[r[0], g[0], b[0]], [r[1], g[1], b[1]], [r[2], g[2], b[2]]];
-    let [wx, wy] = c.white;
-    let white = [wx / wy, 1.0, (1.0 - wx - wy) / wy];
-    let inv = invert(&m).ok_or_else(|| Error::invalid(format!("degenerate {} chromaticities", p.name())))?;
-    let s: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| inv[i][j] * white[j]).sum());
-    if s.iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(format!("degenerate {} white point", p.name())));
-    }
-    Ok(std::array::from_fn(|i| std::array::from_fn(|j| m[i][j] * s[j])))
-}
-
-/// The inverse of a 3x3 matrix, `None` if singular.
-fn invert(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let cof = |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let adj = [
-        [cof(1, 2, 1, 2), -cof(0, 2, 1, 2), cof(0, 1, 1, 2)],
-        [-cof(1, 2, 0, 2), cof(0, 2, 0, 2), -cof(0, 1, 0, 2)],
-        [cof(1, 2, 0, 1), -cof(0, 2, 0, 1), cof(0, 1, 0, 1)],
-    ];
-    let det = m[0][0] * adj[0][0] + m[0][1] * adj[1][0] + m[0][2] * adj[2][0];
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    Some(adj.map(|row| row.map(|v| v / det)))
 }
 
 /// Decodes a LogLuv TIFF to an RGB image in `opts.primaries`.
@@ -207,9 +185,10 @@ pub fn raster_to_image(raster: &LogLuvRaster, opts: &DecodeOptions) -> Result<Hd
     match raster.encoding {
         Encoding::LogL16 => samples.extend(raster.words.iter().flat_map(|&p| [t.l16(p as u16); 3])),
         enc => {
-            let m = invert(&rgb_to_xyz(&opts.primaries)?)
-                .ok_or_else(|| Error::invalid("singular RGB to XYZ matrix"))?
-                .map(|r| r.map(|v| v as f32));
+            let m = mat_to_f32(
+                &mat_inverse(&rgb_to_xyz(&opts.primaries)?)
+                    .ok_or_else(|| Error::invalid("singular RGB to XYZ matrix"))?,
+            );
             let identity = opts.primaries == ColorPrimaries::Xyz;
             let mut push = |xyz: [f32; 3]| {
                 if identity {
