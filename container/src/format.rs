@@ -3,8 +3,8 @@
 //! All integers are big-endian, all floats IEEE 754 big-endian.
 
 use hdrcodec_core::{
-    Channels, Chromaticities, ColorInfo, ColorPrimaries, ContentLightLevel, Error, Hdr10Metadata, MasteringDisplay,
-    Result,
+    Channels, Chromaticities, ColorInfo, ColorPrimaries, ContentLightLevel, Error, Hdr10Metadata, Limits,
+    MasteringDisplay, Result,
 };
 
 /// The eight bytes every `.hdrc` file starts with.
@@ -33,6 +33,14 @@ pub(crate) const META: [u8; 4] = *b"META";
 pub(crate) const HEAD_LEN: usize = 26;
 pub(crate) const DATA_HEADER_LEN: usize = 20;
 pub(crate) const INDEX_ENTRY_LEN: usize = 20;
+
+/// [`Limits::check_image`] without its overflow: `Limits::none()` lets 2³²−1 × 2³²−1 through
+/// the dimension check, and the byte count of such an image does not fit in a `u64`.
+pub(crate) fn check_image(limits: &Limits, width: u32, height: u32, channels: Channels) -> Result<()> {
+    limits.check_dimensions(u64::from(width), u64::from(height))?;
+    let bytes = (u64::from(width) * u64::from(height)).saturating_mul(channels.count() as u64 * 4);
+    limits.check_alloc(bytes, "the decoded image")
+}
 
 /// A chunk type for messages: printable ASCII as is, anything else as `\xNN`.
 pub(crate) fn type_name(t: [u8; 4]) -> String {
@@ -131,7 +139,20 @@ impl Head {
                 self.tile_width, self.tile_height, self.width, self.height
             )));
         }
+        // Bounds every tile key and count computed from this head (frame × tiles per frame).
+        if u64::from(self.frames).checked_mul(self.tiles_per_frame()).is_none() {
+            return Err(Error::invalid(format!(
+                "{} frames of {} tiles are too many",
+                self.frames,
+                self.tiles_per_frame()
+            )));
+        }
         Ok(())
+    }
+
+    /// Tiles in all frames (fits in `u64` for every head that passed `check`).
+    pub(crate) fn total_tiles(&self) -> u64 {
+        u64::from(self.frames).saturating_mul(self.tiles_per_frame())
     }
 
     pub(crate) fn to_bytes(self) -> [u8; HEAD_LEN] {

@@ -139,7 +139,7 @@ fn decode_reader<'c>(
     let codec = resolve(h.codec).ok_or_else(|| {
         Error::unsupported(format!("the payload codec '{}' of this .hdrc file", crate::format::type_name(h.codec)))
     })?;
-    let frame_bytes = u64::from(h.width) * u64::from(h.height) * h.channels.count() as u64 * 4;
+    let frame_bytes = (u64::from(h.width) * u64::from(h.height)).saturating_mul(h.channels.count() as u64 * 4);
     limits.check_alloc(frame_bytes.saturating_mul(u64::from(h.frames)), "the decoded frames")?;
     let color = r.color_info();
     let c = h.channels.count();

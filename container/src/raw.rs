@@ -85,19 +85,19 @@ fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     let height = u32::from_le_bytes([data[8], data[9], data[10], data[11]]);
     let channels = Channels::from_count(usize::from(data[12]))
         .ok_or_else(|| Error::invalid(format!("{} header: {} channels (expected 3 or 4)", S::NAME, data[12])))?;
-    limits.check_image(u64::from(width), u64::from(height), channels)?;
-    let count = width as usize * height as usize * channels.count();
+    crate::format::check_image(limits, width, height, channels)?;
     let body = &data[HEADER_LEN..];
-    let need = count * S::BYTES;
-    if body.len() < need {
+    // Checked in u64 before any allocation: with `Limits::none()` the product may not fit.
+    let need = (u64::from(width) * u64::from(height)).saturating_mul((channels.count() * S::BYTES) as u64);
+    if (body.len() as u64) < need {
         return Err(Error::truncated(format!(
             "the {} samples of a {width}x{height} image ({need} bytes, {} present)",
             S::NAME,
             body.len()
         )));
     }
-    if body.len() > need {
-        return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() - need, S::NAME)));
+    if body.len() as u64 > need {
+        return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() as u64 - need, S::NAME)));
     }
     let samples = body.chunks_exact(S::BYTES).map(S::get).collect();
     HdrImage::new(width, height, channels, samples, ColorInfo::default())

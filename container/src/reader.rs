@@ -1,7 +1,9 @@
 //! The validating reader over a file held in memory.
 
 use crate::crc::crc32c;
-use crate::format::{self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, MAX_CHUNK_LEN, SIGNATURE};
+use crate::format::{
+    self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, DATA_HEADER_LEN, MAX_CHUNK_LEN, SIGNATURE,
+};
 use hdrcodec_core::{ColorInfo, Error, Hdr10Metadata, Limits, Result};
 
 /// One DATA chunk of a file: its tile header and the codec payload, borrowed from the file.
@@ -143,9 +145,18 @@ impl<'a> Reader<'a> {
                 }
                 let h = Head::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
                 // The whole image must fit the limits before anything of its size is allocated.
-                limits
-                    .check_image(u64::from(h.width), u64::from(h.height), h.channels)
-                    .map_err(|e| in_chunk(&ctx, e))?;
+                format::check_image(limits, h.width, h.height, h.channels).map_err(|e| in_chunk(&ctx, e))?;
+                // Each tile needs a DATA chunk of at least 32 bytes: a HEAD promising more tiles
+                // than the file can hold is rejected here, which also bounds every tile count.
+                let room = (data.len() - pos) as u64 / (CHUNK_OVERHEAD + DATA_HEADER_LEN) as u64;
+                if h.total_tiles() > room {
+                    return Err(Error::invalid(format!(
+                        "{ctx}: {} frames x {} tiles need more DATA chunks than the {} bytes that follow can hold (truncated file?)",
+                        h.frames,
+                        h.tiles_per_frame(),
+                        data.len() - pos
+                    )));
+                }
                 head = Some(h);
                 r.head = h;
                 continue;
@@ -238,7 +249,7 @@ impl<'a> Reader<'a> {
     /// Every tile of every frame present exactly once.
     fn check_tiles(&mut self) -> Result<()> {
         let h = self.head;
-        let expected = u64::from(h.frames) * h.tiles_per_frame();
+        let expected = h.total_tiles();
         self.grid.sort_unstable();
         for w in self.grid.windows(2) {
             if w[0].0 == w[1].0 {

@@ -108,7 +108,7 @@ impl<W: Write> Writer<W> {
 
     /// Writes INDX and END and returns the output. Fails if a tile of a frame is missing.
     pub fn finish(mut self) -> Result<W> {
-        let expected = u64::from(self.head.frames) * self.head.tiles_per_frame();
+        let expected = self.head.total_tiles();
         if self.written.len() as u64 != expected {
             return Err(Error::invalid(format!(
                 "{} of the {expected} tiles ({} frames x {} tiles) were written",

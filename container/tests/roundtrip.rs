@@ -274,3 +274,30 @@ fn absurd_dimensions_hit_the_limits() {
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
     assert!(e.to_string().contains("HEAD chunk #0 at offset 8"), "{e}");
 }
+
+#[test]
+fn the_largest_declared_sizes_fail_cleanly_even_without_limits() {
+    // 2^32-1 x 2^32-1 pixels in 1x1 tiles: the byte count and the tile count overflow u64
+    // arithmetic unless checked; with no limits at all the reader must still refuse it.
+    let m = u32::MAX;
+    for (tile, frames) in [(1, 1), (m, m), (1, m)] {
+        let head = Head::new(*b"RF32", m, m, Channels::Rgba).with_tiles(tile, tile).with_frames(frames);
+        let mut file = Vec::new();
+        match Writer::new(&mut file, &head) {
+            Ok(w) => drop(w),
+            Err(e) => {
+                assert!(e.to_string().contains("too many"), "{e}");
+                continue;
+            }
+        }
+        let e = Reader::new(&file, &Limits::none()).unwrap_err().to_string();
+        assert!(e.contains("HEAD chunk #0"), "{e}");
+        assert!(decode_image(&file, &Limits::none(), &raw).is_err());
+    }
+    // A raw payload that declares the same, decoded without limits: refused before allocating.
+    let mut payload = b"RF32".to_vec();
+    payload.extend_from_slice(&m.to_le_bytes());
+    payload.extend_from_slice(&m.to_le_bytes());
+    payload.push(4);
+    assert!(matches!(RawF32Codec.decode(&payload, &Limits::none()), Err(Error::Truncated { .. })));
+}
