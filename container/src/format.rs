@@ -42,6 +42,41 @@ pub(crate) fn check_image(limits: &Limits, width: u32, height: u32, channels: Ch
     limits.check_alloc(bytes, "the decoded image")
 }
 
+/// Checks the eight signature bytes at the start of `data`, naming the damage if it looks
+/// like a text-mode transfer.
+pub(crate) fn check_signature(data: &[u8]) -> Result<()> {
+    if data.len() < SIGNATURE.len() {
+        if SIGNATURE.starts_with(data) {
+            return Err(Error::truncated("the .hdrc signature"));
+        }
+    } else if data[..8] == SIGNATURE {
+        return Ok(());
+    }
+    let d = &data[..data.len().min(8)];
+    Err(Error::invalid(if d.len() == 8 && d[1..5] == SIGNATURE[1..5] && d[0] == SIGNATURE[0] & 0x7F {
+        "the .hdrc signature has lost its high bit (sent through a 7-bit channel)"
+    } else if d.len() >= 5 && d[1..5] == SIGNATURE[1..5] {
+        "the .hdrc signature is damaged (line endings converted by a text-mode transfer?)"
+    } else {
+        "not an .hdrc file (wrong signature)"
+    }))
+}
+
+/// What a reader checks of a parsed HEAD before using it: the image against `limits` (before
+/// anything of its size is allocated), and that the `room` bytes after HEAD can hold a DATA
+/// chunk of at least 32 bytes per tile, which also bounds every tile count.
+pub(crate) fn check_head(h: &Head, limits: &Limits, room: u64) -> Result<()> {
+    check_image(limits, h.width, h.height, h.channels)?;
+    if h.total_tiles() > room / (CHUNK_OVERHEAD + DATA_HEADER_LEN) as u64 {
+        return Err(Error::invalid(format!(
+            "{} frames x {} tiles need more DATA chunks than the {room} bytes that follow can hold (truncated file?)",
+            h.frames,
+            h.tiles_per_frame(),
+        )));
+    }
+    Ok(())
+}
+
 /// A chunk type for messages: printable ASCII as is, anything else as `\xNN`.
 pub(crate) fn type_name(t: [u8; 4]) -> String {
     t.iter().map(|&b| if (0x20..0x7F).contains(&b) { (b as char).to_string() } else { format!("\\x{b:02X}") }).collect()

@@ -1,9 +1,7 @@
 //! The validating reader over a file held in memory.
 
 use crate::crc::crc32c;
-use crate::format::{
-    self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, DATA_HEADER_LEN, MAX_CHUNK_LEN, SIGNATURE,
-};
+use crate::format::{self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, MAX_CHUNK_LEN, SIGNATURE};
 use hdrcodec_core::{ColorInfo, Error, Hdr10Metadata, Limits, Result};
 
 /// One DATA chunk of a file: its tile header and the codec payload, borrowed from the file.
@@ -72,23 +70,8 @@ impl Counts {
 impl<'a> Reader<'a> {
     /// Parses and validates a whole file.
     pub fn new(data: &'a [u8], limits: &Limits) -> Result<Self> {
-        if data.len() < SIGNATURE.len() {
-            if SIGNATURE.starts_with(data) {
-                return Err(Error::truncated("the .hdrc signature"));
-            }
-        } else if data[..8] == SIGNATURE {
-            return Self::chunks(data, limits);
-        }
-        let n = data.len().min(8);
-        Err(Error::invalid(match &data[..n] {
-            d if d.len() == 8 && d[1..5] == SIGNATURE[1..5] && d[0] == SIGNATURE[0] & 0x7F => {
-                "the .hdrc signature has lost its high bit (sent through a 7-bit channel)".to_string()
-            }
-            d if d.len() >= 5 && d[1..5] == SIGNATURE[1..5] => {
-                "the .hdrc signature is damaged (line endings converted by a text-mode transfer?)".to_string()
-            }
-            _ => "not an .hdrc file (wrong signature)".to_string(),
-        }))
+        format::check_signature(data)?;
+        Self::chunks(data, limits)
     }
 
     fn chunks(data: &'a [u8], limits: &Limits) -> Result<Self> {
@@ -145,18 +128,7 @@ impl<'a> Reader<'a> {
                 }
                 let h = Head::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
                 // The whole image must fit the limits before anything of its size is allocated.
-                format::check_image(limits, h.width, h.height, h.channels).map_err(|e| in_chunk(&ctx, e))?;
-                // Each tile needs a DATA chunk of at least 32 bytes: a HEAD promising more tiles
-                // than the file can hold is rejected here, which also bounds every tile count.
-                let room = (data.len() - pos) as u64 / (CHUNK_OVERHEAD + DATA_HEADER_LEN) as u64;
-                if h.total_tiles() > room {
-                    return Err(Error::invalid(format!(
-                        "{ctx}: {} frames x {} tiles need more DATA chunks than the {} bytes that follow can hold (truncated file?)",
-                        h.frames,
-                        h.tiles_per_frame(),
-                        data.len() - pos
-                    )));
-                }
+                format::check_head(&h, limits, (data.len() - pos) as u64).map_err(|e| in_chunk(&ctx, e))?;
                 head = Some(h);
                 r.head = h;
                 continue;

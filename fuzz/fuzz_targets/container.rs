@@ -1,12 +1,13 @@
 //! Fuzz target for the `.hdrc` container: the validating `Reader` and the whole decode path
-//! (`decode_frames` with the raw payload codecs, `HdrcCodec::decode`), with `Limits::fuzzing()`.
+//! (`decode_frames` with the raw payload codecs, `HdrcCodec::decode`) and the index-driven
+//! `SeekReader`, with `Limits::fuzzing()`.
 //! Built with `--cfg fuzzing`, the reader accepts wrong CRCs so that mutations reach the chunk
 //! parsers behind them (a real build rejects them).
 //!
 //!   cd fuzz && cargo fuzz run -s none container -- -max_total_time=30
 #![no_main]
 
-use hdrcodec_container::{decode_frames, HdrcCodec, RawF16Codec, RawF32Codec, Reader};
+use hdrcodec_container::{decode_frames, HdrcCodec, RawF16Codec, RawF32Codec, Reader, SeekReader};
 use hdrcodec_core::{ImageCodec, Limits};
 use libfuzzer_sys::fuzz_target;
 
@@ -37,4 +38,17 @@ fuzz_target!(|data: &[u8]| {
         }
     }
     let _ = HdrcCodec::default().decode(data, &limits);
+    if let Ok(mut s) = SeekReader::new(std::io::Cursor::new(data), &limits) {
+        let h = *s.head();
+        // Bounded: `new` checked that the file can hold a DATA chunk per tile.
+        for f in 0..h.frames {
+            for row in 0..h.tile_rows() {
+                for c in 0..h.tile_columns() {
+                    if let Ok((t, _)) = s.read_tile(f, c, row) {
+                        assert_eq!(t, h.tile(f, c, row));
+                    }
+                }
+            }
+        }
+    }
 });
