@@ -233,8 +233,9 @@ fn copy_block(
             let dst = dst.iter_mut().skip(c).step_by(n);
             match s.sample_type {
                 SampleType::F16 => {
+                    let table = half_table();
                     for (d, b) in dst.zip(src.chunks_exact(2)) {
-                        *d = exr::prelude::f16::from_bits(u16::from_ne_bytes([b[0], b[1]])).to_f32();
+                        *d = table[usize::from(u16::from_ne_bytes([b[0], b[1]]))];
                     }
                 }
                 SampleType::F32 => {
@@ -252,6 +253,19 @@ fn copy_block(
         }
     }
     Ok(())
+}
+
+/// Every half value as `f32` (exact: each entry is `f16::to_f32`, NaN payloads included).
+/// One table lookup per sample is several times faster than converting sample by sample.
+fn half_table() -> &'static [f32; 65536] {
+    static TABLE: std::sync::OnceLock<Box<[f32; 65536]>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut t = Box::new([0.0f32; 65536]);
+        for (i, v) in t.iter_mut().enumerate() {
+            *v = exr::prelude::f16::from_bits(i as u16).to_f32();
+        }
+        t
+    })
 }
 
 /// An `f32` attribute value as the decimal number it was written as (0.64f32 → 0.64f64, not
