@@ -8,7 +8,7 @@
 //! decompression runs on rayon's global pool where a panic inside `exr` is caught per chunk
 //! (the high-level reader builds its own pool, in which a panicking task aborts the process).
 
-use exr::block::chunk::Chunk;
+use exr::block::chunk::{Chunk, CompressedBlock};
 use exr::block::reader::ChunksReader;
 use exr::block::UncompressedBlock;
 use exr::meta::attribute::SampleType;
@@ -102,7 +102,23 @@ fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
         .filter_chunks(false, |_, _, block| block.layer == 0 && block.level == exr::math::Vec2(0, 0))
         .map_err(map_err)?;
     let expected = chunks.expected_chunk_count();
-    let chunks: Vec<Chunk> = chunks.collect::<std::result::Result<_, _>>().map_err(map_err)?;
+    // Each chunk is copied out of the file. Offset tables that point at the same bytes again
+    // and again would multiply that copy; distinct chunks never add up to more than the file.
+    let mut held = 0usize;
+    let mut list = Vec::with_capacity(expected.min(data.len() / 8));
+    for chunk in chunks {
+        let chunk = chunk.map_err(map_err)?;
+        held += match &chunk.compressed_block {
+            CompressedBlock::ScanLine(b) => b.compressed_pixels_le.len(),
+            CompressedBlock::Tile(b) => b.compressed_pixels_le.len(),
+            _ => return Err(Error::unsupported("deep OpenEXR chunks")),
+        };
+        if held > data.len() {
+            return Err(Error::invalid("OpenEXR: the offset tables point at the same chunks more than once"));
+        }
+        list.push(chunk);
+    }
+    let chunks = list;
     if chunks.len() != expected {
         return Err(Error::truncated("the OpenEXR chunks"));
     }

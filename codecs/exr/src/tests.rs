@@ -260,3 +260,18 @@ fn corrupted_bytes_never_panic() {
     let unknown: Vec<&String> = panics.iter().filter(|p| !p.starts_with("b44")).collect();
     assert!(unknown.is_empty(), "new panics inside the exr crate: {unknown:?}");
 }
+
+#[test]
+fn offset_tables_pointing_at_one_chunk_are_refused() {
+    // 35 lines of ZIP (16 lines per chunk): 3 chunks, so an offset table of 3 entries that
+    // starts where the first entry says the chunks begin minus 24 bytes.
+    let bytes = ExrCodec.encode(&picture(9, 35, Channels::Rgb), &settings(ExrCompression::Zip16, "float")).unwrap();
+    let u64_at = |p: usize| u64::from_le_bytes(bytes[p..p + 8].try_into().unwrap()) as usize;
+    let table = (8..bytes.len() - 8).find(|&p| u64_at(p) == p + 24).expect("offset table");
+    let mut dup = bytes.clone();
+    let first = bytes[table..table + 8].to_vec();
+    dup[table + 8..table + 16].copy_from_slice(&first);
+    dup[table + 16..table + 24].copy_from_slice(&first);
+    let e = ExrCodec.decode(&dup, &Limits::default()).unwrap_err();
+    assert!(matches!(e, Error::Invalid { .. }), "{e}");
+}
