@@ -276,7 +276,7 @@ const QUICK_MAX_PIXELS: usize = 70_000;
 /// `hdrcodec bench`.
 pub fn bench(o: &BenchOptions) -> Result<()> {
     if let Some(p) = &o.plot {
-        crate::cli::check_plot_path(p)?;
+        crate::plot::prepare(p)?;
     }
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
@@ -309,7 +309,7 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     });
     pb.finish_and_clear();
     if let Some(p) = &o.plot {
-        plot(&report, p)?;
+        crate::plot::write(&report, p)?;
     }
     if o.json {
         let v = serde_json::to_value(&report).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
@@ -317,18 +317,6 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     }
     print!("{}", bench::table(&report));
     Ok(())
-}
-
-/// Fails early (before any work) if a plot cannot be drawn into `path`.
-fn check_plot_path(path: &Path) -> Result<()> {
-    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
-        return Err(Error::unsupported(format!("--plot writes PNG files; '{}' does not end in .png", path.display())));
-    }
-    Err(Error::unsupported("--plot is not supported in this build"))
-}
-
-fn plot(_report: &bench::Report, _path: &Path) -> Result<()> {
-    Err(Error::unsupported("--plot is not supported in this build"))
 }
 
 /// `hdrcodec corpus write`.

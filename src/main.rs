@@ -3,6 +3,7 @@
 //! non-zero status and no output file. `--json` prints exactly one JSON object on stdout.
 
 mod cli;
+mod plot;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;

@@ -284,3 +284,25 @@ fn registry_reads_by_extension_and_by_bytes() {
     let codec = hdrcodec::registry().by_name("exr").unwrap();
     assert!(codec.sniff(&hdrcodec::exr::MAGIC));
 }
+
+#[test]
+fn bench_plot_writes_a_png() {
+    let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf"]
+        .into_iter()
+        .map(PathBuf::from)
+        .find(|p| p.is_file());
+    if common::require(font, "a DejaVu Sans font (Debian fonts-dejavu-core) for bench --plot").is_none() {
+        return;
+    }
+    let dir = common::temp_dir("cli-plot");
+    let png = dir.join("rd.png");
+    ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"exr:b44", &"--plot", &png]));
+    let bytes = std::fs::read(&png).unwrap();
+    // PNG signature and IHDR (ISO/IEC 15948 / RFC 2083): 1200 x 800, 8-bit RGB.
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    assert_eq!(&bytes[12..16], b"IHDR");
+    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 1200);
+    assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 800);
+    assert_eq!((bytes[24], bytes[25]), (8, 2));
+    must_fail(&[&"bench", &"--quick", &"--plot", &dir.join("rd.jpg")], &dir, "PNG");
+}
