@@ -43,7 +43,8 @@ impl Limits {
                 self.max_width, self.max_height
             )));
         }
-        let pixels = width * height;
+        // Saturating: with `Limits::none()` the dimensions may be up to 2^32-1 each.
+        let pixels = width.saturating_mul(height);
         if pixels > self.max_pixels {
             return Err(Error::limit(format!("{pixels} pixels exceed the limit of {}", self.max_pixels)));
         }
@@ -64,7 +65,7 @@ impl Limits {
     /// Checks the dimensions and the `f32` buffer of an [`HdrImage`](crate::HdrImage) of that size.
     pub fn check_image(&self, width: u64, height: u64, channels: Channels) -> Result<()> {
         self.check_dimensions(width, height)?;
-        let bytes = width * height * channels.count() as u64 * 4;
+        let bytes = width.saturating_mul(height).saturating_mul(channels.count() as u64 * 4);
         self.check_alloc(bytes, "the decoded image")
     }
 }
@@ -80,5 +81,9 @@ mod tests {
         assert!(l.check_image(0, 5, Channels::Rgb).is_err());
         assert!(l.check_image(4096, 4096, Channels::Rgba).is_ok());
         assert!(Limits::fuzzing().check_image(4096, 4096, Channels::Rgba).is_err());
+        // The largest declarable size must not overflow, even without limits.
+        let max = u64::from(u32::MAX);
+        assert!(Limits::none().check_image(max, max, Channels::Rgba).is_ok());
+        assert!(l.check_image(max, max, Channels::Rgba).is_err());
     }
 }
