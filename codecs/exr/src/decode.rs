@@ -21,8 +21,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use crate::{compression_name, MAGIC};
 
-/// Chunks decompressed per parallel batch: bounds the memory held in decompressed blocks
-/// to a few dozen blocks while keeping both cores busy.
+/// Most chunks decompressed per parallel batch: bounds the memory held in decompressed blocks
+/// to a few dozen blocks while keeping every core busy.
 const BATCH: usize = 32;
 
 /// Decodes an OpenEXR file held in memory. Never panics: a panic inside the `exr` crate is
@@ -95,8 +95,13 @@ fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     if offsets > data.len() as u64 {
         return Err(Error::truncated(format!("the OpenEXR offset tables ({offsets} bytes declared)")));
     }
-    let block_bytes = header.max_block_pixel_size().area() as u64 * header.channels.bytes_per_pixel as u64;
-    limits.check_alloc(block_bytes.saturating_mul(BATCH as u64), "the decompressed OpenEXR blocks")?;
+    // A block never exceeds the data window, whatever tile size the header declares.
+    let block = header.max_block_pixel_size();
+    let block_pixels = (block.width() as u64).min(w) * (block.height() as u64).min(h);
+    let block_bytes = block_pixels * header.channels.bytes_per_pixel as u64;
+    limits.check_alloc(block_bytes, "one decompressed OpenEXR block")?;
+    // Fewer blocks per batch when they are large, so that a batch stays within the limit too.
+    let batch_len = (limits.max_alloc_bytes / block_bytes.max(1)).clamp(1, BATCH as u64) as usize;
 
     let chunks = reader
         .filter_chunks(false, |_, _, block| block.layer == 0 && block.level == exr::math::Vec2(0, 0))
@@ -132,7 +137,7 @@ fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     let parallel = chunks.len() > 2 && data.len() > 1 << 16;
     let mut iter = chunks.into_iter();
     loop {
-        let batch: Vec<Chunk> = iter.by_ref().take(BATCH).collect();
+        let batch: Vec<Chunk> = iter.by_ref().take(batch_len).collect();
         if batch.is_empty() {
             break;
         }
