@@ -53,13 +53,14 @@ pub fn run_catching_panics(f: impl FnOnce() -> ExitCode) -> ExitCode {
 pub fn clap_error(e: clap::Error) -> ExitCode {
     use clap::error::ErrorKind;
     match e.kind() {
-        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => {
             let _ = e.print();
-            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            }
+            ExitCode::SUCCESS
+        }
+        // `hdrcodec` or `hdrcodec corpus` alone: a usage error like any other, in one line.
+        ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            fail("a command is missing (see 'hdrcodec --help')");
+            ExitCode::from(2)
         }
         _ => {
             let text = e.render().to_string();

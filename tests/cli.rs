@@ -306,3 +306,44 @@ fn bench_plot_writes_a_png() {
     assert_eq!((bytes[24], bytes[25]), (8, 2));
     must_fail(&[&"bench", &"--quick", &"--plot", &dir.join("rd.jpg")], &dir, "PNG");
 }
+
+#[test]
+fn info_shows_hdr10_metadata_carried_by_the_container() {
+    use hdrcodec::core::{ContentLightLevel, EncodeSettings, Hdr10Metadata, MasteringDisplay};
+    let dir = common::temp_dir("cli-hdr10");
+    let mut img = hdrcodec::corpus::scene("odd-257x129").unwrap().image;
+    let md = MasteringDisplay::bt2020(1000.0, 0.0001);
+    img.color.hdr10 = Some(Hdr10Metadata {
+        mastering_display: Some(md),
+        content_light_level: Some(ContentLightLevel { max_cll: 987, max_fall: 123 }),
+    });
+    let codec = hdrcodec::registry().by_name("hdrc").unwrap();
+    let file = dir.join("hdr10.hdrc");
+    std::fs::write(&file, codec.encode(&img, &EncodeSettings::default()).unwrap()).unwrap();
+    let v = json(&hdrcodec(&[&"info", &file, &"--json"]));
+    assert_eq!(v["codec"], "hdrc");
+    assert_eq!(v["hdr10"]["content_light_level"]["max_cll"], 987, "{v}");
+    assert_eq!(v["hdr10"]["content_light_level"]["max_fall"], 123, "{v}");
+    assert_eq!(v["hdr10"]["mastering_display"]["max_luminance"].as_f64(), Some(1000.0), "{v}");
+    // BT.2020 red primary (ITU-R BT.2020-2 Table 3) as the mastering display's.
+    assert_eq!(v["hdr10"]["mastering_display"]["primaries"][0][0].as_f64(), Some(0.708), "{v}");
+    // The measured MaxCLL is max(R,G,B) in nits over the pixels (CTA-861.3), here the
+    // generator's brightest red sample times 100 nits.
+    let max_r = img.samples().chunks(3).map(|p| p[0].max(p[1]).max(p[2])).fold(0.0f32, f32::max);
+    let measured = v["max_cll_measured_nits"].as_f64().unwrap();
+    assert!((measured - f64::from(max_r) * 100.0).abs() < 1e-6 * measured, "{measured}");
+    let text = ok(&hdrcodec(&[&"info", &file]));
+    assert!(text.contains("MaxCLL 987 MaxFALL 123"), "{text}");
+    assert!(text.contains("mastering display"), "{text}");
+}
+
+#[test]
+fn no_command_is_a_one_line_usage_error() {
+    let dir = common::temp_dir("cli-usage");
+    must_fail(&[], &dir, "command is missing");
+    must_fail(&[&"corpus"], &dir, "command is missing");
+    let help = ok(&hdrcodec(&[&"--help"]));
+    for cmd in ["convert", "info", "compare", "bench", "corpus"] {
+        assert!(help.contains(cmd), "{help}");
+    }
+}
