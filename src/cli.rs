@@ -126,7 +126,16 @@ pub fn convert(
         settings.push_option_str(kv)?;
     }
     let (_, image) = reg.read(input, &Limits::default())?;
-    let bytes = out_codec.encode(&image, &settings)?;
+    let mut bytes = out_codec.encode(&image, &settings)?;
+    // Read the result back: a codec must decode what it wrote, and a format that cannot record
+    // the primaries (PFM reads as BT.709) gets its pixels converted, so the colours survive.
+    let back = out_codec.decode(&bytes, &Limits::none()).map_err(|e| {
+        Error::invalid(format!("the {} data just encoded does not decode ({e}); nothing written", out_codec.name()))
+    })?;
+    if back.color.primaries != image.color.primaries {
+        let converted = hdrcodec::core::color::convert_primaries(&image, back.color.primaries);
+        bytes = out_codec.encode(&converted, &settings)?;
+    }
     hdrcodec::write_atomic(output, &bytes)
 }
 

@@ -20,6 +20,10 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Convert IN to OUT; formats are chosen by file extension, or OUT's by --codec.
+    ///
+    /// The result is decoded once before it is written; if OUT's format cannot record IN's
+    /// primaries (PFM always reads as BT.709), the pixels are converted to the primaries it
+    /// reads back with, so colours survive (out-of-gamut colours become negative values).
     Convert(ConvertArgs),
     /// Print what a file holds: size, channels, colour, HDR10 metadata, luminance range.
     Info {

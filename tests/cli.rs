@@ -347,3 +347,21 @@ fn no_command_is_a_one_line_usage_error() {
         assert!(help.contains(cmd), "{help}");
     }
 }
+
+#[test]
+fn convert_to_a_format_without_primaries_keeps_the_colours() {
+    let dir = common::temp_dir("cli-primaries");
+    let src = corpus().join("bt2020-ramps.exr");
+    let pfm = dir.join("r.pfm");
+    ok(&hdrcodec(&[&"convert", &src, &pfm]));
+    let v = json(&hdrcodec(&[&"info", &pfm, &"--json"]));
+    assert_eq!(v["primaries"], "BT.709");
+    // Same colours in other primaries: ΔE ITP far below one JND (only f32 matrix rounding),
+    // while reading the BT.2020 samples as BT.709 would be tens of JNDs off.
+    let v = json(&hdrcodec(&[&"compare", &src, &pfm, &"--json"]));
+    assert!(v["de_itp_p99"].as_f64().unwrap() < 0.05, "{v}");
+    let back = dir.join("back.exr");
+    ok(&hdrcodec(&[&"convert", &pfm, &back, &"--opt", &"pixel=float"]));
+    let v = json(&hdrcodec(&[&"compare", &src, &back, &"--json"]));
+    assert!(v["de_itp_p99"].as_f64().unwrap() < 0.05, "{v}");
+}
