@@ -69,16 +69,17 @@ pub struct Skipped {
     pub reason: String,
 }
 
-/// Every file directly in `dir` that some codec of `registry` decodes, sorted by name; files
-/// without a known extension or magic number, or that fail to decode, are listed as skipped.
+/// Every file under `dir` (and its subdirectories, a few levels deep) that some codec of
+/// `registry` decodes, sorted by path; files without a known extension or magic number are
+/// ignored, and files that fail to decode are listed as skipped. Names are relative to `dir`.
 pub fn dir_inputs(dir: &Path, registry: &Registry, limits: &Limits) -> crate::core::Result<(Vec<Input>, Vec<Skipped>)> {
-    let entries = std::fs::read_dir(dir)
+    let mut paths = Vec::new();
+    collect_files(dir, 4, &mut paths)
         .map_err(|e| crate::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
-    let mut paths: Vec<_> = entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
     paths.sort();
     let (mut inputs, mut skipped) = (Vec::new(), Vec::new());
     for p in paths {
-        let file = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let file = p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().into_owned();
         let data = match crate::read_file(&p) {
             Ok(d) => d,
             Err(e) => {
@@ -96,6 +97,21 @@ pub fn dir_inputs(dir: &Path, registry: &Registry, limits: &Limits) -> crate::co
         }
     }
     Ok((inputs, skipped))
+}
+
+/// Appends the files under `dir` to `out`, descending at most `depth` more levels.
+fn collect_files(dir: &Path, depth: usize, out: &mut Vec<std::path::PathBuf>) -> std::io::Result<()> {
+    for entry in std::fs::read_dir(dir)? {
+        let path = entry?.path();
+        if path.is_dir() {
+            if depth > 0 {
+                collect_files(&path, depth - 1, out)?;
+            }
+        } else if path.is_file() {
+            out.push(path);
+        }
+    }
+    Ok(())
 }
 
 /// One configuration on one image.
