@@ -297,6 +297,30 @@ fn fmt_db(v: f64) -> String {
     }
 }
 
+/// One line per (configuration, image): the `--per-image` table.
+pub fn per_image_table(report: &Report) -> String {
+    let mut s = format!(
+        "{:<20} {:<24} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9}\n",
+        "config", "image", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc MP/s", "dec MP/s"
+    );
+    for r in report.rows.iter().filter(|r| r.error.is_none()) {
+        s.push_str(&format!(
+            "{:<20} {:<24} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1}\n",
+            r.config,
+            r.image,
+            r.bytes,
+            r.bpp,
+            if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) },
+            r.de_itp_mean,
+            r.log_rmse,
+            r.encode_mps,
+            r.decode_mps
+        ));
+    }
+    s.push('\n');
+    s
+}
+
 /// The report as a plain-text table, one line per configuration.
 pub fn table(report: &Report) -> String {
     let mut s = format!(

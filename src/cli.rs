@@ -276,6 +276,7 @@ pub struct BenchOptions {
     pub plot: Option<PathBuf>,
     pub threads: usize,
     pub filter: Option<String>,
+    pub per_image: bool,
     pub runs: usize,
     pub quick: bool,
 }
@@ -324,6 +325,9 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     if o.json {
         let v = serde_json::to_value(&report).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
         return print_json(&v);
+    }
+    if o.per_image {
+        print!("{}", bench::per_image_table(&report));
     }
     print!("{}", bench::table(&report));
     Ok(())

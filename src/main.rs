@@ -102,6 +102,9 @@ struct BenchArgs {
     /// per core and comparable between codecs.
     #[arg(long, default_value_t = 1)]
     threads: usize,
+    /// Also print one line per configuration and image.
+    #[arg(long)]
+    per_image: bool,
     /// Only configurations whose label contains this text.
     #[arg(long)]
     filter: Option<String>,
@@ -144,6 +147,7 @@ fn run() -> ExitCode {
             plot: a.plot,
             threads: a.threads,
             filter: a.filter,
+            per_image: a.per_image,
             runs: if a.quick { 1 } else { a.runs.max(1) },
             quick: a.quick,
         }),

@@ -206,6 +206,8 @@ fn bench_on_a_directory_and_as_a_table() {
     let table = ok(&hdrcodec(&[&"bench", &dir, &"--quick", &"--filter", &"exr:zip-float"]));
     assert!(table.lines().next().unwrap().contains("PU21-PSNR"), "{table}");
     assert!(table.contains("exr:zip-float") && table.contains("lossless"), "{table}");
+    let table = ok(&hdrcodec(&[&"bench", &dir, &"--quick", &"--filter", &"exr:zip-float", &"--per-image"]));
+    assert!(table.lines().any(|l| l.starts_with("exr:zip-float") && l.contains("small.exr")), "{table}");
 }
 
 #[test]
