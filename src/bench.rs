@@ -176,7 +176,8 @@ pub struct Summary {
 pub struct Report {
     /// Where the images came from: "generated corpus" or the directory.
     pub source: String,
-    /// Timed runs per measurement (the median is reported).
+    /// Timed runs per measurement, at most (the median is reported; a measurement whose runs
+    /// have taken 2 s starts no further run).
     pub runs: usize,
     /// One row per configuration and image.
     pub rows: Vec<Row>,
@@ -186,11 +187,20 @@ pub struct Report {
     pub skipped: Vec<Skipped>,
 }
 
-/// The median of `runs` timings of `f` (which must succeed every time), and its last result.
+/// Once the runs of one measurement have taken this long, no further run is started: slow
+/// configurations (a thorough encoder search) are timed once or twice instead of `runs` times.
+const TIME_BUDGET: Duration = Duration::from_secs(2);
+
+/// The median of up to `runs` timings of `f` (which must succeed every time; at least one run,
+/// fewer than `runs` once [`TIME_BUDGET`] is spent), and its last result.
 fn timed<T>(runs: usize, mut f: impl FnMut() -> crate::core::Result<T>) -> crate::core::Result<(Duration, T)> {
     let mut times = Vec::with_capacity(runs);
     let mut last = None;
+    let start = Instant::now();
     for _ in 0..runs.max(1) {
+        if !times.is_empty() && start.elapsed() > TIME_BUDGET {
+            break;
+        }
         let t = Instant::now();
         let out = f()?;
         times.push(t.elapsed());
