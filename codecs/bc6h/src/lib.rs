@@ -14,5 +14,5 @@ pub mod files;
 pub mod modes;
 
 pub use codec::{downsample_box, encode_texture, Bc6hDdsCodec, Bc6hKtx2Codec};
-pub use decode::{block_dims, decode_block, decode_surface, decode_surface_single_thread, surface_bytes};
+pub use decode::{block_dims, decode_block, decode_surface, decode_surface_into, surface_bytes};
 pub use files::{read_dds, read_ktx2, write_dds, write_ktx2, Bc6hTexture};
