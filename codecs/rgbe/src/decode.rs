@@ -178,18 +178,26 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
         )));
     }
     limits.check_alloc(n as u64 * 4 + n as u64 * 12, "the RGBE scanline buffers")?;
-    let mut samples = vec![0.0f32; width * height * 3];
     let mut planes = vec![0u8; n * 4];
     let table = exponent_table();
     let bias = opts.mantissa.bias();
-    let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
-    let mut scratch = if standard { Vec::new() } else { vec![0.0f32; n * 3] };
+    let mut scratch = vec![0.0f32; n * 3];
     let mut pos = hdr.data_start;
-    for i in 0..nscan {
-        read_scanline(data, &mut pos, &mut planes, n, i)?;
-        if standard {
-            planes_to_f32(&planes, n, &table, bias, &mut samples[i * n * 3..(i + 1) * n * 3]);
-        } else {
+    let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
+    let samples = if standard {
+        // Rows in file order: append each converted scanline (from a cache-resident buffer),
+        // which spares zero-filling the whole image first.
+        let mut samples = Vec::with_capacity(width * height * 3);
+        for i in 0..nscan {
+            read_scanline(data, &mut pos, &mut planes, n, i)?;
+            planes_to_f32(&planes, n, &table, bias, &mut scratch);
+            samples.extend_from_slice(&scratch);
+        }
+        samples
+    } else {
+        let mut samples = vec![0.0f32; width * height * 3];
+        for i in 0..nscan {
+            read_scanline(data, &mut pos, &mut planes, n, i)?;
             planes_to_f32(&planes, n, &table, bias, &mut scratch);
             let (base, step) = placement(hdr.major, hdr.minor, width, i);
             for (j, px) in scratch.chunks_exact(3).enumerate() {
@@ -197,7 +205,8 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
                 samples[k..k + 3].copy_from_slice(px);
             }
         }
-    }
+        samples
+    };
     finish(hdr, width as u32, height as u32, samples, opts)
 }
 

@@ -146,7 +146,7 @@ fn parse_axis(sign: &str, name: &str, len: &str, line: &str) -> Result<Axis> {
 /// Parses the resolution string, e.g. `-Y 512 +X 1024`.
 fn parse_resolution(line: &str) -> Result<(Axis, Axis)> {
     let toks: Vec<&str> = line.split_ascii_whitespace().collect();
-    if toks.len() != 4 || toks[0].len() != 2 || toks[2].len() != 2 {
+    if !line.is_ascii() || toks.len() != 4 || toks[0].len() != 2 || toks[2].len() != 2 {
         return Err(Error::invalid(format!("resolution string '{line}' is malformed")));
     }
     let (s0, n0) = toks[0].split_at(1);

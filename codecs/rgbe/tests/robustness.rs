@@ -92,6 +92,7 @@ fn bad_inputs_get_clear_errors() {
         ("header without the empty line", b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n-Y 1 +X 1\n".to_vec()),
         ("missing newline after the resolution", b"#?RADIANCE\n\n-Y 1 +X 1".to_vec()),
         ("bad resolution", b"#?RADIANCE\n\n-Y 1 +Q 1\n\0\0\0\0".to_vec()),
+        ("non-ASCII resolution", "#?RADIANCE\n\n-Y 4 \u{567} 8\n\0\0\0\0".as_bytes().to_vec()),
         ("same axis twice", b"#?RADIANCE\n\n-Y 1 +Y 1\n\0\0\0\0".to_vec()),
         ("zero width", b"#?RADIANCE\n\n-Y 1 +X 0\n".to_vec()),
         ("absurd size", b"#?RADIANCE\n\n-Y 4000000000 +X 4000000000\n\0\0\0\0".to_vec()),
