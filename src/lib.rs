@@ -13,10 +13,13 @@
 //! # Ok::<(), hdrcodec::core::Error>(())
 //! ```
 
+pub use hdrcodec_bc6h as bc6h;
 pub use hdrcodec_container as container;
 pub use hdrcodec_core as core;
 pub use hdrcodec_exr as exr;
+pub use hdrcodec_logluv as logluv;
 pub use hdrcodec_pfm as pfm;
+pub use hdrcodec_rgbe as rgbe;
 
 pub mod bench;
 pub mod corpus;
