@@ -241,6 +241,16 @@ fn pixel_encoders_match_libtiff_bit_exactly_over_a_dense_sweep() {
         write_f32_raw(&raw, floats);
         run(&bin, &[&"encode", &encoding.name(), &width.to_string(), &height.to_string(), &raw, &tif]);
         let theirs = libtiff_words(&bin, &tif, &dir);
+        // A big-endian file (libtiff's "wb"): our reader gives libtiff's words. (They are not
+        // the words above: libtiff byte-swaps the caller's float scanlines of a byte-swapped
+        // file before its LogLuv encoder sees them, so it encodes other numbers.)
+        let tif_be = dir.join(format!("{}_be.tif", encoding.name()));
+        run(&bin, &[&"encode", &encoding.name(), &width.to_string(), &height.to_string(), &raw, &tif_be, &"big"]);
+        let be = std::fs::read(&tif_be).unwrap();
+        assert!(be.starts_with(b"MM\0*"));
+        let be_words = read_tiff(&be, &Limits::default()).unwrap();
+        assert_eq!(be_words.words, libtiff_words(&bin, &tif_be, &dir), "{encoding:?} big-endian");
+        assert_eq!(bit_mismatches(&be_words.to_floats(), &libtiff_floats(&bin, &tif_be, &dir)).0, 0);
         let ours = LogLuvRaster::from_floats(width, height, encoding, floats).unwrap();
         let bad: Vec<usize> = (0..pixels).filter(|&i| ours.words[i] != theirs[i]).collect();
         let code = |w: &u32| match encoding {

@@ -7,9 +7,10 @@
  *                                 pixel (LogL) or X,Y,Z (LogLuv); prints "W H CHANNELS"
  *   words IN.tif OUT.raw          the encoded words as uint32 LE (SGILOGDATAFMT_RAW for LogLuv,
  *                                 SGILOGDATAFMT_16BIT for LogL, zero-extended); prints "W H"
- *   encode KIND W H IN.raw OUT.tif
+ *   encode KIND W H IN.raw OUT.tif [big]
  *                                 KIND = logl16 | logluv24 | logluv32; IN.raw float32 LE in the
- *                                 FLOAT layout; written with SGILOGENCODE_NODITHER, 16 rows/strip
+ *                                 FLOAT layout; written with SGILOGENCODE_NODITHER, 16 rows/strip,
+ *                                 little-endian unless "big" is given
  *   time-decode IN.tif REPS       seconds per full FLOAT decode, best of REPS
  *   time-encode KIND W H IN.raw REPS
  *                                 seconds per encode to an in-memory-sized temp file, best of REPS
@@ -84,9 +85,9 @@ static int kind_channels(const char *kind)
     return strcmp(kind, "logl16") == 0 ? 1 : 3;
 }
 
-static void encode(const char *kind, uint32_t w, uint32_t h, const float *px, const char *out)
+static void encode(const char *kind, uint32_t w, uint32_t h, const float *px, const char *out, int big)
 {
-    TIFF *tif = TIFFOpen(out, "w");
+    TIFF *tif = TIFFOpen(out, big ? "wb" : "wl");
     if (!tif)
         die("cannot create", out);
     int channels = kind_channels(kind);
@@ -152,7 +153,7 @@ int main(int argc, char **argv)
     if (argc >= 7 && strcmp(argv[1], "encode") == 0) {
         uint32_t w = (uint32_t)atol(argv[3]), h = (uint32_t)atol(argv[4]);
         float *px = read_floats(argv[5], (size_t)w * h * kind_channels(argv[2]));
-        encode(argv[2], w, h, px, argv[6]);
+        encode(argv[2], w, h, px, argv[6], argc >= 8 && strcmp(argv[7], "big") == 0);
         return 0;
     }
     if (argc >= 4 && strcmp(argv[1], "time-decode") == 0) {
@@ -178,7 +179,7 @@ int main(int argc, char **argv)
         double best = 1e30;
         for (int r = atoi(argv[6]); r > 0; r--) {
             double t0 = now();
-            encode(argv[2], w, h, px, out);
+            encode(argv[2], w, h, px, out, 0);
             double t = now() - t0;
             if (t < best)
                 best = t;

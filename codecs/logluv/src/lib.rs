@@ -120,7 +120,7 @@ impl LogLuvRaster {
 
     /// Writes a TIFF with about 64 KiB of pixels per strip.
     pub fn to_tiff(&self) -> Result<Vec<u8>> {
-        let row_bytes = self.width.max(1) * 4;
+        let row_bytes = self.width.max(1).saturating_mul(4);
         tiff::write(self, (65536 / row_bytes).max(1))
     }
 }
