@@ -305,7 +305,8 @@ fn luminance_steps_and_ranges_match_the_published_figures() {
     let (step32, orders32) = report("LogLuv32 / LogL16", &l16);
     assert!(step32 < 0.003 && (step32 - 0.0027).abs() < 0.0001, "{step32}");
     assert!(orders32 > 36.0, "{orders32}");
-    // Larson 1998: LogLuv24 has 1.1 % steps (1/64 stop) over 4.8 orders of magnitude.
+    // LogLuv24 by its definition (Larson 1998, 10-bit log2 in 1/64 stops): steps of
+    // 2^(1/64) - 1 = 1.09 % over 1023/64 stops = 4.8 orders of magnitude.
     let (step24, orders24) = report("LogLuv24", &l10);
     assert!((step24 - 0.011).abs() < 0.0005, "{step24}");
     assert!((orders24 - 4.8).abs() < 0.05, "{orders24}");
