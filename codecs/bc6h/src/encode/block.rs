@@ -113,10 +113,12 @@ fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
     if !signed {
         let v = v.clamp(0.0, 65535.0);
         if bits >= 15 {
-            return v.round() as i32;
+            // Non-negative: truncating v + 0.5 rounds, without a libm call on baseline x86-64.
+            return (v + 0.5) as i32;
         }
         let max = (1i32 << bits) - 1;
-        let q = ((v * (1u32 << bits) as f32 / 65536.0 - 0.5).floor() as i32).clamp(0, max);
+        // floor(x) for x >= -0.5, by truncation of x + 1.
+        let q = (((v * (1u32 << bits) as f32 / 65536.0 + 0.5) as i32) - 1).clamp(0, max);
         let q1 = (q + 1).min(max);
         if (unquantize(q1, bits, false) as f32 - v).abs() < (unquantize(q, bits, false) as f32 - v).abs() {
             q1
@@ -126,11 +128,11 @@ fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
     } else {
         let v = v.clamp(-32767.0, 32767.0);
         if bits >= 16 {
-            return v.round() as i32;
+            return if v < 0.0 { -((0.5 - v) as i32) } else { (v + 0.5) as i32 };
         }
         let m = v.abs();
         let max = (1i32 << (bits - 1)) - 1;
-        let q = ((m * (1u32 << (bits - 1)) as f32 / 32768.0 - 0.5).floor() as i32).clamp(0, max);
+        let q = (((m * (1u32 << (bits - 1)) as f32 / 32768.0 + 0.5) as i32) - 1).clamp(0, max);
         let q1 = (q + 1).min(max);
         let q = if (unquantize(q1, bits, true) as f32 - m).abs() < (unquantize(q, bits, true) as f32 - m).abs() {
             q1
@@ -460,7 +462,7 @@ impl<'a> BlockEncoder<'a> {
                     + (h[1] - p[0][1]) as f32 * dir[r][1]
                     + (h[2] - p[0][2]) as f32 * dir[r][2])
                     * inv_len2[r];
-                let k = (t.round().max(0.0) as usize).min(limit - 1);
+                let k = ((t.max(0.0) + 0.5) as usize).min(limit - 1);
                 (k.saturating_sub(1), (k + 2).min(limit))
             };
             let mut best = (u64::MAX, 0usize);
@@ -535,24 +537,30 @@ impl<'a> BlockEncoder<'a> {
     /// Searches modes (all of them, or only `only_mode`) and returns the best candidate.
     pub(crate) fn encode(&self, only_mode: Option<usize>) -> Candidate {
         let mut best = Candidate::worst();
-        let allowed = |m: usize| only_mode.is_none_or(|o| o == m);
+        // Candidate modes as bit sets over MODES indices.
+        let allowed: u16 = only_mode.map_or(0x3FFF, |m| 1 << m);
+        let try_modes = |modes: u16, partition: usize, ends: &Ends, best: &mut Candidate| {
+            for m in 0..14 {
+                if modes & allowed & (1 << m) != 0 {
+                    let cand = self.encode_mode(m, partition, ends);
+                    if cand.err < best.err {
+                        *best = cand;
+                    }
+                }
+            }
+        };
         // One region.
-        let (ends1, _) = fit_line(&self.tex.target, 0xFFFF);
-        let start1: Ends = [ends1, [[0.0; 3]; 2]];
-        if only_mode.is_none_or(|m| MODES[m].regions == 1) {
-            let modes: Vec<usize> = if self.search.all_one_region || only_mode.is_some() {
-                (10..14).filter(|&m| allowed(m)).collect()
+        if allowed & 0x3C00 != 0 {
+            let (ends1, _) = fit_line(&self.tex.target, 0xFFFF);
+            let start1: Ends = [ends1, [[0.0; 3]; 2]];
+            let modes = if self.search.all_one_region || only_mode.is_some() {
+                0x3C00
             } else {
                 // The most precise mode whose deltas hold the block's range.
                 let m = [13, 12, 11].into_iter().find(|&m| self.fits(&MODES[m], 0, &start1)).unwrap_or(10);
-                vec![m]
+                1 << m
             };
-            for m in modes {
-                let cand = self.encode_mode(m, 0, &start1);
-                if cand.err < best.err {
-                    best = cand;
-                }
-            }
+            try_modes(modes, 0, &start1, &mut best);
         }
         if best.err == 0 {
             return best;
@@ -566,34 +574,73 @@ impl<'a> BlockEncoder<'a> {
         if partitions == 0 {
             return best;
         }
-        let mut ranked: Vec<(f32, usize, Ends)> = (0..32)
-            .map(|p| {
-                let mask = PARTITIONS[p];
-                let (e0, r0) = fit_line(&self.tex.target, !mask);
-                let (e1, r1) = fit_line(&self.tex.target, mask);
-                (r0 + r1, p, [e0, e1])
-            })
-            .collect();
-        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for (_, p, ends) in ranked.iter().take(partitions) {
-            let modes: Vec<usize> = if self.search.all_two_region || only_mode.is_some() {
-                (0..10).filter(|&m| allowed(m)).collect()
+        let mut ranked = partition_residuals(&self.tex.target);
+        ranked.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        for &(_, p) in ranked.iter().take(partitions) {
+            let mask = PARTITIONS[p];
+            let ends: Ends = [fit_line(&self.tex.target, !mask).0, fit_line(&self.tex.target, mask).0];
+            let modes = if self.search.all_two_region || only_mode.is_some() {
+                0x03FF
             } else {
                 // Untransformed mode 10 always fits; add the most precise transformed mode
                 // whose deltas hold this partition's endpoints.
-                let mut v = vec![9];
-                if let Some(m) = [2, 3, 4, 0, 5, 6, 7, 8, 1].into_iter().find(|&m| self.fits(&MODES[m], *p, ends)) {
-                    v.push(m);
-                }
-                v
+                let fitting = [2, 3, 4, 0, 5, 6, 7, 8, 1].into_iter().find(|&m| self.fits(&MODES[m], p, &ends));
+                (1 << 9) | fitting.map_or(0, |m| 1 << m)
             };
-            for m in modes {
-                let cand = self.encode_mode(m, *p, ends);
-                if cand.err < best.err {
-                    best = cand;
-                }
-            }
+            try_modes(modes, p, &ends, &mut best);
         }
         best
     }
+}
+
+/// For each of the 32 partitions, the sum over both regions of the texels' squared distance
+/// from their region's principal line (from summed moments, without fitting endpoints).
+fn partition_residuals(target: &[[f32; 3]; 16]) -> [(f32, usize); 32] {
+    // Per-texel moments about the block mean (which keeps f32 cancellation small): x, y, z,
+    // xx, xy, xz, yy, yz, zz.
+    let mut mean = [0f32; 3];
+    for t in target {
+        for c in 0..3 {
+            mean[c] += t[c] / 16.0;
+        }
+    }
+    let mut moments = [[0f32; 9]; 16];
+    let mut total = [0f32; 9];
+    for (m, t) in moments.iter_mut().zip(target) {
+        let t = [t[0] - mean[0], t[1] - mean[1], t[2] - mean[2]];
+        *m = [t[0], t[1], t[2], t[0] * t[0], t[0] * t[1], t[0] * t[2], t[1] * t[1], t[1] * t[2], t[2] * t[2]];
+        for k in 0..9 {
+            total[k] += m[k];
+        }
+    }
+    let residual = |s: &[f32; 9], n: f32| -> f32 {
+        if n < 2.0 {
+            return 0.0;
+        }
+        let mu = [s[0] / n, s[1] / n, s[2] / n];
+        let cov = [
+            s[3] - n * mu[0] * mu[0],
+            s[4] - n * mu[0] * mu[1],
+            s[5] - n * mu[0] * mu[2],
+            s[6] - n * mu[1] * mu[1],
+            s[7] - n * mu[1] * mu[2],
+            s[8] - n * mu[2] * mu[2],
+        ];
+        let (_, lambda) = principal_axis(&cov);
+        (cov[0] + cov[3] + cov[5] - lambda).max(0.0)
+    };
+    std::array::from_fn(|p| {
+        let mask = PARTITIONS[p];
+        let mut s1 = [0f32; 9];
+        for (i, m) in moments.iter().enumerate() {
+            if mask & (1 << i) != 0 {
+                for k in 0..9 {
+                    s1[k] += m[k];
+                }
+            }
+        }
+        let s0: [f32; 9] = std::array::from_fn(|k| total[k] - s1[k]);
+        let n1 = mask.count_ones() as f32;
+        (residual(&s0, 16.0 - n1) + residual(&s1, n1), p)
+    })
 }
