@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the reference implementations the validation tests compare against
 # (see ../shared/REFERENCES.md): Debian's OpenImageIO, OpenEXR, libtiff, jxrlib,
-# libjxl, libavif, FFmpeg, pfstools, and a Python venv with a pinned imagecodecs.
+# libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs.
 # Idempotent: re-running it on a prepared machine takes a few seconds.
 set -euo pipefail
 
@@ -9,7 +9,8 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 venv="${HDRCODEC_VENV:-$here/.venv}"
 
 packages=(openimageio-tools python3-openimageio python3-numpy openexr libtiff-tools libtiff-dev
-          libjxr-tools libjxl-tools libavif-bin ffmpeg dav1d pfstools pkg-config)
+          libjxr-tools libjxl-tools libavif-bin ffmpeg dav1d pfstools pkg-config
+          fonts-dejavu-core)
 
 missing=()
 for p in "${packages[@]}"; do

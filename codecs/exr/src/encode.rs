@@ -9,7 +9,7 @@ use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result};
 use std::io::Cursor;
 
 use crate::decode::{guarded, map_err};
-use crate::{ExrEncodeOptions, ExrPixelType};
+use crate::{ExrCompression, ExrEncodeOptions, ExrPixelType};
 
 /// Encodes `image` as an OpenEXR file. `threads == 1` compresses on the calling thread;
 /// anything else lets `exr` use every core.
@@ -49,8 +49,15 @@ pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, threads: usize) 
     let mut out = Cursor::new(Vec::new());
     guarded("writing an OpenEXR file", || {
         let writer = exr_image.write();
-        let result =
-            if threads == 1 { writer.non_parallel().to_buffered(&mut out) } else { writer.to_buffered(&mut out) };
+        // exr 1.74's B44 compressor can panic (index out of range, e.g. at width 257). A panic
+        // on exr's own worker pool aborts the process, so B44 compresses on this thread, where
+        // `guarded` turns the panic into an error.
+        let b44 = matches!(options.compression, ExrCompression::B44 | ExrCompression::B44A);
+        let result = if threads == 1 || b44 {
+            writer.non_parallel().to_buffered(&mut out)
+        } else {
+            writer.to_buffered(&mut out)
+        };
         result.map_err(map_err)
     })?;
     Ok(out.into_inner())
