@@ -132,7 +132,7 @@ mod tests {
         assert!(decode_row(&[3, 1, 2], &mut 0, &mut out, 2, 0).is_err());
         // The second plane is missing.
         assert!(decode_row(&[128 + 2, 9], &mut 0, &mut out, 2, 0).is_err());
-        // The example of a zero-length literal (a no-op) followed by a run for each plane.
+        // A zero-length literal is a no-op; then one run fills each plane.
         let mut pos = 0;
         decode_row(&[0, 128 + 2, 9, 128 + 2, 1], &mut pos, &mut out, 2, 0).unwrap();
         assert_eq!(out, [0x901; 4]);
