@@ -253,3 +253,18 @@ fn dds_we_write_decodes_identically_in_imagecodecs_and_openimageio() {
         );
     }
 }
+
+/// The one non-finite value BC6H can produce: an SF16 mode-14 endpoint of -32768 finishes to
+/// 0xFC00 (-Inf) under the D3D11 arithmetic; bcdec computes the same, in halves and in floats.
+#[test]
+fn sf16_minus_infinity_agrees_with_bcdec_rs() {
+    use hdrcodec_bc6h::modes::{pack_block, BlockFields};
+    let mut fields = BlockFields { mode: 13, ..Default::default() };
+    fields.values[..3].copy_from_slice(&[0x8000; 3]);
+    let block = pack_block(&fields);
+    assert_eq!(decode_block(&block, true).as_flattened(), &bcdec(&block, true)[..]);
+    let mut theirs = [0f32; 48];
+    bcdec_rs::bc6h_float(&block, &mut theirs, 12, true);
+    assert!(theirs.iter().all(|&v| v == f32::NEG_INFINITY));
+    assert_eq!(decode_surface(4, 4, &block, true).unwrap(), theirs.to_vec());
+}

@@ -200,15 +200,17 @@ fn decode_mode<const M: usize, const SIGNED: bool>(bits: u128) -> Planes {
     out
 }
 
-/// Converts a finished half bit pattern (finite, as BC6H never produces Inf or NaN) to `f32`,
-/// without branches so that it vectorises: normal halves re-bias the exponent, subnormal ones
-/// (exponent 0) are `mantissa * 2^-24`, exactly.
+/// Converts a finished half bit pattern to `f32` without branches, so that it vectorises:
+/// normal halves re-bias the exponent, subnormal ones (exponent 0) are `mantissa * 2^-24`
+/// exactly, and exponent 31 is infinity. BC6H never yields NaN; the one non-finite value it can
+/// yield is -Inf (0xFC00), from an SF16 mode-14 endpoint of -32768 (see the tests).
 #[inline(always)]
 fn half_to_f32(h: i32) -> f32 {
     let mag = h & 0x7FFF;
     let normal = f32::from_bits(((mag << 13) + (112 << 23)) as u32);
     let subnormal = mag as f32 * (1.0 / 16_777_216.0);
     let v = if mag < 0x400 { subnormal } else { normal };
+    let v = if mag >= 0x7C00 { f32::INFINITY } else { v };
     f32::from_bits(v.to_bits() | ((h as u32 & 0x8000) << 16))
 }
 
@@ -347,9 +349,9 @@ mod tests {
     use crate::modes::{pack_block, BlockFields};
 
     #[test]
-    fn half_conversion_matches_the_half_crate_for_every_finite_half() {
+    fn half_conversion_matches_the_half_crate_for_every_non_nan_half() {
         for h in 0..=0xFFFFu32 {
-            if h & 0x7C00 != 0x7C00 {
+            if h & 0x7FFF <= 0x7C00 {
                 let want = half::f16::from_bits(h as u16).to_f32();
                 assert_eq!(half_to_f32(h as i32).to_bits(), want.to_bits(), "{h:#06x}");
             }
@@ -421,6 +423,21 @@ mod tests {
         assert_eq!(out, [[0; 3]; 16]);
         // The same bits as UF16: 0xFFFF finishes to 0xFFFF * 31 >> 6 = 0x7BFF.
         assert_eq!(decode_block(&pack_block(&fields), false), [[0x7BFF; 3]; 16]);
+    }
+
+    #[test]
+    fn sf16_mode_14_endpoint_of_minus_32768_is_minus_infinity() {
+        // D3D11 spec, SF16: unquantize passes 16-bit endpoints through (prec >= 16), and
+        // finish_unquantize gives -((32768 * 31) >> 5) = -31744 = -0x7C00, i.e. 0xFC00 = -Inf.
+        // bcdec agrees (tests/bc6h_decode.rs); found by the bc6h_block fuzz target.
+        let mut fields = BlockFields { mode: 13, ..Default::default() };
+        for c in 0..3 {
+            fields.values[c] = 0x8000;
+        }
+        let block = pack_block(&fields);
+        assert_eq!(decode_block(&block, true), [[0xFC00; 3]; 16]);
+        let rgb = decode_surface(4, 4, &block, true).unwrap();
+        assert!(rgb.iter().all(|&v| v == f32::NEG_INFINITY));
     }
 
     #[test]
