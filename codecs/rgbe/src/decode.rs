@@ -32,12 +32,12 @@ pub fn decode_pixel(rgbe: [u8; 4], mantissa: MantissaDecode) -> [f32; 3] {
     [(f32::from(rgbe[0]) + bias) * s, (f32::from(rgbe[1]) + bias) * s, (f32::from(rgbe[2]) + bias) * s]
 }
 
-/// Converts one scanline held as four planes (R, G, B, E; `n` bytes each) to interleaved RGB.
+/// Converts one scanline held as four planes (R, G, B, E; `n` bytes each, `n + SLACK` apart)
+/// to interleaved RGB.
 /// Written as a plain zip so that the compiler can vectorise the arithmetic.
 fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
-    let (r, rest) = planes.split_at(n);
-    let (g, rest) = rest.split_at(n);
-    let (b, e) = rest.split_at(n);
+    let stride = n + SLACK;
+    let (r, g, b, e) = (&planes[..n], &planes[stride..][..n], &planes[2 * stride..][..n], &planes[3 * stride..][..n]);
     for ((((o, &r), &g), &b), &e) in out.chunks_exact_mut(3).zip(r).zip(g).zip(b).zip(&e[..n]) {
         let s = table[usize::from(e)];
         o[0] = (f32::from(r) + bias) * s;
@@ -46,9 +46,14 @@ fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &m
     }
 }
 
-/// Decodes one new-style RLE channel of `plane.len()` bytes starting at `*pos`.
-fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], y: usize) -> Result<()> {
-    let n = plane.len();
+/// Bytes of slack after each plane: runs and literals are at most 128 bytes, so they can be
+/// written with fixed-size copies (inlined vector moves instead of a `memcpy` call per run);
+/// what lands past the run's end is overwritten by the next one or ignored.
+const SLACK: usize = 128;
+
+/// Decodes one new-style RLE channel of `n` bytes starting at `*pos` into `plane`, which has
+/// `n + SLACK` bytes.
+fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: usize) -> Result<()> {
     let mut x = 0;
     let mut p = *pos;
     while x < n {
@@ -61,7 +66,8 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], y: usize) -> R
             if count > n - x {
                 return Err(Error::invalid(format!("scanline {y}: a run of {count} overflows the {n}-pixel scanline")));
             }
-            plane[x..x + count].fill(value);
+            let dst: &mut [u8; SLACK] = (&mut plane[x..x + SLACK]).try_into().expect("plane slack");
+            *dst = [value; SLACK];
             x += count;
         } else {
             if code == 0 {
@@ -72,8 +78,13 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], y: usize) -> R
                     "scanline {y}: a literal of {code} bytes overflows the {n}-pixel scanline"
                 )));
             }
-            let src = data.get(p..p + code).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?;
-            plane[x..x + code].copy_from_slice(src);
+            match data.get(p..p + SLACK) {
+                Some(src) => plane[x..x + SLACK].copy_from_slice(src),
+                None => {
+                    let src = data.get(p..p + code).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?;
+                    plane[x..x + code].copy_from_slice(src);
+                }
+            }
             p += code;
             x += code;
         }
@@ -106,7 +117,7 @@ fn read_old_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, 
                 )));
             }
             for c in 0..4 {
-                let plane = &mut planes[c * n..(c + 1) * n];
+                let plane = &mut planes[c * (n + SLACK)..][..n];
                 let v = plane[x - 1];
                 plane[x..x + count].fill(v);
             }
@@ -114,7 +125,7 @@ fn read_old_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, 
             shift += 8;
         } else {
             for (c, &v) in px.iter().enumerate() {
-                planes[c * n + x] = v;
+                planes[c * (n + SLACK) + x] = v;
             }
             x += 1;
             shift = 0;
@@ -124,7 +135,8 @@ fn read_old_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, 
     Ok(())
 }
 
-/// Decodes the scanline at `*pos` into four planes of `n` bytes (R, G, B, E).
+/// Decodes the scanline at `*pos` into four planes of `n` bytes (R, G, B, E), each followed
+/// by `SLACK` spare bytes.
 fn read_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
     if (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&n) {
         if let Some(h) = data.get(*pos..*pos + 4) {
@@ -137,7 +149,7 @@ fn read_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: u
                 }
                 *pos += 4;
                 for c in 0..4 {
-                    read_rle_plane(data, pos, &mut planes[c * n..(c + 1) * n], y)?;
+                    read_rle_plane(data, pos, &mut planes[c * (n + SLACK)..][..n + SLACK], n, y)?;
                 }
                 return Ok(());
             }
@@ -177,8 +189,8 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
             "the pixel data ({available} bytes cannot hold {nscan} scanlines of {n} pixels)"
         )));
     }
-    limits.check_alloc(n as u64 * 4 + n as u64 * 12, "the RGBE scanline buffers")?;
-    let mut planes = vec![0u8; n * 4];
+    limits.check_alloc((n as u64 + SLACK as u64) * 4 + n as u64 * 12, "the RGBE scanline buffers")?;
+    let mut planes = vec![0u8; (n + SLACK) * 4];
     let table = exponent_table();
     let bias = opts.mantissa.bias();
     let mut scratch = vec![0.0f32; n * 3];
