@@ -76,14 +76,10 @@ fn bench(c: &mut Criterion) {
             })
         });
         group.bench_with_input(BenchmarkId::new("bcdec_rs", &s.name), &s, |b, s| {
-            b.iter(|| peer_surface(s, black_box(&mut padded), |blk, out, p, sg| bcdec_rs::bc6h_float(blk, out, p, sg)))
+            b.iter(|| peer_surface(s, black_box(&mut padded), bcdec_rs::bc6h_float))
         });
         group.bench_with_input(BenchmarkId::new("block_compression", &s.name), &s, |b, s| {
-            b.iter(|| {
-                peer_surface(s, black_box(&mut padded), |blk, out, p, sg| {
-                    block_compression::decode::decode_block_bc6h_float(blk, out, p, sg)
-                })
-            })
+            b.iter(|| peer_surface(s, black_box(&mut padded), block_compression::decode::decode_block_bc6h_float))
         });
     }
     group.finish();
