@@ -2,7 +2,8 @@
 //! (below) the corpus DDS files against imagecodecs (bcdec 0.98) and the EXR they came from.
 mod common;
 
-use hdrcodec_bc6h::{block_dims, decode_block, decode_surface, read_dds, write_dds, Bc6hTexture};
+use hdrcodec_bc6h::encode::EncodeOptions;
+use hdrcodec_bc6h::{block_dims, decode_block, decode_surface, encode_texture, read_dds, write_dds, Bc6hTexture};
 use hdrcodec_core::metrics::log_rmse;
 use hdrcodec_core::{Channels, ColorInfo, HdrImage, Limits};
 use std::ffi::OsStr;
@@ -233,6 +234,14 @@ fn dds_we_write_decodes_identically_in_imagecodecs_and_openimageio() {
             std::fs::write(&out, write_dds(&tex).unwrap()).unwrap();
             written.push((out, tex, peers));
         }
+        // And a file from our encoder (a 124x76 crop of the decoded corpus image, full mips).
+        let full = src.decode_level(0, &Limits::default()).unwrap();
+        let crop: Vec<f32> = (0..76).flat_map(|y| full[y * 644 * 3..(y * 644 + 124) * 3].to_vec()).collect();
+        let options = EncodeOptions { signed: src.signed, effort: 1, threads: 1 };
+        let tex = encode_texture(124, 76, &crop, &options, true).expect("encode");
+        let out = dir.join(format!("encoded{i}.dds"));
+        std::fs::write(&out, write_dds(&tex).unwrap()).unwrap();
+        written.push((out, tex, &["imagecodecs", "oiio"][..]));
     }
     let refs: Vec<&OsStr> = written.iter().map(|(p, _, _)| p.as_os_str()).collect();
     common::run_python(&py, DDS_DECODE, &refs);
@@ -245,10 +254,11 @@ fn dds_we_write_decodes_identically_in_imagecodecs_and_openimageio() {
             assert_eq!(diff, 0, "{peer}: {diff} samples of {path:?} differ from our decode");
         }
         println!(
-            "bc6h written DDS ({}, {}x{}, 2 mips): identical in {}",
+            "bc6h written DDS ({}, {}x{}, {} mips): identical in {}",
             if tex.signed { "SF16" } else { "UF16" },
             tex.width,
             tex.height,
+            tex.levels.len(),
             peers.join(" and ")
         );
     }
