@@ -41,6 +41,15 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
             add("exr", format!("exr:{c}-{p}"), opts(&[("compression", c), ("pixel", p)]));
         }
     }
+    add("rgbe", "rgbe".into(), EncodeSettings::default());
+    add("rgbe", "rgbe:truncate".into(), opts(&[("rounding", "truncate")]));
+    add("logluv32", "logluv32".into(), EncodeSettings::default());
+    add("logluv24", "logluv24".into(), EncodeSettings::default());
+    // BC6H at its fast efforts: the thorough ones take minutes per megapixel and belong in
+    // `cargo bench --bench bc6h_encode`.
+    for effort in [0, 2] {
+        add("bc6h", format!("bc6h:effort{effort}"), EncodeSettings { effort, ..EncodeSettings::default() });
+    }
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
     out

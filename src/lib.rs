@@ -32,7 +32,18 @@ use std::sync::Arc;
 /// Every codec of the family that has a file format of its own. **Registering a codec is one
 /// line here.** The `.hdrc` container is built on top of these by [`Registry::default`].
 fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
-    vec![Arc::new(exr::ExrCodec), Arc::new(pfm::PfmCodec)]
+    vec![
+        Arc::new(exr::ExrCodec),
+        Arc::new(pfm::PfmCodec),
+        Arc::new(rgbe::RgbeCodec::new()),
+        // The first LogLuv entry is the one `.tif` resolves to when writing; every one of them
+        // reads any LogLuv TIFF.
+        Arc::new(logluv::LogLuvTiffCodec::new(logluv::Encoding::LogLuv32)),
+        Arc::new(logluv::LogLuvTiffCodec::new(logluv::Encoding::LogLuv24)),
+        Arc::new(logluv::LogLuvTiffCodec::new(logluv::Encoding::LogL16)),
+        Arc::new(bc6h::Bc6hDdsCodec),
+        Arc::new(bc6h::Bc6hKtx2Codec),
+    ]
 }
 
 /// A set of codecs, looked up by name, file extension or sniffed bytes.
