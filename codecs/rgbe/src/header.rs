@@ -294,9 +294,16 @@ pub fn write(h: &WriteHeader<'_>, out: &mut Vec<u8>) {
         let v = one_line(v);
         match k.as_str() {
             "comment" => s.push_str(&format!("# {v}\n")),
-            "history" if !v.trim().is_empty() => s.push_str(&format!("{}\n", v.trim())),
-            "history" => {}
-            k if DERIVED_KEYS.contains(&k) => {}
+            // A command line is kept only if it will read back as one (not a variable, a
+            // comment or the empty line that ends the header).
+            "history" => {
+                let v = v.trim();
+                let variable = v.split_once('=').is_some_and(|(n, _)| !n.contains(char::is_whitespace));
+                if !v.is_empty() && !v.starts_with('#') && !variable {
+                    s.push_str(&format!("{v}\n"));
+                }
+            }
+            k if DERIVED_KEYS.contains(&k.to_ascii_lowercase().as_str()) => {}
             k if k.is_empty() || !k.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') => {}
             k => {
                 software |= k == "software";

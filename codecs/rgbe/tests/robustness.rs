@@ -177,6 +177,13 @@ fn header_variables_and_metadata() {
         assert!(text.contains(line), "{line:?} missing from {text:?}");
     }
     assert_eq!(dec(&again).unwrap().samples(), img.samples());
+    // Lines kept as history must not come back as variables (a fuzz find): " FORMAT=x" is a
+    // command line, and writing it trimmed would make it a FORMAT variable.
+    let odd = file("#?RADIANCE\n FORMAT=junk\n#?RADIANCE\n\n-Y 1 +X 1\n", &[128, 0, 0, 129]);
+    let odd_img = dec(&odd).unwrap();
+    assert_eq!(odd_img.metadata_value("history"), Some("FORMAT=junk"));
+    let back = encode(&odd_img, &RgbeEncodeOptions::default()).unwrap();
+    assert_eq!(dec(&back).unwrap().samples(), odd_img.samples());
     // Photoshop's all-zero PRIMARIES mean "none": BT.709.
     let ps = file("#?RADIANCE\nGAMMA=1\nPRIMARIES=0 0 0 0 0 0 0 0\n\n-Y 1 +X 1\n", &[0, 0, 0, 0]);
     assert_eq!(dec(&ps).unwrap().color.primaries, ColorPrimaries::Bt709);
