@@ -9,22 +9,7 @@ use hdrcodec_core::{Channels, ColorInfo, HdrImage, Limits};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
-/// xorshift64* : deterministic, fast, good enough to spread bits over whole blocks.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn block(&mut self) -> [u8; 16] {
-        let mut b = [0u8; 16];
-        b[..8].copy_from_slice(&self.next().to_le_bytes());
-        b[8..].copy_from_slice(&self.next().to_le_bytes());
-        b
-    }
-}
+use common::Rng;
 
 fn bcdec(block: &[u8; 16], signed: bool) -> [u16; 48] {
     let mut out = [0u16; 48];

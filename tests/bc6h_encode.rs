@@ -12,20 +12,7 @@ use hdrcodec as _;
 use hdrcodec_bc6h::encode::{encode_block, encode_block_in_mode, encode_surface, f32_to_bc6h_half, EncodeOptions};
 use hdrcodec_core::{metrics, Channels, ColorInfo, HdrImage};
 
-/// A small deterministic generator (xorshift64*), so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: u32) -> u32 {
-        (self.next() >> 33) as u32 % n
-    }
-}
+use common::Rng;
 
 /// Random half-float blocks of several kinds: uniform over all finite halves, smooth blocks
 /// (small variations around a base, which the delta modes can hold), and two-colour blocks.

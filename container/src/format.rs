@@ -324,16 +324,8 @@ pub(crate) fn parse_index(p: &[u8]) -> Result<Vec<IndexEntry>> {
     Ok((0..n).map(|_| IndexEntry { offset: c.u64(), frame: c.u32(), x: c.u32(), y: c.u32() }).collect())
 }
 
-const NAMED_PRIMARIES: [ColorPrimaries; 8] = [
-    ColorPrimaries::Bt709,
-    ColorPrimaries::Bt2020,
-    ColorPrimaries::DisplayP3,
-    ColorPrimaries::DciP3,
-    ColorPrimaries::AcesAp0,
-    ColorPrimaries::AcesAp1,
-    ColorPrimaries::AdobeRgb,
-    ColorPrimaries::Xyz,
-];
+// The COLR chunk stores 1 + the index into this list; the order is part of the format.
+const NAMED_PRIMARIES: [ColorPrimaries; 8] = ColorPrimaries::NAMED;
 
 fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
     for x in v {

@@ -95,3 +95,27 @@ pub fn read_f32_raw(path: &Path) -> Vec<f32> {
     let bytes = std::fs::read(path).expect("read raw floats");
     bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
 }
+
+/// A small deterministic generator (xorshift64*), so that randomised tests reproduce.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The next 64 random bits.
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// A number in `0..n`.
+    pub fn below(&mut self, n: u32) -> u32 {
+        (self.next() >> 33) as u32 % n
+    }
+    /// 16 random bytes (one BC-compressed block).
+    pub fn block(&mut self) -> [u8; 16] {
+        let mut b = [0u8; 16];
+        b[..8].copy_from_slice(&self.next().to_le_bytes());
+        b[8..].copy_from_slice(&self.next().to_le_bytes());
+        b
+    }
+}

@@ -14,7 +14,7 @@ fn sign_extend(v: i32, bits: u32) -> i32 {
 /// Spec `unquantize`: expands an endpoint of `bits` precision to 16 bits (UF16: 0..=0xFFFF;
 /// SF16: -0x7FFF..=0x7FFF).
 #[inline(always)]
-fn unquantize<const SIGNED: bool>(v: i32, bits: u32) -> i32 {
+pub(crate) fn unquantize<const SIGNED: bool>(v: i32, bits: u32) -> i32 {
     if !SIGNED {
         if bits >= 15 || v == 0 {
             v
@@ -40,6 +40,16 @@ fn unquantize<const SIGNED: bool>(v: i32, bits: u32) -> i32 {
         } else {
             u
         }
+    }
+}
+
+/// [`unquantize`] with the signedness chosen at run time (the encoder's entry point).
+#[inline]
+pub(crate) fn unquantize_endpoint(v: i32, bits: u32, signed: bool) -> i32 {
+    if signed {
+        unquantize::<true>(v, bits)
+    } else {
+        unquantize::<false>(v, bits)
     }
 }
 

@@ -72,20 +72,22 @@ impl ColorPrimaries {
         }
     }
 
+    /// Every named space, in a fixed order (file formats may store an index into it).
+    pub const NAMED: [ColorPrimaries; 8] = [
+        ColorPrimaries::Bt709,
+        ColorPrimaries::Bt2020,
+        ColorPrimaries::DisplayP3,
+        ColorPrimaries::DciP3,
+        ColorPrimaries::AcesAp0,
+        ColorPrimaries::AcesAp1,
+        ColorPrimaries::AdobeRgb,
+        ColorPrimaries::Xyz,
+    ];
+
     /// The named space with exactly these chromaticities, else `Custom`.
     pub fn from_chromaticities(ch: Chromaticities) -> Self {
-        const NAMED: [ColorPrimaries; 8] = [
-            ColorPrimaries::Bt709,
-            ColorPrimaries::Bt2020,
-            ColorPrimaries::DisplayP3,
-            ColorPrimaries::DciP3,
-            ColorPrimaries::AcesAp0,
-            ColorPrimaries::AcesAp1,
-            ColorPrimaries::AdobeRgb,
-            ColorPrimaries::Xyz,
-        ];
         let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 5e-4 && (a[1] - b[1]).abs() < 5e-4;
-        for p in NAMED {
+        for p in Self::NAMED {
             let n = p.chromaticities();
             if close(n.red, ch.red) && close(n.green, ch.green) && close(n.blue, ch.blue) && close(n.white, ch.white) {
                 return p;

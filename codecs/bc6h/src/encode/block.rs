@@ -8,6 +8,9 @@
 //! the decoder unquantises endpoints to 16-bit integers `c`, interpolates, and maps the result to
 //! half bits with `c * 31 >> 6` (UF16) or `c * 31 >> 5` (SF16 magnitudes). That map is linear, so
 //! least squares in the interpolation domain is least squares in half-int space.
+// The decoder's endpoint unquantisation (Direct3D 11 specification, "Unquantization of Color
+// Endpoints"): the encoder predicts exactly what the decoder will expand.
+use crate::decode::unquantize_endpoint as unquantize;
 use crate::modes::{
     pack_block, BlockFields, ModeInfo as Mode, ANCHORS as ANCHOR2, MODES, PARTITIONS, WEIGHTS3, WEIGHTS4,
 };
@@ -75,36 +78,6 @@ impl Texels {
             }
         }
         Texels { signed, half, target }
-    }
-}
-
-/// The decoder's endpoint unquantisation (Direct3D 11 specification, "Unquantization of Color
-/// Endpoints").
-fn unquantize(q: i32, bits: u32, signed: bool) -> i32 {
-    if !signed {
-        if bits >= 15 || q == 0 {
-            q
-        } else if q == (1 << bits) - 1 {
-            0xFFFF
-        } else {
-            ((q << 16) + 0x8000) >> bits
-        }
-    } else if bits >= 16 {
-        q
-    } else {
-        let m = q.abs();
-        let u = if m == 0 {
-            0
-        } else if m >= (1 << (bits - 1)) - 1 {
-            0x7FFF
-        } else {
-            ((m << 15) + 0x4000) >> (bits - 1)
-        };
-        if q < 0 {
-            -u
-        } else {
-            u
-        }
     }
 }
 
