@@ -33,12 +33,35 @@ pub fn decode_pixel(rgbe: [u8; 4], mantissa: MantissaDecode) -> [f32; 3] {
 }
 
 /// Converts one scanline held as four planes (R, G, B, E; `n` bytes each, `n + SLACK` apart)
-/// to interleaved RGB.
-/// Written as a plain zip so that the compiler can vectorise the arithmetic.
+/// to interleaved RGB, with AVX2 when the CPU has it.
 fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
+        // `planes_to_f32_avx2`; its body is the safe portable loop compiled for AVX2.
+        unsafe { planes_to_f32_avx2(planes, n, table, bias, out) };
+        return;
+    }
+    planes_to_f32_impl(planes, n, table, bias, out)
+}
+
+/// [`planes_to_f32_impl`] compiled with AVX2 (8 pixels per step instead of SSE2's 4).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn planes_to_f32_avx2(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
+    planes_to_f32_impl(planes, n, table, bias, out)
+}
+
+/// The portable conversion (and the twin the AVX2 build is tested against), written as a
+/// plain zip so that the compiler can vectorise the arithmetic.
+#[inline(always)]
+fn planes_to_f32_impl(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
     let stride = n + SLACK;
     let (r, g, b, e) = (&planes[..n], &planes[stride..][..n], &planes[2 * stride..][..n], &planes[3 * stride..][..n]);
-    for ((((o, &r), &g), &b), &e) in out.chunks_exact_mut(3).zip(r).zip(g).zip(b).zip(&e[..n]) {
+    for ((((o, &r), &g), &b), &e) in out.chunks_exact_mut(3).zip(r).zip(g).zip(b).zip(e) {
         let s = table[usize::from(e)];
         o[0] = (f32::from(r) + bias) * s;
         o[1] = (f32::from(g) + bias) * s;
@@ -50,6 +73,10 @@ fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &m
 /// written with fixed-size copies (inlined vector moves instead of a `memcpy` call per run);
 /// what lands past the run's end is overwritten by the next one or ignored.
 const SLACK: usize = 128;
+
+/// Runs and literals are written in blocks of this many bytes (rounded up into the slack):
+/// most are short, so a full 128-byte block per run would mostly be wasted stores.
+const CHUNK: usize = 16;
 
 /// Decodes one new-style RLE channel of `n` bytes starting at `*pos` into `plane`, which has
 /// `n + SLACK` bytes.
@@ -66,8 +93,10 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: u
             if count > n - x {
                 return Err(Error::invalid(format!("scanline {y}: a run of {count} overflows the {n}-pixel scanline")));
             }
-            let dst: &mut [u8; SLACK] = (&mut plane[x..x + SLACK]).try_into().expect("plane slack");
-            *dst = [value; SLACK];
+            let m = count.next_multiple_of(CHUNK);
+            for d in plane[x..x + m].chunks_exact_mut(CHUNK) {
+                d.copy_from_slice(&[value; CHUNK]);
+            }
             x += count;
         } else {
             if code == 0 {
@@ -78,8 +107,13 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: u
                     "scanline {y}: a literal of {code} bytes overflows the {n}-pixel scanline"
                 )));
             }
-            match data.get(p..p + SLACK) {
-                Some(src) => plane[x..x + SLACK].copy_from_slice(src),
+            let m = code.next_multiple_of(CHUNK);
+            match data.get(p..p + m) {
+                Some(src) => {
+                    for (d, s) in plane[x..x + m].chunks_exact_mut(CHUNK).zip(src.chunks_exact(CHUNK)) {
+                        d.copy_from_slice(s);
+                    }
+                }
                 None => {
                     let src = data.get(p..p + code).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?;
                     plane[x..x + code].copy_from_slice(src);
@@ -193,21 +227,17 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
     let mut planes = vec![0u8; (n + SLACK) * 4];
     let table = exponent_table();
     let bias = opts.mantissa.bias();
-    let mut scratch = vec![0.0f32; n * 3];
     let mut pos = hdr.data_start;
     let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
-    let samples = if standard {
-        // Rows in file order: append each converted scanline (from a cache-resident buffer),
-        // which spares zero-filling the whole image first.
-        let mut samples = Vec::with_capacity(width * height * 3);
-        for i in 0..nscan {
+    let mut samples = vec![0.0f32; width * height * 3];
+    if standard {
+        // Rows in file order: convert each scanline straight into its place.
+        for (i, row) in samples.chunks_exact_mut(n * 3).enumerate() {
             read_scanline(data, &mut pos, &mut planes, n, i)?;
-            planes_to_f32(&planes, n, &table, bias, &mut scratch);
-            samples.extend_from_slice(&scratch);
+            planes_to_f32(&planes, n, &table, bias, row);
         }
-        samples
     } else {
-        let mut samples = vec![0.0f32; width * height * 3];
+        let mut scratch = vec![0.0f32; n * 3];
         for i in 0..nscan {
             read_scanline(data, &mut pos, &mut planes, n, i)?;
             planes_to_f32(&planes, n, &table, bias, &mut scratch);
@@ -217,8 +247,7 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
                 samples[k..k + 3].copy_from_slice(px);
             }
         }
-        samples
-    };
+    }
     finish(hdr, width as u32, height as u32, samples, opts)
 }
 
@@ -273,5 +302,33 @@ mod tests {
         assert_eq!(t[136], 1.0);
         assert_eq!(t[128 + 1], 1.0 / 128.0);
         assert_eq!(t[1], f32::from_bits(1 << 14)); // 2^-135 = 2^14 * 2^-149, the subnormal unit
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_conversion_matches_the_portable_twin() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let table = exponent_table();
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        // Odd widths leave a tail after the 8-pixel vector steps.
+        for n in [1usize, 7, 8, 9, 100, 1023] {
+            let planes: Vec<u8> = (0..(n + SLACK) * 4)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    state as u8
+                })
+                .collect();
+            for bias in [0.0, 0.5] {
+                let (mut a, mut b) = (vec![0f32; n * 3], vec![1f32; n * 3]);
+                planes_to_f32_impl(&planes, n, &table, bias, &mut a);
+                // SAFETY: AVX2 support was checked above.
+                unsafe { planes_to_f32_avx2(&planes, n, &table, bias, &mut b) };
+                assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "n = {n}, bias = {bias}");
+            }
+        }
     }
 }
