@@ -241,7 +241,10 @@ fn measure(config: &Config, input: &Input, runs: usize) -> Row {
         error: None,
     };
     let result = (|| -> crate::core::Result<()> {
-        let (enc_t, bytes) = timed(runs, || config.codec.encode(&input.image, &config.settings))?;
+        // Encode what `convert` would: formats without primaries get the pixels in the ones
+        // they read back with, so that a BT.2020 scene is not judged as if it were BT.709.
+        let (_, source) = crate::encode_keeping_colours(config.codec.as_ref(), &input.image, &config.settings)?;
+        let (enc_t, bytes) = timed(runs, || config.codec.encode(&source, &config.settings))?;
         let (dec_t, decoded) = timed(runs, || config.codec.decode(&bytes, &Limits::default()))?;
         // Lossy codecs may drop alpha: quality is always measured on RGB.
         let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;

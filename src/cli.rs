@@ -126,16 +126,7 @@ pub fn convert(
         settings.push_option_str(kv)?;
     }
     let (_, image) = reg.read(input, &Limits::default())?;
-    let mut bytes = out_codec.encode(&image, &settings)?;
-    // Read the result back: a codec must decode what it wrote, and a format that cannot record
-    // the primaries (PFM reads as BT.709) gets its pixels converted, so the colours survive.
-    let back = out_codec.decode(&bytes, &Limits::none()).map_err(|e| {
-        Error::invalid(format!("the {} data just encoded does not decode ({e}); nothing written", out_codec.name()))
-    })?;
-    if back.color.primaries != image.color.primaries {
-        let converted = hdrcodec::core::color::convert_primaries(&image, back.color.primaries);
-        bytes = out_codec.encode(&converted, &settings)?;
-    }
+    let (bytes, _) = hdrcodec::encode_keeping_colours(out_codec.as_ref(), &image, &settings)?;
     hdrcodec::write_atomic(output, &bytes)
 }
 

@@ -24,7 +24,8 @@ pub use hdrcodec_rgbe as rgbe;
 pub mod bench;
 pub mod corpus;
 
-use crate::core::{Error, HdrImage, ImageCodec, Limits, Result};
+use crate::core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use std::borrow::Cow;
 use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
@@ -175,6 +176,27 @@ impl Registry {
 /// Reads a whole file, with an error that names it.
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))))
+}
+
+/// Encodes `image` with `codec` so that its colours survive the round trip. The result is
+/// decoded once (a codec must read what it wrote); a format that cannot record primaries reads
+/// back with fixed ones (PFM and DDS read as BT.709), and then the pixels are converted to those
+/// primaries and encoded again. Returns the bytes and the image they encode.
+pub fn encode_keeping_colours<'a>(
+    codec: &dyn ImageCodec,
+    image: &'a HdrImage,
+    settings: &EncodeSettings,
+) -> Result<(Vec<u8>, Cow<'a, HdrImage>)> {
+    let bytes = codec.encode(image, settings)?;
+    let back = codec.decode(&bytes, &Limits::none()).map_err(|e| {
+        Error::invalid(format!("the {} data just encoded does not decode ({e}); nothing written", codec.name()))
+    })?;
+    if back.color.primaries == image.color.primaries {
+        return Ok((bytes, Cow::Borrowed(image)));
+    }
+    let converted = crate::core::color::convert_primaries(image, back.color.primaries);
+    let bytes = codec.encode(&converted, settings)?;
+    Ok((bytes, Cow::Owned(converted)))
 }
 
 /// Writes `bytes` to `path` so that `path` either gets the whole content or is left untouched:
