@@ -75,11 +75,43 @@ fn planes_to_f32_impl(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, ou
 const SLACK: usize = 128;
 
 /// Runs and literals are written in blocks of this many bytes (rounded up into the slack):
-/// most are short, so a full 128-byte block per run would mostly be wasted stores.
-const CHUNK: usize = 16;
+/// one block covers most of them (measured on the corpus: faster than 16, 32 or one 128-byte
+/// block, which wastes stores on the many short runs).
+const CHUNK: usize = 64;
+
+/// Decodes the four RLE channels of a scanline into `planes`, with AVX2 when the CPU has it.
+fn read_rle_planes(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
+        // `read_rle_planes_avx2`; its body is the safe portable code compiled for AVX2.
+        return unsafe { read_rle_planes_avx2(data, pos, planes, n, y) };
+    }
+    read_rle_planes_impl(data, pos, planes, n, y)
+}
+
+/// [`read_rle_planes_impl`] compiled with AVX2 (32-byte moves for the run and literal blocks).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn read_rle_planes_avx2(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
+    read_rle_planes_impl(data, pos, planes, n, y)
+}
+
+/// The portable RLE decode of a scanline's four channels (and the AVX2 build's twin).
+#[inline(always)]
+fn read_rle_planes_impl(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
+    for plane in planes.chunks_exact_mut(n + SLACK) {
+        read_rle_plane(data, pos, plane, n, y)?;
+    }
+    Ok(())
+}
 
 /// Decodes one new-style RLE channel of `n` bytes starting at `*pos` into `plane`, which has
 /// `n + SLACK` bytes.
+#[inline(always)]
 fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: usize) -> Result<()> {
     let mut x = 0;
     let mut p = *pos;
@@ -182,10 +214,7 @@ fn read_scanline(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: u
                     )));
                 }
                 *pos += 4;
-                for c in 0..4 {
-                    read_rle_plane(data, pos, &mut planes[c * (n + SLACK)..][..n + SLACK], n, y)?;
-                }
-                return Ok(());
+                return read_rle_planes(data, pos, planes, n, y);
             }
         }
     }
@@ -302,6 +331,63 @@ mod tests {
         assert_eq!(t[136], 1.0);
         assert_eq!(t[128 + 1], 1.0 / 128.0);
         assert_eq!(t[1], f32::from_bits(1 << 14)); // 2^-135 = 2^14 * 2^-149, the subnormal unit
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_rle_decode_matches_the_portable_twin() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for n in [8usize, 100, 1024] {
+            // Four channels of random runs (1..=127) and literals (1..=128), then the same
+            // data cut short and with one byte corrupted, so the error paths are compared too.
+            let mut data = Vec::new();
+            for _ in 0..4 {
+                let mut x = 0;
+                while x < n {
+                    let left = n - x;
+                    let count = (next() as usize % 128 + 1).min(left);
+                    if next() % 2 == 0 && count < 128 {
+                        data.extend([128 + count as u8, next() as u8]);
+                    } else {
+                        data.push(count as u8);
+                        data.extend((0..count).map(|_| next() as u8));
+                    }
+                    x += count;
+                }
+            }
+            let mut corrupt = data.clone();
+            let k = next() as usize % corrupt.len();
+            corrupt[k] = 0;
+            for input in [&data[..], &data[..data.len() / 2], &corrupt[..]] {
+                let (mut a, mut b) = (vec![0u8; (n + SLACK) * 4], vec![1u8; (n + SLACK) * 4]);
+                let (mut pa, mut pb) = (0, 0);
+                let ra = read_rle_planes_impl(input, &mut pa, &mut a, n, 0);
+                // SAFETY: AVX2 support was checked above.
+                let rb = unsafe { read_rle_planes_avx2(input, &mut pb, &mut b, n, 0) };
+                assert_eq!(ra.as_ref().map_err(|e| e.to_string()), rb.as_ref().map_err(|e| e.to_string()));
+                if ra.is_ok() {
+                    assert_eq!(pa, pb);
+                    for c in 0..4 {
+                        let plane = c * (n + SLACK)..c * (n + SLACK) + n;
+                        assert_eq!(a[plane.clone()], b[plane], "n = {n}, channel {c}");
+                    }
+                }
+            }
+            // The valid data decodes whole.
+            let mut planes = vec![0u8; (n + SLACK) * 4];
+            let mut pos = 0;
+            read_rle_planes(&data, &mut pos, &mut planes, n, 0).unwrap();
+            assert_eq!(pos, data.len());
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
