@@ -115,6 +115,37 @@ fn read_rle_planes_impl(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usiz
 fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: usize) -> Result<()> {
     let mut x = 0;
     let mut p = *pos;
+    // Fast path while a whole operation (at most 129 bytes) lies in `data`: the first block
+    // of a run or a literal is written by the same branch-free blend, since runs and
+    // literals alternate unpredictably; only longer operations take a second step. Anything
+    // odd (a bad code, the end of the data) leaves the operation to the checked loop below.
+    while x < n {
+        let Some(op) = data.get(p..p + 130) else { break };
+        let code = op[0];
+        let is_run = code > 128;
+        let count = usize::from(if is_run { code - 128 } else { code });
+        if count == 0 || count > n - x {
+            break;
+        }
+        let value = op[1];
+        let mask = 0u8.wrapping_sub(u8::from(is_run));
+        let src: &[u8; CHUNK] = op[1..1 + CHUNK].try_into().expect("one block");
+        let mut block = [0u8; CHUNK];
+        for (b, &s) in block.iter_mut().zip(src) {
+            *b = (s & !mask) | (value & mask);
+        }
+        plane[x..x + CHUNK].copy_from_slice(&block);
+        if count > CHUNK {
+            let dst = &mut plane[x + CHUNK..x + 2 * CHUNK];
+            if is_run {
+                dst.copy_from_slice(&block);
+            } else {
+                dst.copy_from_slice(&op[1 + CHUNK..1 + 2 * CHUNK]);
+            }
+        }
+        p += if is_run { 2 } else { 1 + count };
+        x += count;
+    }
     while x < n {
         let code = usize::from(*data.get(p).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?);
         p += 1;
