@@ -9,13 +9,15 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 struct Counting;
 static LARGEST: AtomicUsize = AtomicUsize::new(0);
 
+// SAFETY: forwards every call to the system allocator unchanged; only records the largest request.
 unsafe impl GlobalAlloc for Counting {
-    // SAFETY: forwards to the system allocator unchanged; only records the largest request.
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
         LARGEST.fetch_max(l.size(), Ordering::Relaxed);
+        // SAFETY: the caller's layout contract is passed on to the system allocator as is.
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: `p` came from `alloc` above, i.e. from the system allocator, with layout `l`.
         unsafe { System.dealloc(p, l) }
     }
 }
