@@ -33,39 +33,109 @@ pub fn decode_pixel(rgbe: [u8; 4], mantissa: MantissaDecode) -> [f32; 3] {
 }
 
 /// Converts one scanline held as four planes (R, G, B, E; `n` bytes each, `n + SLACK` apart)
-/// to interleaved RGB, with AVX2 when the CPU has it.
-fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
+/// to interleaved RGB appended to `out`, with AVX2 when the CPU has it.
+fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `planes_to_f32_avx2`; its body is the safe portable loop compiled for AVX2.
+        // `planes_to_f32_avx2` (its vector loads and stores stay inside checked slices).
         unsafe { planes_to_f32_avx2(planes, n, table, bias, out) };
         return;
     }
     planes_to_f32_impl(planes, n, table, bias, out)
 }
 
-/// [`planes_to_f32_impl`] compiled with AVX2 (8 pixels per step instead of SSE2's 4).
+/// The AVX2 twin of [`planes_to_f32_impl`], 8 pixels per step: the scale `2^(e-136)` is
+/// built from the exponent's bits instead of looked up (the same `f32` the table holds, zero
+/// for `e = 0`, subnormal for `e < 10`), and the three channel vectors are interleaved with
+/// one permute each and two blends per output vector.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn planes_to_f32_avx2(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
-    planes_to_f32_impl(planes, n, table, bias, out)
-}
-
-/// The portable conversion (and the twin the AVX2 build is tested against), written as a
-/// plain zip so that the compiler can vectorise the arithmetic.
-#[inline(always)]
-fn planes_to_f32_impl(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut [f32]) {
+unsafe fn planes_to_f32_avx2(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
+    use std::arch::x86_64::*;
     let stride = n + SLACK;
     let (r, g, b, e) = (&planes[..n], &planes[stride..][..n], &planes[2 * stride..][..n], &planes[3 * stride..][..n]);
-    for ((((o, &r), &g), &b), &e) in out.chunks_exact_mut(3).zip(r).zip(g).zip(b).zip(e) {
-        let s = table[usize::from(e)];
-        o[0] = (f32::from(r) + bias) * s;
-        o[1] = (f32::from(g) + bias) * s;
-        o[2] = (f32::from(b) + bias) * s;
+    out.reserve(n * 3);
+    let load = |s: &[u8]| -> __m256i {
+        let s: &[u8; 8] = s.try_into().expect("8 bytes");
+        _mm256_cvtepu8_epi32(_mm_set_epi64x(0, i64::from_le_bytes(*s)))
+    };
+    let vbias = _mm256_set1_ps(bias);
+    let (nine, ten, one, thirteen) =
+        (_mm256_set1_epi32(9), _mm256_set1_epi32(10), _mm256_set1_epi32(1), _mm256_set1_epi32(13));
+    let idx_r = _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5);
+    let idx_g = _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2);
+    let idx_b = _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7);
+    let groups = r.chunks_exact(8).zip(g.chunks_exact(8)).zip(b.chunks_exact(8)).zip(e.chunks_exact(8));
+    for (((r, g), b), e) in groups {
+        let e = load(e);
+        // 2^(e-136): exponent field e-9 from e = 10 up, the subnormal bit e+13 below, 0 at 0.
+        let normal = _mm256_slli_epi32::<23>(_mm256_sub_epi32(e, nine));
+        let subnormal = _mm256_sllv_epi32(one, _mm256_add_epi32(e, thirteen));
+        let small = _mm256_cmpgt_epi32(ten, e);
+        let bits = _mm256_blendv_epi8(normal, subnormal, small);
+        let scale = _mm256_castsi256_ps(_mm256_andnot_si256(_mm256_cmpeq_epi32(e, _mm256_setzero_si256()), bits));
+        let channel = |m: __m256i, idx: __m256i| {
+            _mm256_permutevar8x32_ps(_mm256_mul_ps(_mm256_add_ps(_mm256_cvtepi32_ps(m), vbias), scale), idx)
+        };
+        let (rr, gg, bb) = (channel(load(r), idx_r), channel(load(g), idx_g), channel(load(b), idx_b));
+        // Output k holds (r, g, b) at lanes where (k * 8 + lane) % 3 is (0, 1, 2).
+        let o0 = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(rr, gg), bb);
+        let o1 = _mm256_blend_ps::<0b0100_1001>(_mm256_blend_ps::<0b0010_0100>(rr, gg), bb);
+        let o2 = _mm256_blend_ps::<0b1001_0010>(_mm256_blend_ps::<0b0100_1001>(rr, gg), bb);
+        let mut px = [0.0f32; 24];
+        // SAFETY: `px` holds 24 floats: the three unaligned 8-float stores at 0, 8 and 16 stay
+        // inside it.
+        unsafe {
+            _mm256_storeu_ps(px.as_mut_ptr(), o0);
+            _mm256_storeu_ps(px.as_mut_ptr().add(8), o1);
+            _mm256_storeu_ps(px.as_mut_ptr().add(16), o2);
+        }
+        out.extend_from_slice(&px);
+    }
+    let tail = n - n % 8;
+    planes_tail_to_f32(&r[tail..], &g[tail..], &b[tail..], &e[tail..], table, bias, out);
+}
+
+/// Pixels converted per step by the portable conversion: built as one array and appended
+/// with one copy.
+const GROUP: usize = 8;
+
+/// The portable conversion (and the scalar twin the AVX2 kernel is tested against).
+/// Appending whole groups writes every output float once, so the image needs no
+/// zero-filling first, with one capacity check per group.
+#[inline(always)]
+fn planes_to_f32_impl(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
+    let stride = n + SLACK;
+    let (r, g, b, e) = (&planes[..n], &planes[stride..][..n], &planes[2 * stride..][..n], &planes[3 * stride..][..n]);
+    out.reserve(n * 3);
+    let groups = r.chunks_exact(GROUP).zip(g.chunks_exact(GROUP)).zip(b.chunks_exact(GROUP)).zip(e.chunks_exact(GROUP));
+    for (((r, g), b), e) in groups {
+        let mut px = [0.0f32; 3 * GROUP];
+        for (i, o) in px.chunks_exact_mut(3).enumerate() {
+            o.copy_from_slice(&convert(r[i], g[i], b[i], e[i], table, bias));
+        }
+        out.extend_from_slice(&px);
+    }
+    let tail = n - n % GROUP;
+    planes_tail_to_f32(&r[tail..], &g[tail..], &b[tail..], &e[tail..], table, bias, out);
+}
+
+/// One pixel: `(mantissa + bias) * 2^(e-136)` per channel, the scale from the table.
+#[inline(always)]
+fn convert(r: u8, g: u8, b: u8, e: u8, table: &[f32; 256], bias: f32) -> [f32; 3] {
+    let s = table[usize::from(e)];
+    [(f32::from(r) + bias) * s, (f32::from(g) + bias) * s, (f32::from(b) + bias) * s]
+}
+
+/// Appends the pixels left after the whole groups, one at a time.
+#[inline(always)]
+fn planes_tail_to_f32(r: &[u8], g: &[u8], b: &[u8], e: &[u8], table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
+    for (((&r, &g), &b), &e) in r.iter().zip(g).zip(b).zip(e) {
+        out.extend_from_slice(&convert(r, g, b, e, table, bias));
     }
 }
 
@@ -74,9 +144,10 @@ fn planes_to_f32_impl(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, ou
 /// what lands past the run's end is overwritten by the next one or ignored.
 const SLACK: usize = 128;
 
-/// Runs and literals are written in blocks of this many bytes (rounded up into the slack):
-/// one block covers most of them (measured on the corpus: faster than 16, 32 or one 128-byte
-/// block, which wastes stores on the many short runs).
+/// The portable decode writes runs and literals in blocks of this many bytes (rounded up
+/// into the slack): one block covers most of them (measured on the corpus: faster than 16,
+/// 32 or one 128-byte block there, where a branch picks run or literal; the AVX2 kernel,
+/// branch-free, always writes one block of `2 * CHUNK`).
 const CHUNK: usize = 64;
 
 /// Decodes the four RLE channels of a scanline into `planes`, with AVX2 when the CPU has it.
@@ -84,20 +155,56 @@ fn read_rle_planes(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y:
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `read_rle_planes_avx2`; its body is the safe portable code compiled for AVX2.
+        // `read_rle_planes_avx2` (its vector loads and stores stay inside checked slices).
         return unsafe { read_rle_planes_avx2(data, pos, planes, n, y) };
     }
     read_rle_planes_impl(data, pos, planes, n, y)
 }
 
-/// [`read_rle_planes_impl`] compiled with AVX2 (32-byte moves for the run and literal blocks).
+/// The AVX2 twin of [`read_rle_planes_impl`]: the same operations, but each run or literal
+/// is written as one 128-byte block picked by a byte blend, so that neither the run/literal
+/// choice nor the operation's length is a branch (the compiler turns the portable select into
+/// a branch, which the random mix of short runs and literals mispredicts).
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn read_rle_planes_avx2(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
-    read_rle_planes_impl(data, pos, planes, n, y)
+    use std::arch::x86_64::{__m256i, _mm256_blendv_epi8, _mm256_loadu_si256, _mm256_set1_epi8, _mm256_storeu_si256};
+    for plane in planes.chunks_exact_mut(n + SLACK) {
+        let mut x = 0;
+        let mut p = *pos;
+        while x < n {
+            let Some(op) = data.get(p..p + 2 * CHUNK + 1) else { break };
+            // The position of the next operation is the critical path (a load, then this):
+            // the step is picked from `code + 1` and 2 by one conditional move.
+            let code = usize::from(op[0]);
+            let is_run = code > 128;
+            let step = if is_run { 2 } else { code + 1 };
+            let count = if is_run { code - 128 } else { code };
+            if count == 0 || count > n - x {
+                break;
+            }
+            let Some(dst) = plane.get_mut(x..x + 2 * CHUNK) else { break };
+            let value = _mm256_set1_epi8(op[1] as i8);
+            let mask = _mm256_set1_epi8(-i8::from(is_run));
+            let (src, dst) = (op[1..].as_ptr(), dst.as_mut_ptr());
+            for k in 0..2 * CHUNK / 32 {
+                // SAFETY: `op` has 2 * CHUNK + 1 = 129 bytes, so `src` (`op[1..]`) holds 128 bytes
+                // and these four unaligned 32-byte loads stay inside it; `dst` is a 128-byte slice
+                // of the plane, so the four unaligned stores stay inside it too.
+                unsafe {
+                    let literal = _mm256_loadu_si256(src.add(32 * k).cast::<__m256i>());
+                    _mm256_storeu_si256(dst.add(32 * k).cast::<__m256i>(), _mm256_blendv_epi8(literal, value, mask));
+                }
+            }
+            p += step;
+            x += count;
+        }
+        *pos = read_rle_plane_checked(data, p, plane, x, n, y)?;
+    }
+    Ok(())
 }
 
 /// The portable RLE decode of a scanline's four channels (and the AVX2 build's twin).
@@ -147,6 +254,21 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: u
         p += if is_run { 2 } else { 1 + count };
         x += count;
     }
+    *pos = read_rle_plane_checked(data, p, plane, x, n, y)?;
+    Ok(())
+}
+
+/// Finishes an RLE channel from pixel `x` at data position `p` with every read checked (the
+/// end of the data, bad codes); returns the position after the channel.
+#[inline(always)]
+fn read_rle_plane_checked(
+    data: &[u8],
+    mut p: usize,
+    plane: &mut [u8],
+    mut x: usize,
+    n: usize,
+    y: usize,
+) -> Result<usize> {
     while x < n {
         let code = usize::from(*data.get(p).ok_or_else(|| Error::truncated(format!("RLE scanline {y}")))?);
         p += 1;
@@ -187,8 +309,7 @@ fn read_rle_plane(data: &[u8], pos: &mut usize, plane: &mut [u8], n: usize, y: u
             x += code;
         }
     }
-    *pos = p;
-    Ok(())
+    Ok(p)
 }
 
 /// Decodes a flat or old-style RLE scanline: plain RGBE pixels, where a pixel (1, 1, 1, c)
@@ -290,17 +411,20 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
     let bias = opts.mantissa.bias();
     let mut pos = hdr.data_start;
     let standard = hdr.major.is_y && !hdr.major.increasing && !hdr.minor.is_y && hdr.minor.increasing;
-    let mut samples = vec![0.0f32; width * height * 3];
-    if standard {
-        // Rows in file order: convert each scanline straight into its place.
-        for (i, row) in samples.chunks_exact_mut(n * 3).enumerate() {
-            read_scanline(data, &mut pos, &mut planes, n, i)?;
-            planes_to_f32(&planes, n, &table, bias, row);
-        }
-    } else {
-        let mut scratch = vec![0.0f32; n * 3];
+    let samples = if standard {
+        // Rows in file order: append each converted scanline (every float written once).
+        let mut samples = Vec::with_capacity(width * height * 3);
         for i in 0..nscan {
             read_scanline(data, &mut pos, &mut planes, n, i)?;
+            planes_to_f32(&planes, n, &table, bias, &mut samples);
+        }
+        samples
+    } else {
+        let mut samples = vec![0.0f32; width * height * 3];
+        let mut scratch = Vec::with_capacity(n * 3);
+        for i in 0..nscan {
+            read_scanline(data, &mut pos, &mut planes, n, i)?;
+            scratch.clear();
             planes_to_f32(&planes, n, &table, bias, &mut scratch);
             let (base, step) = placement(hdr.major, hdr.minor, width, i);
             for (j, px) in scratch.chunks_exact(3).enumerate() {
@@ -308,7 +432,8 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
                 samples[k..k + 3].copy_from_slice(px);
             }
         }
-    }
+        samples
+    };
     finish(hdr, width as u32, height as u32, samples, opts)
 }
 
@@ -430,9 +555,11 @@ mod tests {
         }
         let table = exponent_table();
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        // Odd widths leave a tail after the 8-pixel vector steps.
-        for n in [1usize, 7, 8, 9, 100, 1023] {
-            let planes: Vec<u8> = (0..(n + SLACK) * 4)
+        // Odd widths leave a tail after the 8-pixel vector steps; n = 256 also gets every
+        // exponent 0..=255 (zero, the subnormal scales below 10, the normal ones) with
+        // mantissas 0 and 255 besides random ones.
+        for n in [1usize, 7, 8, 9, 100, 256, 1023] {
+            let mut planes: Vec<u8> = (0..(n + SLACK) * 4)
                 .map(|_| {
                     state ^= state << 13;
                     state ^= state >> 7;
@@ -440,12 +567,26 @@ mod tests {
                     state as u8
                 })
                 .collect();
+            if n == 256 {
+                for x in 0..n {
+                    planes[3 * (n + SLACK) + x] = x as u8;
+                    planes[x] = if x % 2 == 0 { 255 } else { 0 };
+                }
+            }
             for bias in [0.0, 0.5] {
-                let (mut a, mut b) = (vec![0f32; n * 3], vec![1f32; n * 3]);
+                // Both append after what is already there.
+                let (mut a, mut b) = (vec![7.0f32], vec![7.0f32]);
                 planes_to_f32_impl(&planes, n, &table, bias, &mut a);
                 // SAFETY: AVX2 support was checked above.
                 unsafe { planes_to_f32_avx2(&planes, n, &table, bias, &mut b) };
+                assert_eq!(a.len(), 1 + n * 3);
                 assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "n = {n}, bias = {bias}");
+                // And the portable one is the per-pixel definition.
+                for (x, px) in a[1..].chunks_exact(3).enumerate() {
+                    let rgbe = [0, 1, 2, 3].map(|c| planes[c * (n + SLACK) + x]);
+                    let mode = if bias == 0.0 { MantissaDecode::Truncated } else { MantissaDecode::Centred };
+                    assert_eq!(px, decode_pixel(rgbe, mode), "n = {n}, x = {x}");
+                }
             }
         }
     }
