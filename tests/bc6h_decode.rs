@@ -3,7 +3,9 @@
 mod common;
 
 use hdrcodec_bc6h::encode::EncodeOptions;
-use hdrcodec_bc6h::{block_dims, decode_block, decode_surface, encode_texture, read_dds, write_dds, Bc6hTexture};
+use hdrcodec_bc6h::{
+    block_dims, decode_block, decode_surface, decode_surface_into, encode_texture, read_dds, write_dds, Bc6hTexture,
+};
 use hdrcodec_core::metrics::log_rmse;
 use hdrcodec_core::{Channels, ColorInfo, HdrImage, Limits};
 use std::ffi::OsStr;
@@ -65,6 +67,60 @@ fn random_blocks_match_bcdec_rs_uf16() {
 #[test]
 fn random_blocks_match_bcdec_rs_sf16() {
     differential(true, 0x5EED_0002);
+}
+
+/// The surface decoder (on x86-64 with AVX2 and F16C its SIMD texel kernel, elsewhere the
+/// portable one) against `bcdec_rs`'s own `f32` output, on as many random blocks per variant as
+/// the block-level test. The surfaces are 1021x1022 texels, so partial edge blocks (cropped
+/// columns and rows) are covered too; single-threaded, so exactly the path the bench times.
+fn differential_surface(signed: bool, seed: u64) {
+    const BX: usize = 256;
+    const BY: usize = 256;
+    let (w, h) = (BX * 4 - 3, BY * 4 - 2);
+    let pitch = BX * 4 * 3;
+    let mut rng = Rng(seed);
+    // One spare row: bcdec_rs steps its row pitch past the last block row.
+    let mut theirs = vec![0f32; (BY * 4 + 1) * pitch];
+    let mut ours = vec![0f32; w * h * 3];
+    let mut checked = 0u64;
+    let start = std::time::Instant::now();
+    while checked < RANDOM_BLOCKS {
+        let blocks: Vec<u8> = (0..BX * BY)
+            .flat_map(|i| {
+                let mut block = rng.block();
+                block[0] = (block[0] & !31) | (i % 32) as u8;
+                block
+            })
+            .collect();
+        for (i, blk) in blocks.chunks_exact(16).enumerate() {
+            let (x, y) = (i % BX, i / BX);
+            bcdec_rs::bc6h_float(blk, &mut theirs[y * 4 * pitch + x * 12..], pitch, signed);
+        }
+        decode_surface_into(w as u32, h as u32, &blocks, signed, false, &mut ours).unwrap();
+        for y in 0..h {
+            let (a, b) = (&ours[y * w * 3..][..w * 3], &theirs[y * pitch..][..w * 3]);
+            if let Some(k) = a.iter().zip(b).position(|(p, q)| p.to_bits() != q.to_bits()) {
+                let blk = &blocks[((y / 4) * BX + k / 12) * 16..][..16];
+                panic!("texel ({}, {y}) of block {blk:02x?} (signed={signed}): {} vs bcdec_rs {}", k / 3, a[k], b[k]);
+            }
+        }
+        checked += (BX * BY) as u64;
+    }
+    println!(
+        "bc6h surface differential ({}): {checked} random blocks bit-identical to bcdec_rs f32 in {:.2} s",
+        if signed { "SF16" } else { "UF16" },
+        start.elapsed().as_secs_f64()
+    );
+}
+
+#[test]
+fn random_surfaces_match_bcdec_rs_f32_uf16() {
+    differential_surface(false, 0x5EED_0003);
+}
+
+#[test]
+fn random_surfaces_match_bcdec_rs_f32_sf16() {
+    differential_surface(true, 0x5EED_0004);
 }
 
 // ------------------------------------------------------------------ corpus and file references
