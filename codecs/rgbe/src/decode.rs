@@ -46,42 +46,75 @@ fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &m
 }
 
 /// The AVX2 twin of [`planes_to_f32_impl`], 8 pixels per step: the scale `2^(e-136)` is
-/// built from the exponent's bits instead of looked up (the same `f32` the table holds, zero
-/// for `e = 0`, subnormal for `e < 10`), and the three channel vectors are interleaved with
-/// one permute each and two blends per output vector.
+/// built from the exponent's bits instead of looked up (the same `f32` the table holds), and
+/// the three channel vectors are interleaved with one permute each and two blends per
+/// output vector.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn planes_to_f32_avx2(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
-    use std::arch::x86_64::*;
     let stride = n + SLACK;
     let (r, g, b, e) = (&planes[..n], &planes[stride..][..n], &planes[2 * stride..][..n], &planes[3 * stride..][..n]);
     out.reserve(n * 3);
-    let load = |s: &[u8]| -> __m256i {
+    // Exponents 1..=9 (values below 2^-126) need subnormal scales; rows without any, nearly
+    // all of them, take a shorter path.
+    let subnormal = e.iter().fold(false, |any, &v| any | (v.wrapping_sub(1) < 9));
+    let full = n - n % 8;
+    let planes = [&r[..full], &g[..full], &b[..full], &e[..full]];
+    match (subnormal, bias != 0.0) {
+        (false, false) => groups_to_f32_avx2::<false, false>(planes, bias, out),
+        (false, true) => groups_to_f32_avx2::<false, true>(planes, bias, out),
+        (true, false) => groups_to_f32_avx2::<true, false>(planes, bias, out),
+        (true, true) => groups_to_f32_avx2::<true, true>(planes, bias, out),
+    }
+    planes_tail_to_f32(&r[full..], &g[full..], &b[full..], &e[full..], table, bias, out);
+}
+
+/// Converts whole groups of 8 pixels (the planes' lengths are multiples of 8) and appends
+/// them; `SUBNORMAL` handles exponents 1..=9, `CENTRED` adds `bias`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn groups_to_f32_avx2<const SUBNORMAL: bool, const CENTRED: bool>(
+    [r, g, b, e]: [&[u8]; 4],
+    bias: f32,
+    out: &mut Vec<f32>,
+) {
+    use std::arch::x86_64::*;
+    let bytes = |s: &[u8]| -> __m128i {
         let s: &[u8; 8] = s.try_into().expect("8 bytes");
-        _mm256_cvtepu8_epi32(_mm_set_epi64x(0, i64::from_le_bytes(*s)))
+        _mm_set_epi64x(0, i64::from_le_bytes(*s))
     };
     let vbias = _mm256_set1_ps(bias);
-    let (nine, ten, one, thirteen) =
-        (_mm256_set1_epi32(9), _mm256_set1_epi32(10), _mm256_set1_epi32(1), _mm256_set1_epi32(13));
     let idx_r = _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5);
     let idx_g = _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2);
     let idx_b = _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7);
     let groups = r.chunks_exact(8).zip(g.chunks_exact(8)).zip(b.chunks_exact(8)).zip(e.chunks_exact(8));
     for (((r, g), b), e) in groups {
-        let e = load(e);
-        // 2^(e-136): exponent field e-9 from e = 10 up, the subnormal bit e+13 below, 0 at 0.
-        let normal = _mm256_slli_epi32::<23>(_mm256_sub_epi32(e, nine));
-        let subnormal = _mm256_sllv_epi32(one, _mm256_add_epi32(e, thirteen));
-        let small = _mm256_cmpgt_epi32(ten, e);
-        let bits = _mm256_blendv_epi8(normal, subnormal, small);
-        let scale = _mm256_castsi256_ps(_mm256_andnot_si256(_mm256_cmpeq_epi32(e, _mm256_setzero_si256()), bits));
-        let channel = |m: __m256i, idx: __m256i| {
-            _mm256_permutevar8x32_ps(_mm256_mul_ps(_mm256_add_ps(_mm256_cvtepi32_ps(m), vbias), scale), idx)
+        let e = bytes(e);
+        let bits = if SUBNORMAL {
+            // 2^(e-136): exponent field e-9 from e = 10 up, the subnormal bit e+13 below, 0 at 0.
+            let e = _mm256_cvtepu8_epi32(e);
+            let normal = _mm256_slli_epi32::<23>(_mm256_sub_epi32(e, _mm256_set1_epi32(9)));
+            let subnormal = _mm256_sllv_epi32(_mm256_set1_epi32(1), _mm256_add_epi32(e, _mm256_set1_epi32(13)));
+            let small = _mm256_cmpgt_epi32(_mm256_set1_epi32(10), e);
+            let bits = _mm256_blendv_epi8(normal, subnormal, small);
+            _mm256_andnot_si256(_mm256_cmpeq_epi32(e, _mm256_setzero_si256()), bits)
+        } else {
+            // No exponent is 1..=9: the field e-9, saturating to 0 (the float 0) at e = 0.
+            _mm256_slli_epi32::<23>(_mm256_cvtepu8_epi32(_mm_subs_epu8(e, _mm_set1_epi8(9))))
         };
-        let (rr, gg, bb) = (channel(load(r), idx_r), channel(load(g), idx_g), channel(load(b), idx_b));
+        let scale = _mm256_castsi256_ps(bits);
+        let channel = |m: &[u8], idx: __m256i| {
+            let mut v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(bytes(m)));
+            if CENTRED {
+                v = _mm256_add_ps(v, vbias);
+            }
+            _mm256_permutevar8x32_ps(_mm256_mul_ps(v, scale), idx)
+        };
+        let (rr, gg, bb) = (channel(r, idx_r), channel(g, idx_g), channel(b, idx_b));
         // Output k holds (r, g, b) at lanes where (k * 8 + lane) % 3 is (0, 1, 2).
         let o0 = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(rr, gg), bb);
         let o1 = _mm256_blend_ps::<0b0100_1001>(_mm256_blend_ps::<0b0010_0100>(rr, gg), bb);
@@ -96,8 +129,6 @@ unsafe fn planes_to_f32_avx2(planes: &[u8], n: usize, table: &[f32; 256], bias: 
         }
         out.extend_from_slice(&px);
     }
-    let tail = n - n % 8;
-    planes_tail_to_f32(&r[tail..], &g[tail..], &b[tail..], &e[tail..], table, bias, out);
 }
 
 /// Pixels converted per step by the portable conversion: built as one array and appended
@@ -171,37 +202,51 @@ fn read_rle_planes(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y:
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn read_rle_planes_avx2(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
-    use std::arch::x86_64::{__m256i, _mm256_blendv_epi8, _mm256_loadu_si256, _mm256_set1_epi8, _mm256_storeu_si256};
+    use std::arch::x86_64::{
+        __m256i, _mm256_add_epi8, _mm256_blendv_epi8, _mm256_loadu_si256, _mm256_set1_epi8, _mm256_storeu_si256,
+    };
+    const BLOCK: usize = 2 * CHUNK;
     for plane in planes.chunks_exact_mut(n + SLACK) {
-        let mut x = 0;
-        let mut p = *pos;
-        while x < n {
-            let Some(op) = data.get(p..p + 2 * CHUNK + 1) else { break };
+        // Walk the data and the plane as shrinking slices: one length check each per
+        // operation instead of an overflow check and a bound check on an index.
+        let mut rest = data.get(*pos..).unwrap_or_default();
+        let mut out = &mut plane[..];
+        let mut left = n;
+        while left > 0 {
+            let Some(op) = rest.first_chunk::<{ BLOCK + 1 }>() else { break };
             // The position of the next operation is the critical path (a load, then this):
             // the step is picked from `code + 1` and 2 by one conditional move.
             let code = usize::from(op[0]);
             let is_run = code > 128;
             let step = if is_run { 2 } else { code + 1 };
             let count = if is_run { code - 128 } else { code };
-            if count == 0 || count > n - x {
+            // A zero count (code 0) wraps round and leaves too.
+            if count.wrapping_sub(1) >= left {
                 break;
             }
-            let Some(dst) = plane.get_mut(x..x + 2 * CHUNK) else { break };
+            let Some(dst) = out.first_chunk_mut::<BLOCK>() else { break };
             let value = _mm256_set1_epi8(op[1] as i8);
-            let mask = _mm256_set1_epi8(-i8::from(is_run));
+            // Top bit set (blend picks the literal) for codes 1..=128: code + 127 wraps to
+            // 0..=126 for runs.
+            let literal_mask = _mm256_add_epi8(_mm256_set1_epi8(op[0] as i8), _mm256_set1_epi8(127));
             let (src, dst) = (op[1..].as_ptr(), dst.as_mut_ptr());
-            for k in 0..2 * CHUNK / 32 {
-                // SAFETY: `op` has 2 * CHUNK + 1 = 129 bytes, so `src` (`op[1..]`) holds 128 bytes
-                // and these four unaligned 32-byte loads stay inside it; `dst` is a 128-byte slice
-                // of the plane, so the four unaligned stores stay inside it too.
+            for k in 0..BLOCK / 32 {
+                // SAFETY: `op` has BLOCK + 1 bytes, so `src` (`op[1..]`) holds BLOCK bytes and
+                // these unaligned 32-byte loads stay inside it; `dst` is a BLOCK-byte slice of
+                // the plane, so the unaligned stores stay inside it too.
                 unsafe {
                     let literal = _mm256_loadu_si256(src.add(32 * k).cast::<__m256i>());
-                    _mm256_storeu_si256(dst.add(32 * k).cast::<__m256i>(), _mm256_blendv_epi8(literal, value, mask));
+                    _mm256_storeu_si256(
+                        dst.add(32 * k).cast::<__m256i>(),
+                        _mm256_blendv_epi8(value, literal, literal_mask),
+                    );
                 }
             }
-            p += step;
-            x += count;
+            rest = &rest[step..];
+            out = &mut std::mem::take(&mut out)[count..];
+            left -= count;
         }
+        let (p, x) = (data.len() - rest.len(), n - left);
         *pos = read_rle_plane_checked(data, p, plane, x, n, y)?;
     }
     Ok(())
@@ -557,8 +602,10 @@ mod tests {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         // Odd widths leave a tail after the 8-pixel vector steps; n = 256 also gets every
         // exponent 0..=255 (zero, the subnormal scales below 10, the normal ones) with
-        // mantissas 0 and 255 besides random ones.
-        for n in [1usize, 7, 8, 9, 100, 256, 1023] {
+        // mantissas 0 and 255 besides random ones. Each row once as drawn (the kernel's path
+        // for rows with subnormal scales) and once with exponents 1..=9 moved to 0 or 10 (its
+        // shorter path for the other rows).
+        for (n, subnormal) in [1usize, 7, 8, 9, 100, 256, 1023].into_iter().flat_map(|n| [(n, true), (n, false)]) {
             let mut planes: Vec<u8> = (0..(n + SLACK) * 4)
                 .map(|_| {
                     state ^= state << 13;
@@ -571,6 +618,13 @@ mod tests {
                 for x in 0..n {
                     planes[3 * (n + SLACK) + x] = x as u8;
                     planes[x] = if x % 2 == 0 { 255 } else { 0 };
+                }
+            }
+            if !subnormal {
+                for (x, v) in planes[3 * (n + SLACK)..][..n].iter_mut().enumerate() {
+                    if (1..10).contains(v) {
+                        *v = if x % 2 == 0 { 0 } else { 10 };
+                    }
                 }
             }
             for bias in [0.0, 0.5] {
