@@ -409,13 +409,12 @@ fn block_loop<const SIGNED: bool>(
 /// The portable texel kernel (see [`block_loop`] for the output layout).
 #[inline(always)]
 fn block_scalar<const SIGNED: bool>(bits: u128, h: &Header, out: &mut [f32], stride: usize) {
-    let planes = texel_halves::<SIGNED>(bits, h);
+    // Widen whole planes first (that vectorises), then interleave.
+    let planes = texel_halves::<SIGNED>(bits, h).map(|p| p.map(half_to_f32));
     for y in 0..4 {
         let row = &mut out[y * stride..][..12];
         for x in 0..4 {
-            for c in 0..3 {
-                row[x * 3 + c] = half_to_f32(planes[c][y * 4 + x]);
-            }
+            row[x * 3..x * 3 + 3].copy_from_slice(&[planes[0][y * 4 + x], planes[1][y * 4 + x], planes[2][y * 4 + x]]);
         }
     }
 }
