@@ -8,24 +8,37 @@
 //! the decoder unquantises endpoints to 16-bit integers `c`, interpolates, and maps the result to
 //! half bits with `c * 31 >> 6` (UF16) or `c * 31 >> 5` (SF16 magnitudes). That map is linear, so
 //! least squares in the interpolation domain is least squares in half-int space.
+//!
+//! Layout. The 16 texels are kept as channel planes of `f32` (`[[f32; 16]; 3]`), and every
+//! per-texel step (moments, projections, the palette search, the partition ranking across 32
+//! partitions) is a loop over plain arrays that the compiler turns into SIMD; `encode.rs`
+//! compiles the same code a second time for AVX2 and picks the build at run time. Half-ints
+//! (below 2^16 in magnitude) and palette entries are exact in `f32`; sums are reduced in a fixed
+//! tree order so that both builds give the same bits. Every function here is
+//! `#[inline(always)]` so that the whole block encoder is compiled inside each build.
+// Fixed-size index loops over texel lanes are the vectorisable form used throughout.
+#![allow(clippy::needless_range_loop)]
 // The decoder's endpoint unquantisation (Direct3D 11 specification, "Unquantization of Color
 // Endpoints"): the encoder predicts exactly what the decoder will expand.
-use crate::decode::unquantize_endpoint as unquantize;
+use crate::decode::{unquantize, unquantize_endpoint};
 use crate::modes::{
     pack_block, BlockFields, ModeInfo as Mode, ANCHORS as ANCHOR2, MODES, PARTITIONS, WEIGHTS3, WEIGHTS4,
 };
 
-/// A block ready for encoding.
+/// One value per texel (row-major).
+type Plane = [f32; 16];
+
+/// A block ready for encoding, as channel planes.
 pub(crate) struct Texels {
-    signed: bool,
-    /// The source half floats as sign-magnitude integers.
-    half: [[i32; 3]; 16],
+    /// The source half floats as sign-magnitude integers (exact in `f32`).
+    half: [Plane; 3],
     /// The same values in the interpolation domain (the centre of the interval that decodes to
     /// each half).
-    target: [[f32; 3]; 16],
+    target: [Plane; 3],
 }
 
 /// Reads half bits as a sign-magnitude integer.
+#[inline(always)]
 fn half_to_int(h: u16) -> i32 {
     if h & 0x8000 != 0 {
         -((h & 0x7FFF) as i32)
@@ -54,36 +67,164 @@ pub(crate) fn sanitize_half(h: u16, signed: bool) -> u16 {
     }
 }
 
-impl Texels {
-    /// Prepares sanitised half texels (see [`sanitize_half`]).
-    pub(crate) fn new(texels: &[[u16; 3]; 16], signed: bool) -> Texels {
-        let mut half = [[0i32; 3]; 16];
-        let mut target = [[0f32; 3]; 16];
-        let scale = if signed { 32.0 / 31.0 } else { 64.0 / 31.0 };
-        let limit = if signed { 32767.0 } else { 65535.0 };
-        for i in 0..16 {
-            for c in 0..3 {
-                let h = half_to_int(sanitize_half(texels[i][c], signed));
-                half[i][c] = h;
-                target[i][c] = if h == 0 {
-                    0.0
-                } else {
-                    let m = ((h.abs() as f32 + 0.5) * scale).min(limit);
-                    if h < 0 {
-                        -m
-                    } else {
-                        m
-                    }
-                };
-            }
+/// Converts a linear `f32` straight to the sanitised half-int (see [`sanitize_half`]): NaN → 0,
+/// negatives → 0 unless `S` (signed), magnitudes clamped to 65504, then IEEE round-to-nearest-
+/// even to half precision. Branch-free bit arithmetic, so a loop over a block vectorises; the
+/// unit tests compare it with the `half` crate on every class of input.
+#[inline(always)]
+pub(crate) fn f32_to_half_int<const S: bool>(v: f32) -> i32 {
+    let v = if S {
+        if v.is_nan() {
+            0.0
+        } else {
+            v
         }
-        Texels { signed, half, target }
+    } else if v > 0.0 {
+        v
+    } else {
+        0.0 // negatives, -0.0 and NaN
+    };
+    let v = v.clamp(-65504.0, 65504.0);
+    let bits = v.to_bits();
+    let a = bits & 0x7FFF_FFFF;
+    // Normal halves: rebias the exponent (15 - 127) and round the 13 dropped bits to nearest
+    // even (add 0xFFF plus the lowest kept bit; a carry into the exponent is the right answer).
+    let normal = a.wrapping_add(0xC800_0FFF).wrapping_add((a >> 13) & 1) >> 13;
+    // Subnormal halves (below 2^-14): adding 0.5 puts the half ulp (2^-24) at the f32 ulp of 0.5,
+    // so the FPU's own round-to-nearest-even does the work; the mantissa bits are the result.
+    let sub = (f32::from_bits(a) + 0.5).to_bits().wrapping_sub(0x3F00_0000);
+    let m = if a < 0x3880_0000 { sub } else { normal } as i32;
+    if bits >> 31 != 0 {
+        -m
+    } else {
+        m
     }
 }
 
+impl Texels {
+    /// Prepares half texels (row-major `[r, g, b]` bits), sanitised first (see
+    /// [`sanitize_half`]).
+    #[inline(always)]
+    pub(crate) fn new<const S: bool>(texels: &[[u16; 3]; 16]) -> Texels {
+        let mut half = [[0f32; 16]; 3];
+        for (i, t) in texels.iter().enumerate() {
+            for c in 0..3 {
+                half[c][i] = half_to_int(sanitize_half(t[c], S)) as f32;
+            }
+        }
+        Texels::from_half_ints::<S>(half)
+    }
+
+    /// Prepares linear `f32` channel planes (converted by [`f32_to_half_int`]).
+    #[inline(always)]
+    pub(crate) fn from_f32<const S: bool>(rgb: &[Plane; 3]) -> Texels {
+        let mut half = [[0f32; 16]; 3];
+        for c in 0..3 {
+            for i in 0..16 {
+                half[c][i] = f32_to_half_int::<S>(rgb[c][i]) as f32;
+            }
+        }
+        Texels::from_half_ints::<S>(half)
+    }
+
+    #[inline(always)]
+    fn from_half_ints<const S: bool>(half: [Plane; 3]) -> Texels {
+        let mut target = [[0f32; 16]; 3];
+        let scale = if S { 32.0 / 31.0 } else { 64.0 / 31.0 };
+        let limit = if S { 32767.0 } else { 65535.0 };
+        for c in 0..3 {
+            for i in 0..16 {
+                let h = half[c][i];
+                let a = if h < 0.0 { -h } else { h };
+                let m = (a + 0.5) * scale;
+                let m = if m < limit { m } else { limit };
+                target[c][i] = if h == 0.0 {
+                    0.0
+                } else if h < 0.0 {
+                    -m
+                } else {
+                    m
+                };
+            }
+        }
+        Texels { half, target }
+    }
+}
+
+/// The sum of 16 values in a fixed tree order (vectorises, and is the same in every build).
+#[inline(always)]
+fn sum16(x: &Plane) -> f32 {
+    let mut s8 = [0f32; 8];
+    for j in 0..8 {
+        s8[j] = x[j] + x[j + 8];
+    }
+    let mut s4 = [0f32; 4];
+    for j in 0..4 {
+        s4[j] = s8[j] + s8[j + 4];
+    }
+    (s4[0] + s4[2]) + (s4[1] + s4[3])
+}
+
+/// `sum16` of the elementwise product.
+#[inline(always)]
+fn dot16(a: &Plane, b: &Plane) -> f32 {
+    let mut p = [0f32; 16];
+    for i in 0..16 {
+        p[i] = a[i] * b[i];
+    }
+    sum16(&p)
+}
+
+/// Minimum and maximum of 16 values (no NaNs).
+#[inline(always)]
+fn min_max16(x: &Plane, y: &Plane) -> (f32, f32) {
+    let mut lo = [0f32; 8];
+    let mut hi = [0f32; 8];
+    for j in 0..8 {
+        lo[j] = if x[j] < x[j + 8] { x[j] } else { x[j + 8] };
+        hi[j] = if y[j] > y[j + 8] { y[j] } else { y[j + 8] };
+    }
+    let (mut l, mut h) = (lo[0], hi[0]);
+    for j in 1..8 {
+        l = if lo[j] < l { lo[j] } else { l };
+        h = if hi[j] > h { hi[j] } else { h };
+    }
+    (l, h)
+}
+
+/// Region membership per partition and texel: 1.0 where the texel is in region 1.
+static REGION1: [Plane; 32] = region1_table();
+
+/// The same table transposed: per texel, 1.0 in the lanes of the partitions that put it in
+/// region 1 (the partition ranking works on 32 partitions at once).
+static REGION1_BY_TEXEL: [[f32; 32]; 16] = {
+    let by_partition = region1_table();
+    let mut t = [[0f32; 32]; 16];
+    let mut k = 0;
+    while k < 32 * 16 {
+        t[k % 16][k / 16] = by_partition[k / 16][k % 16];
+        k += 1;
+    }
+    t
+};
+
+const fn region1_table() -> [Plane; 32] {
+    let mut t = [[0f32; 16]; 32];
+    let mut k = 0;
+    while k < 32 * 16 {
+        t[k / 16][k % 16] = ((PARTITIONS[k / 16] >> (k % 16)) & 1) as f32;
+        k += 1;
+    }
+    t
+}
+
+const ONES: Plane = [1.0; 16];
+const ZEROS: Plane = [0.0; 16];
+
 /// The quantised endpoint whose unquantised value is nearest to `v` (interpolation domain).
-fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
-    if !signed {
+#[inline(always)]
+fn quantize<const S: bool>(v: f32, bits: u32) -> i32 {
+    if !S {
         let v = v.clamp(0.0, 65535.0);
         if bits >= 15 {
             // Non-negative: truncating v + 0.5 rounds, without a libm call on baseline x86-64.
@@ -93,7 +234,7 @@ fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
         // floor(x) for x >= -0.5, by truncation of x + 1.
         let q = (((v * (1u32 << bits) as f32 / 65536.0 + 0.5) as i32) - 1).clamp(0, max);
         let q1 = (q + 1).min(max);
-        if (unquantize(q1, bits, false) as f32 - v).abs() < (unquantize(q, bits, false) as f32 - v).abs() {
+        if (unquantize::<S>(q1, bits) as f32 - v).abs() < (unquantize::<S>(q, bits) as f32 - v).abs() {
             q1
         } else {
             q
@@ -107,7 +248,7 @@ fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
         let max = (1i32 << (bits - 1)) - 1;
         let q = (((m * (1u32 << (bits - 1)) as f32 / 32768.0 + 0.5) as i32) - 1).clamp(0, max);
         let q1 = (q + 1).min(max);
-        let q = if (unquantize(q1, bits, true) as f32 - m).abs() < (unquantize(q, bits, true) as f32 - m).abs() {
+        let q = if (unquantize::<S>(q1, bits) as f32 - m).abs() < (unquantize::<S>(q, bits) as f32 - m).abs() {
             q1
         } else {
             q
@@ -123,9 +264,9 @@ fn quantize(v: f32, bits: u32, signed: bool) -> i32 {
 /// Interpolates two unquantised endpoints and maps the result to half-int (the decoder's final
 /// unquantisation).
 #[inline(always)]
-fn interpolate(a: i32, b: i32, w: i32, signed: bool) -> i32 {
+fn interpolate<const S: bool>(a: i32, b: i32, w: i32) -> i32 {
     let c = (a * (64 - w) + b * w + 32) >> 6;
-    if !signed {
+    if !S {
         (c * 31) >> 6
     } else if c < 0 {
         -(((-c) * 31) >> 5)
@@ -134,22 +275,15 @@ fn interpolate(a: i32, b: i32, w: i32, signed: bool) -> i32 {
     }
 }
 
-/// Squared half-int distance of two colours.
-#[inline(always)]
-fn dist(a: &[i32; 3], b: &[i32; 3]) -> u64 {
-    let d0 = (a[0] - b[0]) as i64;
-    let d1 = (a[1] - b[1]) as i64;
-    let d2 = (a[2] - b[2]) as i64;
-    (d0 * d0 + d1 * d1 + d2 * d2) as u64
-}
-
 /// Continuous endpoints of up to two regions: `[region][end][channel]`.
 type Ends = [[[f32; 3]; 2]; 2];
 
 /// A fully specified block, with what it decodes to.
 #[derive(Clone)]
 pub(crate) struct Candidate {
-    pub err: u64,
+    /// Sum of squared half-int differences (in `f32`: exact while each texel's error is below
+    /// 2^24, which covers every fit worth comparing).
+    pub err: f32,
     pub mode: usize,
     pub partition: usize,
     /// Quantised endpoints (absolute values, not deltas): `[endpoint][channel]`.
@@ -159,7 +293,7 @@ pub(crate) struct Candidate {
 
 impl Candidate {
     fn worst() -> Candidate {
-        Candidate { err: u64::MAX, mode: 10, partition: 0, q: [[0; 3]; 4], indices: [0; 16] }
+        Candidate { err: f32::INFINITY, mode: 10, partition: 0, q: [[0; 3]; 4], indices: [0; 16] }
     }
 
     /// The 16 bytes of this block.
@@ -186,15 +320,22 @@ impl Candidate {
         let bits = mode.endpoint_bits as u32;
         let weights: &[u8] = if mode.regions == 2 { &WEIGHTS3 } else { &WEIGHTS4 };
         let mask = if mode.regions == 2 { PARTITIONS[self.partition] } else { 0 };
+        let unq = |v: i32| unquantize_endpoint(v, bits, signed);
         let mut out = [[0u16; 3]; 16];
         for (i, texel) in out.iter_mut().enumerate() {
             let r = ((mask >> i) & 1) as usize;
             let w = weights[self.indices[i] as usize] as i32;
             for (c, v) in texel.iter_mut().enumerate() {
-                let a = unquantize(self.q[2 * r][c], bits, signed);
-                let b = unquantize(self.q[2 * r + 1][c], bits, signed);
+                let a = unq(self.q[2 * r][c]);
+                let b = unq(self.q[2 * r + 1][c]);
                 let x = (a * (64 - w) + b * w + 32) >> 6;
-                *v = if x < 0 { 0x8000 | (((-x) * 31) >> 5) as u16 } else { interpolate(x, x, 0, signed) as u16 };
+                *v = if x < 0 {
+                    0x8000 | (((-x) * 31) >> 5) as u16
+                } else if signed {
+                    interpolate::<true>(x, x, 0) as u16
+                } else {
+                    interpolate::<false>(x, x, 0) as u16
+                };
             }
         }
         out
@@ -212,8 +353,9 @@ pub(crate) struct Search {
     all_two_region: bool,
     /// Least-squares refinement passes.
     iterations: u32,
-    /// Test every palette entry for every texel (otherwise the projection and its neighbours).
-    exhaustive_indices: bool,
+    /// Compare every texel with every palette entry (otherwise only with the two entries around
+    /// its projection onto the palette's line).
+    exhaustive: bool,
 }
 
 impl Search {
@@ -224,70 +366,63 @@ impl Search {
             2 => (false, 1, false, 1, false),
             3 => (false, 2, false, 2, false),
             4 => (true, 4, false, 2, false),
-            5 => (true, 6, true, 2, false),
-            6 => (true, 10, true, 3, false),
-            7 => (true, 16, true, 4, false),
+            5 => (true, 6, true, 2, true),
+            6 => (true, 10, true, 3, true),
+            7 => (true, 16, true, 4, true),
             8 => (true, 24, true, 6, true),
             _ => (true, 32, true, 8, true),
         };
-        Search { all_one_region: all1, partitions, all_two_region: all2, iterations, exhaustive_indices: exhaustive }
+        Search { all_one_region: all1, partitions, all_two_region: all2, iterations, exhaustive }
     }
 }
 
-/// Principal-axis endpoints of the texels selected by `members` (a bit set): the mean, the
-/// dominant eigenvector of the covariance (power iteration), and the extreme projections.
-/// Also returns the squared distance of the texels from that line (the fit residual).
-fn fit_line(target: &[[f32; 3]; 16], members: u16) -> ([[f32; 3]; 2], f32) {
-    let mut n = 0f32;
-    let mut mean = [0f32; 3];
-    for (i, t) in target.iter().enumerate() {
-        if members & (1 << i) != 0 {
-            n += 1.0;
-            for c in 0..3 {
-                mean[c] += t[c];
-            }
-        }
-    }
+/// Principal-axis endpoints of the texels weighted by `member` (1.0 in, 0.0 out): the mean,
+/// the dominant eigenvector of the covariance (power iteration), and the extreme projections.
+#[inline(always)]
+fn fit_line(target: &[Plane; 3], member: &Plane) -> [[f32; 3]; 2] {
+    let n = sum16(member);
     if n == 0.0 {
-        return ([[0.0; 3]; 2], 0.0);
+        return [[0.0; 3]; 2];
     }
-    for m in &mut mean {
-        *m /= n;
+    let mut mean = [0f32; 3];
+    for c in 0..3 {
+        mean[c] = dot16(&target[c], member) / n;
+    }
+    let mut d = [[0f32; 16]; 3];
+    for c in 0..3 {
+        for i in 0..16 {
+            d[c][i] = (target[c][i] - mean[c]) * member[i];
+        }
     }
     // Covariance (upper triangle): xx, xy, xz, yy, yz, zz.
-    let mut cov = [0f32; 6];
-    for (i, t) in target.iter().enumerate() {
-        if members & (1 << i) != 0 {
-            let d = [t[0] - mean[0], t[1] - mean[1], t[2] - mean[2]];
-            cov[0] += d[0] * d[0];
-            cov[1] += d[0] * d[1];
-            cov[2] += d[0] * d[2];
-            cov[3] += d[1] * d[1];
-            cov[4] += d[1] * d[2];
-            cov[5] += d[2] * d[2];
-        }
+    let cov = [
+        dot16(&d[0], &d[0]),
+        dot16(&d[0], &d[1]),
+        dot16(&d[0], &d[2]),
+        dot16(&d[1], &d[1]),
+        dot16(&d[1], &d[2]),
+        dot16(&d[2], &d[2]),
+    ];
+    let axis = principal_axis(&cov);
+    let mut lo = [0f32; 16];
+    let mut hi = [0f32; 16];
+    for i in 0..16 {
+        let p = d[0][i] * axis[0] + d[1][i] * axis[1] + d[2][i] * axis[2];
+        lo[i] = if member[i] != 0.0 { p } else { f32::INFINITY };
+        hi[i] = if member[i] != 0.0 { p } else { f32::NEG_INFINITY };
     }
-    let (axis, lambda) = principal_axis(&cov);
-    let trace = cov[0] + cov[3] + cov[5];
-    let residual = (trace - lambda).max(0.0);
-    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
-    for (i, t) in target.iter().enumerate() {
-        if members & (1 << i) != 0 {
-            let p = (t[0] - mean[0]) * axis[0] + (t[1] - mean[1]) * axis[1] + (t[2] - mean[2]) * axis[2];
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-    }
+    let (lo, hi) = min_max16(&lo, &hi);
     let mut ends = [[0f32; 3]; 2];
     for c in 0..3 {
         ends[0][c] = mean[c] + lo * axis[c];
         ends[1][c] = mean[c] + hi * axis[c];
     }
-    (ends, residual)
+    ends
 }
 
-/// Unit dominant eigenvector of a symmetric 3x3 matrix (upper triangle) and its eigenvalue.
-fn principal_axis(cov: &[f32; 6]) -> ([f32; 3], f32) {
+/// Unit dominant eigenvector of a symmetric 3x3 matrix (upper triangle).
+#[inline(always)]
+fn principal_axis(cov: &[f32; 6]) -> [f32; 3] {
     // Start from the column with the largest diagonal entry: never orthogonal to the answer
     // unless the matrix is degenerate.
     let cols = [[cov[0], cov[1], cov[2]], [cov[1], cov[3], cov[4]], [cov[2], cov[4], cov[5]]];
@@ -299,54 +434,52 @@ fn principal_axis(cov: &[f32; 6]) -> ([f32; 3], f32) {
         2
     };
     let mut v = cols[k];
-    let mut norm = 0.0;
     for _ in 0..4 {
         let w = [
             cov[0] * v[0] + cov[1] * v[1] + cov[2] * v[2],
             cov[1] * v[0] + cov[3] * v[1] + cov[4] * v[2],
             cov[2] * v[0] + cov[4] * v[1] + cov[5] * v[2],
         ];
-        norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
         if norm <= f32::MIN_POSITIVE {
-            return ([0.577_350_3; 3], 0.0);
+            return [0.577_350_3; 3];
         }
         v = [w[0] / norm, w[1] / norm, w[2] / norm];
     }
-    // After normalisation, |C v| approximates the eigenvalue.
-    (v, norm)
+    v
 }
 
-/// The encoder for one block at one search setting.
-pub(crate) struct BlockEncoder<'a> {
+/// The encoder for one block at one search setting; `S` selects SF16 (signed).
+pub(crate) struct BlockEncoder<'a, const S: bool> {
     tex: &'a Texels,
     search: Search,
 }
 
-impl<'a> BlockEncoder<'a> {
+impl<'a, const S: bool> BlockEncoder<'a, S> {
+    #[inline(always)]
     pub(crate) fn new(tex: &'a Texels, search: Search) -> Self {
         BlockEncoder { tex, search }
     }
 
     /// Quantises continuous endpoints for `mode`, orienting each region so that its anchor texel
     /// sits nearer the first endpoint and clamping deltas into the mode's range.
+    #[inline(always)]
     fn quantize_ends(&self, mode: &Mode, partition: usize, ends: &Ends) -> [[i32; 3]; 4] {
-        let signed = self.tex.signed;
         let bits = mode.endpoint_bits as u32;
         let mut q = [[0i32; 3]; 4];
         for r in 0..mode.regions as usize {
             let anchor = if r == 0 { 0 } else { ANCHOR2[partition] as usize };
             let (a, b) = (ends[r][0], ends[r][1]);
-            let x = self.tex.target[anchor];
             let mut along = 0.0;
             let mut len2 = 0.0;
             for c in 0..3 {
-                along += (x[c] - a[c]) * (b[c] - a[c]);
+                along += (self.tex.target[c][anchor] - a[c]) * (b[c] - a[c]);
                 len2 += (b[c] - a[c]) * (b[c] - a[c]);
             }
             let (a, b) = if along > 0.5 * len2 { (b, a) } else { (a, b) };
             for c in 0..3 {
-                q[2 * r][c] = quantize(a[c], bits, signed);
-                q[2 * r + 1][c] = quantize(b[c], bits, signed);
+                q[2 * r][c] = quantize::<S>(a[c], bits);
+                q[2 * r + 1][c] = quantize::<S>(b[c], bits);
             }
         }
         if mode.transformed {
@@ -362,14 +495,16 @@ impl<'a> BlockEncoder<'a> {
     }
 
     /// Whether the endpoints fit the mode's deltas without clamping.
-    fn fits(&self, mode: &Mode, partition: usize, ends: &Ends) -> bool {
+    #[inline(always)]
+    fn fits(&self, mode: &Mode, ends: &Ends) -> bool {
         if !mode.transformed {
             return true;
         }
-        let signed = self.tex.signed;
         let bits = mode.endpoint_bits as u32;
-        let base: [i32; 3] = std::array::from_fn(|c| quantize(ends[0][0][c], bits, signed));
-        let _ = partition;
+        let mut base = [0i32; 3];
+        for c in 0..3 {
+            base[c] = quantize::<S>(ends[0][0][c], bits);
+        }
         for (r, region) in ends.iter().enumerate().take(mode.regions as usize) {
             for (k, end) in region.iter().enumerate() {
                 if r == 0 && k == 0 {
@@ -377,7 +512,7 @@ impl<'a> BlockEncoder<'a> {
                 }
                 for c in 0..3 {
                     let half_range = 1i32 << (mode.delta_bits[c] - 1);
-                    let d = quantize(end[c], bits, signed) - base[c];
+                    let d = quantize::<S>(end[c], bits) - base[c];
                     // Either end may become the base after orientation: require the
                     // range to fit from both sides.
                     if d < -half_range + 1 || d > half_range - 2 {
@@ -390,110 +525,111 @@ impl<'a> BlockEncoder<'a> {
     }
 
     /// Chooses indices for quantised endpoints and computes the error.
+    #[inline(always)]
     fn evaluate(&self, m: usize, partition: usize, q: [[i32; 3]; 4]) -> Candidate {
-        let mode = &MODES[m];
-        let signed = self.tex.signed;
-        let bits = mode.endpoint_bits as u32;
-        let weights: &[u8] = if mode.regions == 2 { &WEIGHTS3 } else { &WEIGHTS4 };
-        let n = weights.len();
-        let mask = if mode.regions == 2 { PARTITIONS[partition] } else { 0 };
-        let mut palettes = [[[0i32; 3]; 16]; 2];
-        for r in 0..mode.regions as usize {
-            let a: [i32; 3] = std::array::from_fn(|c| unquantize(q[2 * r][c], bits, signed));
-            let b: [i32; 3] = std::array::from_fn(|c| unquantize(q[2 * r + 1][c], bits, signed));
-            for (k, &w) in weights.iter().enumerate() {
-                for c in 0..3 {
-                    palettes[r][k][c] = interpolate(a[c], b[c], w as i32, signed);
-                }
-            }
+        if MODES[m].regions == 2 {
+            self.evaluate_n::<8, true>(m, partition, q)
+        } else {
+            self.evaluate_n::<16, false>(m, 0, q)
         }
-        let anchor2 = ANCHOR2[partition] as usize;
-        let mut cand = Candidate { err: 0, mode: m, partition, q, indices: [0; 16] };
-        // Projection set-up per region: direction and squared length in half-int space.
-        let mut dir = [[0f32; 3]; 2];
-        let mut inv_len2 = [0f32; 2];
-        for r in 0..mode.regions as usize {
-            let p = &palettes[r];
-            let mut l2 = 0.0;
+    }
+
+    /// [`Self::evaluate`] for a palette of `N` entries, two regions if `TWO`. Every texel is
+    /// compared with every palette entry (16 texels at once, entry by entry), which as SIMD
+    /// costs less than projecting and searching neighbours texel by texel.
+    #[inline(always)]
+    fn evaluate_n<const N: usize, const TWO: bool>(&self, m: usize, partition: usize, q: [[i32; 3]; 4]) -> Candidate {
+        let bits = MODES[m].endpoint_bits as u32;
+        let mut weights = [0i32; N];
+        for k in 0..N {
+            weights[k] = if TWO { WEIGHTS3[k] } else { WEIGHTS4[k] } as i32;
+        }
+        // palette[region][channel][entry] as half-ints.
+        let mut palette = [[[0f32; N]; 3]; 2];
+        for r in 0..1 + TWO as usize {
             for c in 0..3 {
-                dir[r][c] = (p[n - 1][c] - p[0][c]) as f32;
-                l2 += dir[r][c] * dir[r][c];
-            }
-            inv_len2[r] = if l2 > 0.0 { (n - 1) as f32 / l2 } else { 0.0 };
-        }
-        for i in 0..16 {
-            let r = ((mask >> i) & 1) as usize;
-            let limit = if i == 0 || (mode.regions == 2 && i == anchor2) { n / 2 } else { n };
-            let h = &self.tex.half[i];
-            let p = &palettes[r];
-            let (lo, hi) = if self.search.exhaustive_indices {
-                (0, limit)
-            } else {
-                // Project onto the palette line; the weights are nearly uniform, so the nearest
-                // uniform step and its neighbours contain the best entry.
-                let t = ((h[0] - p[0][0]) as f32 * dir[r][0]
-                    + (h[1] - p[0][1]) as f32 * dir[r][1]
-                    + (h[2] - p[0][2]) as f32 * dir[r][2])
-                    * inv_len2[r];
-                let k = ((t.max(0.0) + 0.5) as usize).min(limit - 1);
-                (k.saturating_sub(1), (k + 2).min(limit))
-            };
-            let mut best = (u64::MAX, 0usize);
-            for (k, entry) in p.iter().enumerate().take(hi).skip(lo) {
-                let d = dist(entry, h);
-                if d < best.0 {
-                    best = (d, k);
+                let a = unquantize::<S>(q[2 * r][c], bits);
+                let b = unquantize::<S>(q[2 * r + 1][c], bits);
+                for k in 0..N {
+                    palette[r][c][k] = interpolate::<S>(a, b, weights[k]) as f32;
                 }
             }
-            cand.err += best.0;
-            cand.indices[i] = best.1 as u8;
         }
-        cand
+        let region = if TWO { &REGION1[partition] } else { &ZEROS };
+        let anchor2 = if TWO { ANCHOR2[partition] as usize } else { 0 };
+        let h = &self.tex.half;
+        let mut best = [f32::INFINITY; 16];
+        let mut best_k = [0i32; 16];
+        if self.search.exhaustive {
+            // Anchor texels (whose index has one bit less) may only use the first half.
+            nearest_entries::<N, TWO>(&palette, region, h, 0..N / 2, &mut best, &mut best_k);
+            let anchors = [(best[0], best_k[0]), (best[anchor2], best_k[anchor2])];
+            nearest_entries::<N, TWO>(&palette, region, h, N / 2..N, &mut best, &mut best_k);
+            (best[anchor2], best_k[anchor2]) = anchors[1];
+            (best[0], best_k[0]) = anchors[0];
+        } else {
+            let mut ends = [[[0i32; 3]; 2]; 2];
+            for r in 0..1 + TWO as usize {
+                for c in 0..3 {
+                    ends[r][0][c] = unquantize::<S>(q[2 * r][c], bits);
+                    ends[r][1][c] = unquantize::<S>(q[2 * r + 1][c], bits);
+                }
+            }
+            let mut last = [N as i32 - 1; 16];
+            last[anchor2] = N as i32 / 2 - 1;
+            last[0] = N as i32 / 2 - 1;
+            nearest_by_projection::<S, N, TWO>(&palette, &ends, region, &last, h, &mut best, &mut best_k);
+        }
+        let mut indices = [0u8; 16];
+        for i in 0..16 {
+            indices[i] = best_k[i] as u8;
+        }
+        Candidate { err: sum16(&best), mode: m, partition, q, indices }
     }
 
     /// Least-squares endpoints for fixed indices, per region and channel.
+    #[inline(always)]
     fn least_squares(&self, cand: &Candidate, previous: &Ends) -> Ends {
         let mode = &MODES[cand.mode];
         let weights: &[u8] = if mode.regions == 2 { &WEIGHTS3 } else { &WEIGHTS4 };
-        let mask = if mode.regions == 2 { PARTITIONS[cand.partition] } else { 0 };
+        let region1 = if mode.regions == 2 { &REGION1[cand.partition] } else { &ZEROS };
+        let mut w = [0f32; 16];
+        for i in 0..16 {
+            w[i] = weights[cand.indices[i] as usize] as f32 / 64.0;
+        }
         let mut ends = *previous;
         for (r, region_ends) in ends.iter_mut().enumerate().take(mode.regions as usize) {
-            let (mut aa, mut ab, mut bb) = (0f32, 0f32, 0f32);
-            let mut ax = [0f32; 3];
-            let mut bx = [0f32; 3];
+            // Weights of the two endpoints for the texels of this region (0 elsewhere).
+            let mut wa = [0f32; 16];
+            let mut wb = [0f32; 16];
             for i in 0..16 {
-                if ((mask >> i) & 1) as usize != r {
-                    continue;
-                }
-                let w = weights[cand.indices[i] as usize] as f32 / 64.0;
-                let v = 1.0 - w;
-                aa += v * v;
-                ab += v * w;
-                bb += w * w;
-                for c in 0..3 {
-                    ax[c] += v * self.tex.target[i][c];
-                    bx[c] += w * self.tex.target[i][c];
-                }
+                let member = if r == 0 { 1.0 - region1[i] } else { region1[i] };
+                wa[i] = (1.0 - w[i]) * member;
+                wb[i] = w[i] * member;
             }
+            let (aa, ab, bb) = (dot16(&wa, &wa), dot16(&wa, &wb), dot16(&wb, &wb));
             let det = aa * bb - ab * ab;
             if det.abs() < 1e-6 {
                 continue;
             }
             for c in 0..3 {
-                region_ends[0][c] = (ax[c] * bb - bx[c] * ab) / det;
-                region_ends[1][c] = (bx[c] * aa - ax[c] * ab) / det;
+                let ax = dot16(&wa, &self.tex.target[c]);
+                let bx = dot16(&wb, &self.tex.target[c]);
+                region_ends[0][c] = (ax * bb - bx * ab) / det;
+                region_ends[1][c] = (bx * aa - ax * ab) / det;
             }
         }
         ends
     }
 
     /// Encodes with one mode and partition from starting endpoints, refining by least squares.
+    #[inline(always)]
     fn encode_mode(&self, m: usize, partition: usize, start: &Ends) -> Candidate {
         let mode = &MODES[m];
         let mut best = self.evaluate(m, partition, self.quantize_ends(mode, partition, start));
         let mut ends = *start;
         for _ in 0..self.search.iterations {
-            if best.err == 0 {
+            if best.err == 0.0 {
                 break;
             }
             ends = self.least_squares(&best, &ends);
@@ -507,35 +643,52 @@ impl<'a> BlockEncoder<'a> {
         best
     }
 
+    /// Encodes with each mode in the bit set `modes` (over `MODES` indices), keeping the best.
+    #[inline(always)]
+    fn try_modes(&self, modes: u16, partition: usize, ends: &Ends, best: &mut Candidate) {
+        for m in 0..14 {
+            if modes & (1 << m) != 0 {
+                let cand = self.encode_mode(m, partition, ends);
+                if cand.err < best.err {
+                    *best = cand;
+                }
+            }
+        }
+    }
+
+    /// The first mode (by `MODES` index) in `order` whose deltas hold `ends`. (A loop, not
+    /// `Iterator::find`: a closure would not be inlined into the AVX2 build.)
+    #[inline(always)]
+    #[allow(clippy::manual_find)]
+    fn first_fitting(&self, order: &[usize], ends: &Ends) -> Option<usize> {
+        for &m in order {
+            if self.fits(&MODES[m], ends) {
+                return Some(m);
+            }
+        }
+        None
+    }
+
     /// Searches modes (all of them, or only `only_mode`) and returns the best candidate.
+    #[inline(always)]
     pub(crate) fn encode(&self, only_mode: Option<usize>) -> Candidate {
         let mut best = Candidate::worst();
         // Candidate modes as bit sets over MODES indices.
         let allowed: u16 = only_mode.map_or(0x3FFF, |m| 1 << m);
-        let try_modes = |modes: u16, partition: usize, ends: &Ends, best: &mut Candidate| {
-            for m in 0..14 {
-                if modes & allowed & (1 << m) != 0 {
-                    let cand = self.encode_mode(m, partition, ends);
-                    if cand.err < best.err {
-                        *best = cand;
-                    }
-                }
-            }
-        };
+        let target = &self.tex.target;
         // One region.
         if allowed & 0x3C00 != 0 {
-            let (ends1, _) = fit_line(&self.tex.target, 0xFFFF);
-            let start1: Ends = [ends1, [[0.0; 3]; 2]];
+            let start1: Ends = [fit_line(target, &ONES), [[0.0; 3]; 2]];
             let modes = if self.search.all_one_region || only_mode.is_some() {
                 0x3C00
             } else {
                 // The most precise mode whose deltas hold the block's range.
-                let m = [13, 12, 11].into_iter().find(|&m| self.fits(&MODES[m], 0, &start1)).unwrap_or(10);
+                let m = self.first_fitting(&[13, 12, 11], &start1).unwrap_or(10);
                 1 << m
             };
-            try_modes(modes, 0, &start1, &mut best);
+            self.try_modes(modes & allowed, 0, &start1, &mut best);
         }
-        if best.err == 0 {
+        if best.err == 0.0 {
             return best;
         }
         // Two regions: rank the partitions by how well two lines fit them.
@@ -547,73 +700,372 @@ impl<'a> BlockEncoder<'a> {
         if partitions == 0 {
             return best;
         }
-        let mut ranked = partition_residuals(&self.tex.target);
-        ranked.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        for &(_, p) in ranked.iter().take(partitions) {
-            let mask = PARTITIONS[p];
-            let ends: Ends = [fit_line(&self.tex.target, !mask).0, fit_line(&self.tex.target, mask).0];
+        let mut residuals = partition_residuals(target);
+        for _ in 0..partitions {
+            // The best remaining partition (selection, not a sort: few are taken).
+            let mut p = 0;
+            for (j, &r) in residuals.iter().enumerate() {
+                if r < residuals[p] {
+                    p = j;
+                }
+            }
+            residuals[p] = f32::INFINITY;
+            let region1 = &REGION1[p];
+            let mut region0 = [0f32; 16];
+            for i in 0..16 {
+                region0[i] = 1.0 - region1[i];
+            }
+            let ends: Ends = [fit_line(target, &region0), fit_line(target, region1)];
             let modes = if self.search.all_two_region || only_mode.is_some() {
                 0x03FF
             } else {
                 // Untransformed mode 10 always fits; add the most precise transformed mode
                 // whose deltas hold this partition's endpoints.
-                let fitting = [2, 3, 4, 0, 5, 6, 7, 8, 1].into_iter().find(|&m| self.fits(&MODES[m], p, &ends));
+                let fitting = self.first_fitting(&[2, 3, 4, 0, 5, 6, 7, 8, 1], &ends);
                 (1 << 9) | fitting.map_or(0, |m| 1 << m)
             };
-            try_modes(modes, p, &ends, &mut best);
+            self.try_modes(modes & allowed, p, &ends, &mut best);
         }
         best
     }
 }
 
+/// For each texel, the nearest of the palette entries `entries` if nearer than `best` (updating
+/// `best` and `best_k`). `palette[region][channel][entry]`; `region1` is each texel's region.
+#[inline(always)]
+fn nearest_entries<const N: usize, const TWO: bool>(
+    palette: &[[[f32; N]; 3]; 2],
+    region1: &Plane,
+    half: &[Plane; 3],
+    entries: std::ops::Range<usize>,
+    best: &mut Plane,
+    best_k: &mut [i32; 16],
+) {
+    for k in entries {
+        let p0 = [palette[0][0][k], palette[0][1][k], palette[0][2][k]];
+        let dp = [palette[1][0][k] - p0[0], palette[1][1][k] - p0[1], palette[1][2][k] - p0[2]];
+        let kf = k as i32;
+        for i in 0..16 {
+            let mut d = 0.0;
+            for c in 0..3 {
+                // Exact: entries are integers and the region weight is 0 or 1.
+                let p = if TWO { p0[c] + region1[i] * dp[c] } else { p0[c] };
+                let e = half[c][i] - p;
+                d += e * e;
+            }
+            // Selects rather than a branch, so that the loop becomes blends, not masked stores.
+            let nearer = d < best[i];
+            best[i] = if nearer { d } else { best[i] };
+            best_k[i] = if nearer { kf } else { best_k[i] };
+        }
+    }
+}
+
+/// The interpolation weight of palette entry `k` of `n`: `round(64 k / (n - 1))`, which is what
+/// the specification's weight tables hold (checked in the tests).
+#[inline(always)]
+fn weight_of(k: i32, n: usize) -> i32 {
+    (k as f32 * (64.0 / (n - 1) as f32) + 0.5) as i32
+}
+
+/// For each texel, the nearer of the two palette entries around its projection onto the line
+/// from the first to the last entry of its region (`best`, `best_k`). The entries are computed
+/// arithmetically from the unquantised endpoints `ends[region][end][channel]` exactly as the
+/// decoder does, so no table is gathered; `last[i]` is the highest index texel `i` may use.
+#[inline(always)]
+fn nearest_by_projection<const S: bool, const N: usize, const TWO: bool>(
+    palette: &[[[f32; N]; 3]; 2],
+    ends: &[[[i32; 3]; 2]; 2],
+    region1: &Plane,
+    last: &[i32; 16],
+    half: &[Plane; 3],
+    best: &mut Plane,
+    best_k: &mut [i32; 16],
+) {
+    // Per region: first entry, direction to the last, and (N - 1) / |direction|^2.
+    let mut first = [[0f32; 3]; 2];
+    let mut dir = [[0f32; 3]; 2];
+    let mut scale = [0f32; 2];
+    for r in 0..1 + TWO as usize {
+        let mut len2 = 0.0;
+        for c in 0..3 {
+            first[r][c] = palette[r][c][0];
+            dir[r][c] = palette[r][c][N - 1] - palette[r][c][0];
+            len2 += dir[r][c] * dir[r][c];
+        }
+        scale[r] = if len2 > 0.0 { (N - 1) as f32 / len2 } else { 0.0 };
+    }
+    // Per-texel copies of its region's line and endpoints (selects, so that it vectorises).
+    let mut lane_first = [[0f32; 16]; 3];
+    let mut lane_dir = [[0f32; 16]; 3];
+    let mut lane_a = [[0i32; 16]; 3];
+    let mut lane_b = [[0i32; 16]; 3];
+    let mut lane_scale = [0f32; 16];
+    for i in 0..16 {
+        let in1 = TWO && region1[i] != 0.0;
+        for c in 0..3 {
+            lane_first[c][i] = if in1 { first[1][c] } else { first[0][c] };
+            lane_dir[c][i] = if in1 { dir[1][c] } else { dir[0][c] };
+            lane_a[c][i] = if in1 { ends[1][0][c] } else { ends[0][0][c] };
+            lane_b[c][i] = if in1 { ends[1][1][c] } else { ends[0][1][c] };
+        }
+        lane_scale[i] = if in1 { scale[1] } else { scale[0] };
+    }
+    let mut k0 = [0i32; 16];
+    for i in 0..16 {
+        let mut t = 0.0;
+        for c in 0..3 {
+            t += (half[c][i] - lane_first[c][i]) * lane_dir[c][i];
+        }
+        let t = t * lane_scale[i];
+        let t = if t < 0.0 { 0.0 } else { t };
+        let hi = last[i] - 1;
+        let k = t as i32;
+        k0[i] = if k < hi { k } else { hi };
+    }
+    let mut d = [[0f32; 16]; 2];
+    for (j, dj) in d.iter_mut().enumerate() {
+        for i in 0..16 {
+            let w = weight_of(k0[i] + j as i32, N);
+            let mut sum = 0.0;
+            for c in 0..3 {
+                let v = interpolate::<S>(lane_a[c][i], lane_b[c][i], w) as f32;
+                let e = half[c][i] - v;
+                sum += e * e;
+            }
+            dj[i] = sum;
+        }
+    }
+    for i in 0..16 {
+        let second = d[1][i] < d[0][i];
+        best[i] = if second { d[1][i] } else { d[0][i] };
+        best_k[i] = k0[i] + second as i32;
+    }
+}
+
 /// For each of the 32 partitions, the sum over both regions of the texels' squared distance
-/// from their region's principal line (from summed moments, without fitting endpoints).
-fn partition_residuals(target: &[[f32; 3]; 16]) -> [(f32, usize); 32] {
+/// from their region's principal line (from summed moments, without fitting endpoints). The
+/// 32 partitions are the SIMD lanes.
+#[inline(always)]
+fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
     // Per-texel moments about the block mean (which keeps f32 cancellation small): x, y, z,
     // xx, xy, xz, yy, yz, zz.
-    let mut mean = [0f32; 3];
-    for t in target {
-        for c in 0..3 {
-            mean[c] += t[c] / 16.0;
+    let mut d = [[0f32; 16]; 3];
+    for c in 0..3 {
+        let mean = sum16(&target[c]) / 16.0;
+        for i in 0..16 {
+            d[c][i] = target[c][i] - mean;
         }
     }
-    let mut moments = [[0f32; 9]; 16];
-    let mut total = [0f32; 9];
-    for (m, t) in moments.iter_mut().zip(target) {
-        let t = [t[0] - mean[0], t[1] - mean[1], t[2] - mean[2]];
-        *m = [t[0], t[1], t[2], t[0] * t[0], t[0] * t[1], t[0] * t[2], t[1] * t[1], t[1] * t[2], t[2] * t[2]];
+    let mut moments = [[0f32; 16]; 9];
+    for i in 0..16 {
+        let t = [d[0][i], d[1][i], d[2][i]];
+        let m = [t[0], t[1], t[2], t[0] * t[0], t[0] * t[1], t[0] * t[2], t[1] * t[1], t[1] * t[2], t[2] * t[2]];
         for k in 0..9 {
-            total[k] += m[k];
+            moments[k][i] = m[k];
         }
     }
-    let residual = |s: &[f32; 9], n: f32| -> f32 {
-        if n < 2.0 {
-            return 0.0;
-        }
-        let mu = [s[0] / n, s[1] / n, s[2] / n];
-        let cov = [
-            s[3] - n * mu[0] * mu[0],
-            s[4] - n * mu[0] * mu[1],
-            s[5] - n * mu[0] * mu[2],
-            s[6] - n * mu[1] * mu[1],
-            s[7] - n * mu[1] * mu[2],
-            s[8] - n * mu[2] * mu[2],
-        ];
-        let (_, lambda) = principal_axis(&cov);
-        (cov[0] + cov[3] + cov[5] - lambda).max(0.0)
-    };
-    std::array::from_fn(|p| {
-        let mask = PARTITIONS[p];
-        let mut s1 = [0f32; 9];
-        for (i, m) in moments.iter().enumerate() {
-            if mask & (1 << i) != 0 {
-                for k in 0..9 {
-                    s1[k] += m[k];
-                }
+    let mut total = [0f32; 9];
+    for k in 0..9 {
+        total[k] = sum16(&moments[k]);
+    }
+    // Region-1 sums for every partition.
+    let mut s1 = [[0f32; 32]; 9];
+    for i in 0..16 {
+        let lanes = &REGION1_BY_TEXEL[i];
+        for k in 0..9 {
+            let v = moments[k][i];
+            for p in 0..32 {
+                s1[k][p] += lanes[p] * v;
             }
         }
-        let s0: [f32; 9] = std::array::from_fn(|k| total[k] - s1[k]);
-        let n1 = mask.count_ones() as f32;
-        (residual(&s0, 16.0 - n1) + residual(&s1, n1), p)
-    })
+    }
+    let mut n1 = [0f32; 32];
+    for i in 0..16 {
+        for p in 0..32 {
+            n1[p] += REGION1_BY_TEXEL[i][p];
+        }
+    }
+    let mut out = [0f32; 32];
+    for region in 0..2 {
+        let mut s = [[0f32; 32]; 9];
+        let mut n = [0f32; 32];
+        for p in 0..32 {
+            n[p] = if region == 1 { n1[p] } else { 16.0 - n1[p] };
+        }
+        for k in 0..9 {
+            for p in 0..32 {
+                s[k][p] = if region == 1 { s1[k][p] } else { total[k] - s1[k][p] };
+            }
+        }
+        let residual = region_residuals(&s, &n);
+        for p in 0..32 {
+            out[p] += residual[p];
+        }
+    }
+    out
+}
+
+/// Per lane: the squared distance of `n` points with moment sums `s` (x, y, z, xx, xy, xz, yy,
+/// yz, zz) from their principal line, i.e. the covariance trace minus its largest eigenvalue
+/// (power iteration, as in [`principal_axis`]).
+#[inline(always)]
+fn region_residuals(s: &[[f32; 32]; 9], n: &[f32; 32]) -> [f32; 32] {
+    let mut out = [0f32; 32];
+    for p in 0..32 {
+        let np = if n[p] > 0.0 { n[p] } else { 1.0 };
+        let mu = [s[0][p] / np, s[1][p] / np, s[2][p] / np];
+        let cov = [
+            s[3][p] - np * mu[0] * mu[0],
+            s[4][p] - np * mu[0] * mu[1],
+            s[5][p] - np * mu[0] * mu[2],
+            s[6][p] - np * mu[1] * mu[1],
+            s[7][p] - np * mu[1] * mu[2],
+            s[8][p] - np * mu[2] * mu[2],
+        ];
+        let first_xx = cov[0] >= cov[3] && cov[0] >= cov[5];
+        let first_yy = cov[3] >= cov[5];
+        let mut v = [
+            if first_xx {
+                cov[0]
+            } else if first_yy {
+                cov[1]
+            } else {
+                cov[2]
+            },
+            if first_xx {
+                cov[1]
+            } else if first_yy {
+                cov[3]
+            } else {
+                cov[4]
+            },
+            if first_xx {
+                cov[2]
+            } else if first_yy {
+                cov[4]
+            } else {
+                cov[5]
+            },
+        ];
+        let mut lambda = 0.0;
+        for _ in 0..4 {
+            let w = [
+                cov[0] * v[0] + cov[1] * v[1] + cov[2] * v[2],
+                cov[1] * v[0] + cov[3] * v[1] + cov[4] * v[2],
+                cov[2] * v[0] + cov[4] * v[1] + cov[5] * v[2],
+            ];
+            lambda = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+            // A degenerate matrix: v becomes 0 and so does the eigenvalue estimate.
+            let inv = if lambda > f32::MIN_POSITIVE { 1.0 / lambda } else { 0.0 };
+            v = [w[0] * inv, w[1] * inv, w[2] * inv];
+        }
+        let r = cov[0] + cov[3] + cov[5] - lambda;
+        out[p] = if n[p] < 2.0 || r < 0.0 { 0.0 } else { r };
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The branch-free conversion agrees with the `half` crate (IEEE round-to-nearest-even)
+    /// plus the specification's clamping, on the boundaries of every half and on random bits.
+    #[test]
+    fn f32_to_half_int_matches_the_half_crate() {
+        let reference = |v: f32, signed: bool| -> i32 {
+            let h = if v.is_nan() { 0 } else { half::f16::from_f32(v.clamp(-65504.0, 65504.0)).to_bits() };
+            half_to_int(sanitize_half(h, signed))
+        };
+        let mut values = vec![0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 65504.0, 65519.0, 65520.0, 1e30];
+        // Every half, and the f32 values just around each midpoint between neighbouring halves.
+        for h in 0..0x7C00u16 {
+            let a = half::f16::from_bits(h).to_f32();
+            let b = half::f16::from_bits(h + 1).to_f32();
+            let mid = ((a as f64 + b as f64) / 2.0) as f32;
+            for v in [a, mid, f32::from_bits(mid.to_bits() - 1), f32::from_bits(mid.to_bits() + 1)] {
+                values.push(v);
+                values.push(-v);
+            }
+        }
+        let mut state = 0x9E37_79B9u32;
+        for _ in 0..1_000_000 {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            values.push(f32::from_bits(state));
+        }
+        for &v in &values {
+            assert_eq!(f32_to_half_int::<false>(v), reference(v, false), "{v:e} unsigned");
+            assert_eq!(f32_to_half_int::<true>(v), reference(v, true), "{v:e} signed");
+        }
+    }
+
+    /// The arithmetic weights are the specification's tables.
+    #[test]
+    fn weight_formula_matches_the_tables() {
+        for (k, &w) in WEIGHTS4.iter().enumerate() {
+            assert_eq!(weight_of(k as i32, 16), w as i32);
+        }
+        for (k, &w) in WEIGHTS3.iter().enumerate() {
+            assert_eq!(weight_of(k as i32, 8), w as i32);
+        }
+    }
+
+    /// The vectorised partition ranking matches a direct computation in f64: for each
+    /// partition and region, the explicit covariance of the member texels, its trace minus its
+    /// largest eigenvalue estimated the same way (4 power iterations from the column with the
+    /// largest diagonal entry).
+    #[test]
+    fn partition_residuals_match_explicit_covariances() {
+        let mut state = 12345u32;
+        for _ in 0..200 {
+            let mut rgb = [[0f32; 16]; 3];
+            for plane in &mut rgb {
+                for v in plane.iter_mut() {
+                    state ^= state << 13;
+                    state ^= state >> 17;
+                    state ^= state << 5;
+                    *v = (state % 4000) as f32 / 100.0;
+                }
+            }
+            let tex = Texels::from_f32::<false>(&rgb);
+            let fast = partition_residuals(&tex.target);
+            for p in 0..32 {
+                let mut expect = 0f64;
+                for r in 0..2 {
+                    let members: Vec<[f64; 3]> = (0..16)
+                        .filter(|&i| (PARTITIONS[p] >> i) & 1 == r)
+                        .map(|i| std::array::from_fn(|c| tex.target[c][i] as f64))
+                        .collect();
+                    let n = members.len() as f64;
+                    let mean: [f64; 3] = std::array::from_fn(|c| members.iter().map(|x| x[c]).sum::<f64>() / n);
+                    let cov: [[f64; 3]; 3] = std::array::from_fn(|a| {
+                        std::array::from_fn(|b| members.iter().map(|x| (x[a] - mean[a]) * (x[b] - mean[b])).sum())
+                    });
+                    let k = if cov[0][0] >= cov[1][1] && cov[0][0] >= cov[2][2] {
+                        0
+                    } else if cov[1][1] >= cov[2][2] {
+                        1
+                    } else {
+                        2
+                    };
+                    let mut v = cov[k];
+                    let mut lambda = 0.0;
+                    for _ in 0..4 {
+                        let w: [f64; 3] = std::array::from_fn(|a| (0..3).map(|b| cov[a][b] * v[b]).sum());
+                        lambda = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+                        if lambda == 0.0 {
+                            break;
+                        }
+                        v = w.map(|x| x / lambda);
+                    }
+                    expect += cov[0][0] + cov[1][1] + cov[2][2] - lambda;
+                }
+                let got = fast[p] as f64;
+                assert!((got - expect).abs() <= 1e-3 * expect + 1.0, "partition {p}: {got} vs {expect}");
+            }
+        }
+    }
 }
