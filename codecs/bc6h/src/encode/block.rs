@@ -221,51 +221,43 @@ const fn region1_table() -> [Plane; 32] {
 const ONES: Plane = [1.0; 16];
 const ZEROS: Plane = [0.0; 16];
 
-/// The quantised endpoint whose unquantised value is nearest to `v` (interpolation domain).
+/// For each lane, the quantised endpoint whose unquantised value is nearest to `v[i]`
+/// (interpolation domain), for `bits` of precision. Branch-free per lane, so that the endpoints
+/// of a block are quantised together as SIMD.
 #[inline(always)]
-fn quantize<const S: bool>(v: f32, bits: u32) -> i32 {
-    if !S {
-        let v = v.clamp(0.0, 65535.0);
-        if bits >= 15 {
-            // Non-negative: truncating v + 0.5 rounds, without a libm call on baseline x86-64.
-            return (v + 0.5) as i32;
+fn quantize<const S: bool, const L: usize>(v: &[f32; L], bits: u32) -> [i32; L] {
+    let mut out = [0i32; L];
+    if (S && bits >= 16) || (!S && bits >= 15) {
+        // Unquantisation is the identity: round (half away from zero).
+        for i in 0..L {
+            let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
+            let q = (m + 0.5) as i32;
+            out[i] = if S && v[i] < 0.0 { -q } else { q };
         }
-        let max = (1i32 << bits) - 1;
-        // floor(x) for x >= -0.5, by truncation of x + 1.
-        let q = (((v * (1u32 << bits) as f32 / 65536.0 + 0.5) as i32) - 1).clamp(0, max);
-        let q1 = (q + 1).min(max);
-        if (unquantize::<S>(q1, bits) as f32 - v).abs() < (unquantize::<S>(q, bits) as f32 - v).abs() {
-            q1
-        } else {
-            q
-        }
-    } else {
-        let v = v.clamp(-32767.0, 32767.0);
-        if bits >= 16 {
-            return if v < 0.0 { -((0.5 - v) as i32) } else { (v + 0.5) as i32 };
-        }
-        let m = v.abs();
-        let max = (1i32 << (bits - 1)) - 1;
-        let q = (((m * (1u32 << (bits - 1)) as f32 / 32768.0 + 0.5) as i32) - 1).clamp(0, max);
-        let q1 = (q + 1).min(max);
-        let q = if (unquantize::<S>(q1, bits) as f32 - m).abs() < (unquantize::<S>(q, bits) as f32 - m).abs() {
-            q1
-        } else {
-            q
-        };
-        if v < 0.0 {
-            -q
-        } else {
-            q
-        }
+        return out;
     }
+    // Magnitude bits and the unquantised range they span.
+    let (mag_bits, span) = if S { (bits - 1, 32768.0) } else { (bits, 65536.0) };
+    let max = (1i32 << mag_bits) - 1;
+    let scale = (1u32 << mag_bits) as f32 / span;
+    for i in 0..L {
+        let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
+        // floor(x) for x >= -0.5, by truncation of x + 1; then the nearer of q and q + 1.
+        let q = (((m * scale + 0.5) as i32) - 1).clamp(0, max);
+        let q1 = (q + 1).min(max);
+        let nearer = (unquantize::<S>(q1, bits) as f32 - m).abs() < (unquantize::<S>(q, bits) as f32 - m).abs();
+        let q = if nearer { q1 } else { q };
+        out[i] = if S && v[i] < 0.0 { -q } else { q };
+    }
+    out
 }
 
 /// Interpolates two unquantised endpoints and maps the result to half-int (the decoder's final
 /// unquantisation).
 #[inline(always)]
 fn interpolate<const S: bool>(a: i32, b: i32, w: i32) -> i32 {
-    let c = (a * (64 - w) + b * w + 32) >> 6;
+    // a (64 - w) + b w with one multiplication.
+    let c = ((a << 6) + (b - a) * w + 32) >> 6;
     if !S {
         (c * 31) >> 6
     } else if c < 0 {
@@ -420,33 +412,64 @@ fn fit_line(target: &[Plane; 3], member: &Plane) -> [[f32; 3]; 2] {
     ends
 }
 
+/// An unnormalised dominant eigenvector of a symmetric 3x3 matrix (upper triangle xx, xy, xz,
+/// yy, yz, zz): eight power iterations as three squarings of the matrix (short dependency
+/// chains, one division), scaled by the trace first so that C^8 stays in range (every entry of
+/// C / trace is at most 1 and its largest eigenvalue at least 1/3). C^8 applied to the unit
+/// vector of its largest diagonal entry (never orthogonal to the answer unless the matrix is
+/// degenerate) is that column. Zero for a zero matrix. Branch-free, so it vectorises over lanes.
+#[inline(always)]
+fn dominant_direction(cov: &[f32; 6]) -> [f32; 3] {
+    let trace = cov[0] + cov[3] + cov[5];
+    let inv = if trace > f32::MIN_POSITIVE { 1.0 / trace } else { 0.0 };
+    let mut m = [cov[0] * inv, cov[1] * inv, cov[2] * inv, cov[3] * inv, cov[4] * inv, cov[5] * inv];
+    for _ in 0..3 {
+        m = [
+            m[0] * m[0] + m[1] * m[1] + m[2] * m[2],
+            m[0] * m[1] + m[1] * m[3] + m[2] * m[4],
+            m[0] * m[2] + m[1] * m[4] + m[2] * m[5],
+            m[1] * m[1] + m[3] * m[3] + m[4] * m[4],
+            m[1] * m[2] + m[3] * m[4] + m[4] * m[5],
+            m[2] * m[2] + m[4] * m[4] + m[5] * m[5],
+        ];
+    }
+    let first_xx = m[0] >= m[3] && m[0] >= m[5];
+    let first_yy = m[3] >= m[5];
+    [
+        if first_xx {
+            m[0]
+        } else if first_yy {
+            m[1]
+        } else {
+            m[2]
+        },
+        if first_xx {
+            m[1]
+        } else if first_yy {
+            m[3]
+        } else {
+            m[4]
+        },
+        if first_xx {
+            m[2]
+        } else if first_yy {
+            m[4]
+        } else {
+            m[5]
+        },
+    ]
+}
+
 /// Unit dominant eigenvector of a symmetric 3x3 matrix (upper triangle).
 #[inline(always)]
 fn principal_axis(cov: &[f32; 6]) -> [f32; 3] {
-    // Start from the column with the largest diagonal entry: never orthogonal to the answer
-    // unless the matrix is degenerate.
-    let cols = [[cov[0], cov[1], cov[2]], [cov[1], cov[3], cov[4]], [cov[2], cov[4], cov[5]]];
-    let k = if cov[0] >= cov[3] && cov[0] >= cov[5] {
-        0
-    } else if cov[3] >= cov[5] {
-        1
-    } else {
-        2
-    };
-    let mut v = cols[k];
-    for _ in 0..4 {
-        let w = [
-            cov[0] * v[0] + cov[1] * v[1] + cov[2] * v[2],
-            cov[1] * v[0] + cov[3] * v[1] + cov[4] * v[2],
-            cov[2] * v[0] + cov[4] * v[1] + cov[5] * v[2],
-        ];
-        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-        if norm <= f32::MIN_POSITIVE {
-            return [0.577_350_3; 3];
-        }
-        v = [w[0] / norm, w[1] / norm, w[2] / norm];
+    let v = dominant_direction(cov);
+    let norm2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    if norm2 <= f32::MIN_POSITIVE {
+        return [0.577_350_3; 3];
     }
-    v
+    let inv = 1.0 / norm2.sqrt();
+    [v[0] * inv, v[1] * inv, v[2] * inv]
 }
 
 /// The encoder for one block at one search setting; `S` selects SF16 (signed).
@@ -466,7 +489,8 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
     #[inline(always)]
     fn quantize_ends(&self, mode: &Mode, partition: usize, ends: &Ends) -> [[i32; 3]; 4] {
         let bits = mode.endpoint_bits as u32;
-        let mut q = [[0i32; 3]; 4];
+        // The oriented endpoints, [end][channel] flattened.
+        let mut lanes = [0f32; 12];
         for r in 0..mode.regions as usize {
             let anchor = if r == 0 { 0 } else { ANCHOR2[partition] as usize };
             let (a, b) = (ends[r][0], ends[r][1]);
@@ -478,8 +502,15 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             }
             let (a, b) = if along > 0.5 * len2 { (b, a) } else { (a, b) };
             for c in 0..3 {
-                q[2 * r][c] = quantize::<S>(a[c], bits);
-                q[2 * r + 1][c] = quantize::<S>(b[c], bits);
+                lanes[6 * r + c] = a[c];
+                lanes[6 * r + 3 + c] = b[c];
+            }
+        }
+        let quantized = quantize::<S, 12>(&lanes, bits);
+        let mut q = [[0i32; 3]; 4];
+        for e in 0..4 {
+            for c in 0..3 {
+                q[e][c] = quantized[3 * e + c];
             }
         }
         if mode.transformed {
@@ -501,23 +532,34 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             return true;
         }
         let bits = mode.endpoint_bits as u32;
-        let mut base = [0i32; 3];
-        for c in 0..3 {
-            base[c] = quantize::<S>(ends[0][0][c], bits);
-        }
-        for (r, region) in ends.iter().enumerate().take(mode.regions as usize) {
-            for (k, end) in region.iter().enumerate() {
-                if r == 0 && k == 0 {
-                    continue;
-                }
+        // Quick rejection without quantising: a quantised endpoint is within one step of
+        // value / step, so a delta is within two steps of the continuous one.
+        let step = (1u32 << (16 - bits)) as f32;
+        for region in ends.iter().take(mode.regions as usize) {
+            for end in region {
                 for c in 0..3 {
-                    let half_range = 1i32 << (mode.delta_bits[c] - 1);
-                    let d = quantize::<S>(end[c], bits) - base[c];
-                    // Either end may become the base after orientation: require the
-                    // range to fit from both sides.
-                    if d < -half_range + 1 || d > half_range - 2 {
+                    let limit = ((1u32 << (mode.delta_bits[c] - 1)) + 2) as f32 * step;
+                    if (end[c] - ends[0][0][c]).abs() > limit {
                         return false;
                     }
+                }
+            }
+        }
+        let mut lanes = [0f32; 12];
+        for e in 0..4 {
+            for c in 0..3 {
+                lanes[3 * e + c] = ends[e / 2][e % 2][c];
+            }
+        }
+        let q = quantize::<S, 12>(&lanes, bits);
+        for e in 1..mode.regions as usize * 2 {
+            for c in 0..3 {
+                let half_range = 1i32 << (mode.delta_bits[c] - 1);
+                let d = q[3 * e + c] - q[c];
+                // Either end may become the base after orientation: require the range to fit
+                // from both sides.
+                if d < -half_range + 1 || d > half_range - 2 {
+                    return false;
                 }
             }
         }
@@ -540,18 +582,27 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
     #[inline(always)]
     fn evaluate_n<const N: usize, const TWO: bool>(&self, m: usize, partition: usize, q: [[i32; 3]; 4]) -> Candidate {
         let bits = MODES[m].endpoint_bits as u32;
-        let mut weights = [0i32; N];
-        for k in 0..N {
-            weights[k] = if TWO { WEIGHTS3[k] } else { WEIGHTS4[k] } as i32;
+        // Unquantised endpoints, ends[region][end][channel].
+        let mut ends = [[[0i32; 3]; 2]; 2];
+        for r in 0..1 + TWO as usize {
+            for c in 0..3 {
+                ends[r][0][c] = unquantize::<S>(q[2 * r][c], bits);
+                ends[r][1][c] = unquantize::<S>(q[2 * r + 1][c], bits);
+            }
         }
-        // palette[region][channel][entry] as half-ints.
+        // palette[region][channel][entry] as half-ints (only the first and last entries when
+        // searching by projection).
         let mut palette = [[[0f32; N]; 3]; 2];
         for r in 0..1 + TWO as usize {
             for c in 0..3 {
-                let a = unquantize::<S>(q[2 * r][c], bits);
-                let b = unquantize::<S>(q[2 * r + 1][c], bits);
-                for k in 0..N {
-                    palette[r][c][k] = interpolate::<S>(a, b, weights[k]) as f32;
+                let (a, b) = (ends[r][0][c], ends[r][1][c]);
+                if self.search.exhaustive {
+                    for k in 0..N {
+                        palette[r][c][k] = interpolate::<S>(a, b, weight_of(k as i32, N)) as f32;
+                    }
+                } else {
+                    palette[r][c][0] = interpolate::<S>(a, b, 0) as f32;
+                    palette[r][c][N - 1] = interpolate::<S>(a, b, 64) as f32;
                 }
             }
         }
@@ -568,13 +619,6 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             (best[anchor2], best_k[anchor2]) = anchors[1];
             (best[0], best_k[0]) = anchors[0];
         } else {
-            let mut ends = [[[0i32; 3]; 2]; 2];
-            for r in 0..1 + TWO as usize {
-                for c in 0..3 {
-                    ends[r][0][c] = unquantize::<S>(q[2 * r][c], bits);
-                    ends[r][1][c] = unquantize::<S>(q[2 * r + 1][c], bits);
-                }
-            }
             let mut last = [N as i32 - 1; 16];
             last[anchor2] = N as i32 / 2 - 1;
             last[0] = N as i32 / 2 - 1;
@@ -907,8 +951,7 @@ fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
 }
 
 /// Per lane: the squared distance of `n` points with moment sums `s` (x, y, z, xx, xy, xz, yy,
-/// yz, zz) from their principal line, i.e. the covariance trace minus its largest eigenvalue
-/// (power iteration, as in [`principal_axis`]).
+/// yz, zz) from their principal line, i.e. the covariance trace minus its largest eigenvalue.
 #[inline(always)]
 fn region_residuals(s: &[[f32; 32]; 9], n: &[f32; 32]) -> [f32; 32] {
     let mut out = [0f32; 32];
@@ -923,43 +966,15 @@ fn region_residuals(s: &[[f32; 32]; 9], n: &[f32; 32]) -> [f32; 32] {
             s[7][p] - np * mu[1] * mu[2],
             s[8][p] - np * mu[2] * mu[2],
         ];
-        let first_xx = cov[0] >= cov[3] && cov[0] >= cov[5];
-        let first_yy = cov[3] >= cov[5];
-        let mut v = [
-            if first_xx {
-                cov[0]
-            } else if first_yy {
-                cov[1]
-            } else {
-                cov[2]
-            },
-            if first_xx {
-                cov[1]
-            } else if first_yy {
-                cov[3]
-            } else {
-                cov[4]
-            },
-            if first_xx {
-                cov[2]
-            } else if first_yy {
-                cov[4]
-            } else {
-                cov[5]
-            },
+        // The variance along the dominant direction (Rayleigh quotient): no square roots.
+        let v = dominant_direction(&cov);
+        let cv = [
+            cov[0] * v[0] + cov[1] * v[1] + cov[2] * v[2],
+            cov[1] * v[0] + cov[3] * v[1] + cov[4] * v[2],
+            cov[2] * v[0] + cov[4] * v[1] + cov[5] * v[2],
         ];
-        let mut lambda = 0.0;
-        for _ in 0..4 {
-            let w = [
-                cov[0] * v[0] + cov[1] * v[1] + cov[2] * v[2],
-                cov[1] * v[0] + cov[3] * v[1] + cov[4] * v[2],
-                cov[2] * v[0] + cov[4] * v[1] + cov[5] * v[2],
-            ];
-            lambda = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-            // A degenerate matrix: v becomes 0 and so does the eigenvalue estimate.
-            let inv = if lambda > f32::MIN_POSITIVE { 1.0 / lambda } else { 0.0 };
-            v = [w[0] * inv, w[1] * inv, w[2] * inv];
-        }
+        let vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        let lambda = if vv > f32::MIN_POSITIVE { (v[0] * cv[0] + v[1] * cv[1] + v[2] * cv[2]) / vv } else { 0.0 };
         let r = cov[0] + cov[3] + cov[5] - lambda;
         out[p] = if n[p] < 2.0 || r < 0.0 { 0.0 } else { r };
     }
@@ -1015,23 +1030,54 @@ mod tests {
 
     /// The vectorised partition ranking matches a direct computation in f64: for each
     /// partition and region, the explicit covariance of the member texels, its trace minus its
-    /// largest eigenvalue estimated the same way (4 power iterations from the column with the
-    /// largest diagonal entry).
+    /// largest eigenvalue (power iteration run to convergence). The ranking's estimate (the
+    /// variance along the direction of 8 power iterations) is never below the exact value and
+    /// close to it; a wrong lane or region would be far off.
     #[test]
     fn partition_residuals_match_explicit_covariances() {
         let mut state = 12345u32;
-        for _ in 0..200 {
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        for n in 0..200 {
+            // Odd rounds: each region of a partition on its own line (random base and direction),
+            // so that partition must rank first. Even rounds: noise over a wide range.
+            let split = (next() % 32) as usize;
+            let lines: [[[f32; 3]; 2]; 2] =
+                std::array::from_fn(|_| std::array::from_fn(|_| std::array::from_fn(|_| (next() % 400) as f32 / 20.0)));
             let mut rgb = [[0f32; 16]; 3];
-            for plane in &mut rgb {
+            for plane in rgb.iter_mut() {
                 for v in plane.iter_mut() {
-                    state ^= state << 13;
-                    state ^= state >> 17;
-                    state ^= state << 5;
-                    *v = (state % 4000) as f32 / 100.0;
+                    *v = (next() % 4000) as f32 / 100.0;
                 }
             }
-            let tex = Texels::from_f32::<false>(&rgb);
+            let mut tex = Texels::from_f32::<false>(&rgb);
+            if n % 2 == 1 {
+                // Straight lines in the fitting domain itself.
+                for i in 0..16 {
+                    let line = &lines[((PARTITIONS[split] >> i) & 1) as usize];
+                    let t = (next() % 1000) as f32;
+                    for c in 0..3 {
+                        tex.target[c][i] = line[0][c] * 1000.0 + line[1][c] * t;
+                    }
+                }
+            }
             let fast = partition_residuals(&tex.target);
+            // f32 sums cancel: allow an error relative to the block's whole spread.
+            let spread: f64 = (0..3)
+                .map(|c| {
+                    let mean = tex.target[c].iter().map(|&v| v as f64).sum::<f64>() / 16.0;
+                    tex.target[c].iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>()
+                })
+                .sum();
+            let slack = 1e-5 * spread;
+            if n % 2 == 1 {
+                let best = (0..32).min_by(|&a, &b| fast[a].total_cmp(&fast[b])).unwrap();
+                assert_eq!(best, split, "round {n}");
+            }
             for p in 0..32 {
                 let mut expect = 0f64;
                 for r in 0..2 {
@@ -1044,16 +1090,9 @@ mod tests {
                     let cov: [[f64; 3]; 3] = std::array::from_fn(|a| {
                         std::array::from_fn(|b| members.iter().map(|x| (x[a] - mean[a]) * (x[b] - mean[b])).sum())
                     });
-                    let k = if cov[0][0] >= cov[1][1] && cov[0][0] >= cov[2][2] {
-                        0
-                    } else if cov[1][1] >= cov[2][2] {
-                        1
-                    } else {
-                        2
-                    };
-                    let mut v = cov[k];
+                    let mut v = [1.0, 0.6, 0.3];
                     let mut lambda = 0.0;
-                    for _ in 0..4 {
+                    for _ in 0..500 {
                         let w: [f64; 3] = std::array::from_fn(|a| (0..3).map(|b| cov[a][b] * v[b]).sum());
                         lambda = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
                         if lambda == 0.0 {
@@ -1064,7 +1103,7 @@ mod tests {
                     expect += cov[0][0] + cov[1][1] + cov[2][2] - lambda;
                 }
                 let got = fast[p] as f64;
-                assert!((got - expect).abs() <= 1e-3 * expect + 1.0, "partition {p}: {got} vs {expect}");
+                assert!(got >= expect - slack && got <= expect * 1.05 + slack, "partition {p}: {got} vs {expect}");
             }
         }
     }
