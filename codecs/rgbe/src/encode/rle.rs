@@ -1,0 +1,336 @@
+//! The new-style RLE writer: rgbe.c's choice of runs and literals (`RGBE_WriteBytes_RLE`),
+//! found with bit masks instead of a byte-by-byte scan.
+//!
+//! rgbe.c walks a channel from the current position in maximal runs of equal bytes (at most
+//! 127 long) and stops at the first one of 4 or more bytes; the bytes before it are literals,
+//! except that a single run of 2 or 3 bytes right at the current position is written as a run.
+//! That first run of 4 or more starts at the first position `p` with `d[p] == d[p+1] ==
+//! d[p+2] == d[p+3]`: were `p` inside an earlier walked run, that run would already hold
+//! these four bytes and be 4 long. So the writer needs only one mask per channel, bit `i` set
+//! when `d[i] == d[i+1]`: three shifted copies ANDed give the positions of four equal bytes
+//! (the next one is a bit scan), and the run length at `p` is the count of set bits from `p`.
+
+/// Spare bytes after each plane: literals are copied as fixed 128-byte blocks, and the mask
+/// kernels read up to 64 bytes past the last 64-byte block start. What they read there is
+/// masked off or overwritten.
+pub(super) const PAD: usize = 128;
+
+/// The longest literal (rgbe.c writes at most 128 bytes per literal code).
+const MAX_LITERAL: usize = 128;
+/// The longest run (a run code is 128 + length in one byte; rgbe.c stops at 127).
+const MAX_RUN: usize = 127;
+
+/// Words of the equality mask of an `n`-byte plane, plus a zero word so that a word's
+/// successor can always be read.
+pub(super) fn mask_words(n: usize) -> usize {
+    n.div_ceil(64) + 1
+}
+
+/// The most bytes [`write_plane`] writes for an `n`-byte plane: `n + n/128 + 1`.
+///
+/// Each step of the writer covers an optional 2-3 byte run (2 bytes out), `L` literal bytes
+/// (`L + ceil(L/128)` out) and a run of `R >= 4` bytes (2 out), so it writes at most
+/// `ceil(L/128) - 2 < L/128` bytes more than it covers; the last step may end without a run,
+/// adding at most `L/128 + 1`. Summed: at most `n + n/128 + 1`.
+pub(super) fn plane_bound(n: usize) -> usize {
+    n + n / 128 + 1
+}
+
+/// Fills `eq` ([`mask_words`]`(n)` words) with the equality mask of `plane` (`n` bytes
+/// followed by [`PAD`] bytes): bit `i` set when `i + 1 < n` and `plane[i] == plane[i + 1]`.
+/// AVX2 when the CPU has it.
+pub(super) fn eq_mask(plane: &[u8], n: usize, eq: &mut [u64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
+        // `eq_mask_avx2` (its loads stay inside a checked 65-byte array).
+        unsafe { eq_mask_avx2(plane, n, eq) };
+        return;
+    }
+    eq_mask_portable(plane, n, eq)
+}
+
+/// The bits of word `w` that stand for a real pair `(i, i + 1)` with `i + 1 < n`.
+#[inline(always)]
+fn valid_bits(w: usize, n: usize) -> u64 {
+    let pairs = n.saturating_sub(1).saturating_sub(w * 64);
+    if pairs >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << pairs) - 1
+    }
+}
+
+/// The portable equality mask (and the twin the AVX2 kernel is tested against).
+#[inline(always)]
+fn eq_mask_portable(plane: &[u8], n: usize, eq: &mut [u64]) {
+    for (w, word) in eq.iter_mut().enumerate() {
+        let base = w * 64;
+        *word = if base + 1 < n {
+            let d: &[u8; 65] = plane[base..base + 65].try_into().expect("65 bytes");
+            let mut bits = 0u64;
+            for k in 0..64 {
+                bits |= u64::from(d[k] == d[k + 1]) << k;
+            }
+            bits & valid_bits(w, n)
+        } else {
+            0
+        };
+    }
+}
+
+/// The AVX2 twin of [`eq_mask_portable`]: two byte compares of 32 lanes and their sign
+/// masks per word.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn eq_mask_avx2(plane: &[u8], n: usize, eq: &mut [u64]) {
+    use std::arch::x86_64::{__m256i, _mm256_cmpeq_epi8, _mm256_loadu_si256, _mm256_movemask_epi8};
+    for (w, word) in eq.iter_mut().enumerate() {
+        let base = w * 64;
+        *word = if base + 1 < n {
+            let d: &[u8; 65] = plane[base..base + 65].try_into().expect("65 bytes");
+            let p = d.as_ptr();
+            // SAFETY: `d` has 65 bytes; the 32-byte loads at offsets 0, 1, 32 and 33 end at
+            // byte 65 at the latest.
+            let (lo, hi) = unsafe {
+                let at = |k: usize| _mm256_loadu_si256(p.add(k).cast::<__m256i>());
+                (_mm256_cmpeq_epi8(at(0), at(1)), _mm256_cmpeq_epi8(at(32), at(33)))
+            };
+            let bits = u64::from(_mm256_movemask_epi8(lo) as u32) | u64::from(_mm256_movemask_epi8(hi) as u32) << 32;
+            bits & valid_bits(w, n)
+        } else {
+            0
+        };
+    }
+}
+
+/// The first position at or after `from` where four equal bytes start, or `n`.
+#[inline(always)]
+fn next_quad(eq: &[u64], from: usize, n: usize) -> usize {
+    let mut w = from / 64;
+    // Bit i of the word: pairs (i, i+1), (i+1, i+2) and (i+2, i+3) all equal.
+    let quad = |w: usize| {
+        let (a, b) = (eq[w], eq[w + 1]);
+        a & (a >> 1 | b << 63) & (a >> 2 | b << 62)
+    };
+    let mut bits = quad(w) & (u64::MAX << (from % 64));
+    while bits == 0 {
+        w += 1;
+        if w + 1 >= eq.len() {
+            return n;
+        }
+        bits = quad(w);
+    }
+    w * 64 + bits.trailing_zeros() as usize
+}
+
+/// The length of the run of equal bytes starting at `p`, at most [`MAX_RUN`].
+#[inline(always)]
+fn run_length(eq: &[u64], p: usize) -> usize {
+    let mut len = 1;
+    let mut i = p;
+    loop {
+        let shift = i % 64;
+        // The shift brings in zeros from the top, so the count stops at the word's end.
+        let ones = (!(eq[i / 64] >> shift)).trailing_zeros() as usize;
+        len += ones;
+        i += ones;
+        if len >= MAX_RUN || ones < 64 - shift {
+            return len.min(MAX_RUN);
+        }
+    }
+}
+
+/// Appends the new-style RLE of one channel to `out` at `o` and returns the new position.
+/// `plane` holds `n` bytes and [`PAD`] more, `eq` its [`eq_mask`]; `out` must have room for
+/// [`plane_bound`]`(n)` bytes from `o` plus [`PAD`] (literals are copied in fixed blocks).
+///
+/// The random mix of short literals and runs makes branches on their lengths mispredict, so
+/// the common step (a literal of at most 128 bytes or a short run, then a run) is written
+/// without them: a short run `[128 + len, v]` and a literal `[len, v, ...]` differ only in
+/// the code byte and how far the output moves, and the end of the channel is the one exit.
+pub(super) fn write_plane(plane: &[u8], n: usize, eq: &[u64], out: &mut [u8], mut o: usize) -> usize {
+    let mut cur = 0;
+    while cur < n {
+        let p = next_quad(eq, cur, n);
+        let mut gap = p - cur;
+        // rgbe.c writes one run of 2 or 3 bytes right at `cur` as a run.
+        let (a, b, c) = (plane[cur], plane[cur + 1], plane[cur + 2]);
+        let short = (gap == 2 && a == b) | (gap == 3 && a == b && b == c);
+        // Longer literals start with whole 128-byte ones.
+        while gap > MAX_LITERAL {
+            out[o] = MAX_LITERAL as u8;
+            out[o + 1..o + 1 + MAX_LITERAL].copy_from_slice(&plane[cur..cur + MAX_LITERAL]);
+            o += 1 + MAX_LITERAL;
+            cur += MAX_LITERAL;
+            gap -= MAX_LITERAL;
+        }
+        // The rest: nothing (gap 0, the code byte and copy are overwritten next), a short
+        // run or one literal; a fixed-size copy (vector moves, no memcpy call), what lies
+        // past the literal is overwritten next or past the end.
+        out[o] = gap as u8 + if short { 128 } else { 0 };
+        out[o + 1..o + 1 + MAX_LITERAL].copy_from_slice(&plane[cur..cur + MAX_LITERAL]);
+        o += if short {
+            2
+        } else if gap > 0 {
+            1 + gap
+        } else {
+            0
+        };
+        if p == n {
+            break;
+        }
+        let run = run_length(eq, p);
+        out[o] = 128 + run as u8;
+        out[o + 1] = plane[p];
+        o += 2;
+        cur = p + run;
+    }
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// rgbe.c's `RGBE_WriteBytes_RLE` as a direct byte-by-byte transcription of its loop
+    /// (the encoder's previous writer): the specification the mask writer is checked against.
+    fn reference(data: &[u8], out: &mut Vec<u8>) {
+        const MIN_RUN: usize = 4;
+        let n = data.len();
+        let mut cur = 0;
+        while cur < n {
+            let mut beg = cur;
+            let mut run = 0;
+            let mut old_run = 0;
+            while run < MIN_RUN && beg < n {
+                beg += run;
+                old_run = run;
+                run = 1;
+                if beg < n {
+                    let v = data[beg];
+                    run += data[beg + 1..n.min(beg + 127)].iter().take_while(|&&b| b == v).count();
+                }
+            }
+            if old_run > 1 && old_run == beg - cur {
+                out.push(128 + old_run as u8);
+                out.push(data[cur]);
+                cur = beg;
+            }
+            while cur < beg {
+                let k = (beg - cur).min(128);
+                out.push(k as u8);
+                out.extend_from_slice(&data[cur..cur + k]);
+                cur += k;
+            }
+            if run >= MIN_RUN {
+                out.push(128 + run as u8);
+                out.push(data[beg]);
+                cur += run;
+            }
+        }
+    }
+
+    fn write(data: &[u8], avx2: bool) -> Vec<u8> {
+        let n = data.len();
+        let mut plane = data.to_vec();
+        // Padding equal to the last byte: the masks must ignore it.
+        plane.extend(std::iter::repeat_n(data.last().copied().unwrap_or(0), PAD));
+        let mut eq = vec![0u64; mask_words(n)];
+        if avx2 {
+            eq_mask(&plane, n, &mut eq);
+        } else {
+            eq_mask_portable(&plane, n, &mut eq);
+        }
+        let mut out = vec![0xEE; 3 + plane_bound(n) + PAD];
+        let end = write_plane(&plane, n, &eq, &mut out, 3);
+        assert!(end - 3 <= plane_bound(n), "n = {n}: {} bytes", end - 3);
+        out[3..end].to_vec()
+    }
+
+    #[test]
+    fn rle_runs_and_literals() {
+        // The encoding rules of the Radiance format (Ward, "Real Pixels", Graphics Gems II, and
+        // the Radiance file-format notes): a count byte > 128 is a run of (count - 128) copies of
+        // the next byte, a count of 1-128 is followed by that many literal bytes.
+        assert_eq!(write(&[7; 10], false), [138, 7]);
+        assert_eq!(write(&[1, 2, 3], false), [3, 1, 2, 3]);
+        assert_eq!(write(&[5, 5, 9, 9, 9, 9, 9], false), [130, 5, 133, 9]);
+        // 300 equal bytes: runs of 127, 127 and 46.
+        assert_eq!(write(&[4; 300], false), [255, 4, 255, 4, 128 + 46, 4]);
+    }
+
+    /// Random channels built from runs of every length and literal stretches, against the
+    /// reference loop; both mask builders.
+    #[test]
+    fn mask_writer_matches_rgbe_c() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut cases: Vec<Vec<u8>> = Vec::new();
+        for n in (1..300).chain([511, 512, 513, 1000, 1024, 4097]) {
+            for style in 0..4 {
+                let mut d = Vec::with_capacity(n);
+                while d.len() < n {
+                    let r = next();
+                    let len = match style {
+                        0 => (r % 6) as usize + 1,
+                        1 => [1, 2, 3, 4, 5, 63, 64, 65, 126, 127, 128, 129, 200][(r % 13) as usize],
+                        2 => 1,
+                        _ => (r % 300) as usize + 1,
+                    };
+                    // Few distinct values so that neighbouring runs often repeat a value.
+                    let v = if style == 2 { (r >> 8) as u8 } else { (r >> 8) as u8 % 3 };
+                    d.extend(std::iter::repeat_n(v, len));
+                }
+                d.truncate(n);
+                cases.push(d);
+            }
+        }
+        // Worst cases for the size bound: alternating bytes, and a 4-run after every literal.
+        cases.push((0..1000).map(|i| (i % 2) as u8).collect());
+        cases.push((0..1000).map(|i| if i % 133 < 129 { (i % 2) as u8 } else { 9 }).collect());
+        for d in &cases {
+            let mut want = Vec::new();
+            reference(d, &mut want);
+            assert_eq!(write(d, false), want, "{d:?}");
+            assert_eq!(write(d, true), want, "{d:?}");
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_mask_matches_the_portable_twin() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        for n in (0..200).chain([1023, 1024, 1025]) {
+            let plane: Vec<u8> = (0..n + PAD)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state % 3) as u8
+                })
+                .collect();
+            let (mut a, mut b) = (vec![1u64; mask_words(n)], vec![2u64; mask_words(n)]);
+            eq_mask_portable(&plane, n, &mut a);
+            // SAFETY: AVX2 support was checked above.
+            unsafe { eq_mask_avx2(&plane, n, &mut b) };
+            assert_eq!(a, b, "n = {n}");
+            // And the portable mask is its definition.
+            for i in 0..a.len() * 64 {
+                let want = i + 1 < n && plane[i] == plane[i + 1];
+                assert_eq!(a[i / 64] >> (i % 64) & 1 == 1, want, "n = {n}, bit {i}");
+            }
+        }
+    }
+}
