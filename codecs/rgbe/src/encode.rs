@@ -148,15 +148,15 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
         &mut out,
     );
     let rle = opts.rle && (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&w);
-    // Four planes with room for the RLE writer's fixed-size reads past their ends, the
-    // writer's masks, and one scanline's worst-case output (written with plain indexing,
-    // then appended with one copy).
+    // Four planes with room for the RLE writer's fixed-size reads past their ends, and the
+    // writer's masks. Each RLE scanline is written in place: the output grows by the
+    // scanline's worst case (reserved once for all), is written with plain indexing, and is
+    // cut back to what was written.
     let pstride = w + rle::PAD;
     let mut planes = vec![0u8; 4 * pstride];
     let mut eq = vec![0u64; rle::mask_words(w)];
     let line_bound = 4 + 4 * rle::plane_bound(w);
-    let mut line = if rle { vec![0u8; line_bound + rle::PAD] } else { Vec::new() };
-    out.reserve(if rle { h * line_bound } else { h * w * 4 });
+    out.reserve(if rle { h * line_bound + rle::PAD } else { h * w * 4 });
     let mut xyz = Vec::new();
     for y in 0..h {
         let mut row = image.row(y as u32);
@@ -168,13 +168,15 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
         }
         fill_planes(row, stride, opts.rounding, &mut planes, w, pstride);
         if rle {
+            let start = out.len();
+            out.resize(start + line_bound + rle::PAD, 0);
+            let line = &mut out[start..];
             line[..4].copy_from_slice(&[2, 2, (w >> 8) as u8, (w & 0xff) as u8]);
             let mut o = 4;
             for plane in planes.chunks_exact(pstride) {
-                rle::eq_mask(plane, w, &mut eq);
-                o = rle::write_plane(plane, w, &eq, &mut line, o);
+                o = rle::write_channel(plane, w, &mut eq, line, o);
             }
-            out.extend_from_slice(&line[..o]);
+            out.truncate(start + o);
         } else {
             write_flat(&planes, w, pstride, &mut out);
         }

@@ -36,18 +36,33 @@ pub(super) fn plane_bound(n: usize) -> usize {
     n + n / 128 + 1
 }
 
-/// Fills `eq` ([`mask_words`]`(n)` words) with the equality mask of `plane` (`n` bytes
-/// followed by [`PAD`] bytes): bit `i` set when `i + 1 < n` and `plane[i] == plane[i + 1]`.
+/// Appends the new-style RLE of one channel (`plane`: `n` bytes followed by [`PAD`] more)
+/// to `out` at `o` and returns the new position; `out` must have room for
+/// [`plane_bound`]`(n)` bytes from `o` plus [`PAD`] (literals are copied in fixed blocks).
+/// `eq` ([`mask_words`]`(n)` words) is scratch space for the channel's equality mask.
 /// AVX2 when the CPU has it.
-pub(super) fn eq_mask(plane: &[u8], n: usize, eq: &mut [u64]) {
+pub(super) fn write_channel(plane: &[u8], n: usize, eq: &mut [u64], out: &mut [u8], o: usize) -> usize {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `eq_mask_avx2` (its loads stay inside a checked 65-byte array).
-        unsafe { eq_mask_avx2(plane, n, eq) };
-        return;
+        // `write_channel_avx2` (its vector loads stay inside a checked 65-byte array).
+        return unsafe { write_channel_avx2(plane, n, eq, out, o) };
     }
-    eq_mask_portable(plane, n, eq)
+    eq_mask_portable(plane, n, eq);
+    write_plane(plane, n, eq, out, o)
+}
+
+/// [`write_channel`] with the AVX2 mask kernel, and the writer built for AVX2 too (its fixed
+/// 128-byte literal copies become four 32-byte moves).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn write_channel_avx2(plane: &[u8], n: usize, eq: &mut [u64], out: &mut [u8], o: usize) -> usize {
+    // SAFETY: the CPU supports AVX2 (this function's own requirement).
+    unsafe { eq_mask_avx2(plane, n, eq) };
+    write_plane(plane, n, eq, out, o)
 }
 
 /// The bits of word `w` that stand for a real pair `(i, i + 1)` with `i + 1 < n`.
@@ -86,6 +101,7 @@ fn eq_mask_portable(plane: &[u8], n: usize, eq: &mut [u64]) {
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 unsafe fn eq_mask_avx2(plane: &[u8], n: usize, eq: &mut [u64]) {
     use std::arch::x86_64::{__m256i, _mm256_cmpeq_epi8, _mm256_loadu_si256, _mm256_movemask_epi8};
     for (w, word) in eq.iter_mut().enumerate() {
@@ -107,27 +123,17 @@ unsafe fn eq_mask_avx2(plane: &[u8], n: usize, eq: &mut [u64]) {
     }
 }
 
-/// The first position at or after `from` where four equal bytes start, or `n`.
+/// The positions where a maximal run of 4 or more equal bytes starts, as the bits of word
+/// `w`: four equal bytes start there (the pairs (i, i+1), (i+1, i+2), (i+2, i+3) are equal)
+/// and the byte before differs (or there is none).
 #[inline(always)]
-fn next_quad(eq: &[u64], from: usize, n: usize) -> usize {
-    let mut w = from / 64;
-    // Bit i of the word: pairs (i, i+1), (i+1, i+2) and (i+2, i+3) all equal.
-    let quad = |w: usize| {
-        let (a, b) = (eq[w], eq[w + 1]);
-        a & (a >> 1 | b << 63) & (a >> 2 | b << 62)
-    };
-    let mut bits = quad(w) & (u64::MAX << (from % 64));
-    while bits == 0 {
-        w += 1;
-        if w + 1 >= eq.len() {
-            return n;
-        }
-        bits = quad(w);
-    }
-    w * 64 + bits.trailing_zeros() as usize
+fn run_starts(eq: &[u64], w: usize) -> u64 {
+    let (a, b) = (eq[w], eq[w + 1]);
+    let before = if w > 0 { eq[w - 1] >> 63 } else { 0 };
+    a & (a >> 1 | b << 63) & (a >> 2 | b << 62) & !(a << 1 | before)
 }
 
-/// The length of the run of equal bytes starting at `p`, at most [`MAX_RUN`].
+/// The length of the maximal run of equal bytes starting at `p`.
 #[inline(always)]
 fn run_length(eq: &[u64], p: usize) -> usize {
     let mut len = 1;
@@ -138,56 +144,77 @@ fn run_length(eq: &[u64], p: usize) -> usize {
         let ones = (!(eq[i / 64] >> shift)).trailing_zeros() as usize;
         len += ones;
         i += ones;
-        if len >= MAX_RUN || ones < 64 - shift {
-            return len.min(MAX_RUN);
+        if ones < 64 - shift {
+            return len;
         }
     }
 }
 
-/// Appends the new-style RLE of one channel to `out` at `o` and returns the new position.
-/// `plane` holds `n` bytes and [`PAD`] more, `eq` its [`eq_mask`]; `out` must have room for
-/// [`plane_bound`]`(n)` bytes from `o` plus [`PAD`] (literals are copied in fixed blocks).
+/// Writes the bytes `cur..p` that come before a run (or the end): rgbe.c writes 2 or 3 equal
+/// bytes as a run, anything else as literals of at most 128 bytes.
 ///
-/// The random mix of short literals and runs makes branches on their lengths mispredict, so
-/// the common step (a literal of at most 128 bytes or a short run, then a run) is written
+/// The random mix of short literals and short runs makes branches on their lengths
+/// mispredict, so the common case (a literal of at most 128 bytes or a short run) is written
 /// without them: a short run `[128 + len, v]` and a literal `[len, v, ...]` differ only in
-/// the code byte and how far the output moves, and the end of the channel is the one exit.
-pub(super) fn write_plane(plane: &[u8], n: usize, eq: &[u64], out: &mut [u8], mut o: usize) -> usize {
-    let mut cur = 0;
-    while cur < n {
-        let p = next_quad(eq, cur, n);
-        let mut gap = p - cur;
-        // rgbe.c writes one run of 2 or 3 bytes right at `cur` as a run.
-        let (a, b, c) = (plane[cur], plane[cur + 1], plane[cur + 2]);
-        let short = (gap == 2 && a == b) | (gap == 3 && a == b && b == c);
-        // Longer literals start with whole 128-byte ones.
-        while gap > MAX_LITERAL {
-            out[o] = MAX_LITERAL as u8;
-            out[o + 1..o + 1 + MAX_LITERAL].copy_from_slice(&plane[cur..cur + MAX_LITERAL]);
-            o += 1 + MAX_LITERAL;
-            cur += MAX_LITERAL;
-            gap -= MAX_LITERAL;
-        }
-        // The rest: nothing (gap 0, the code byte and copy are overwritten next), a short
-        // run or one literal; a fixed-size copy (vector moves, no memcpy call), what lies
-        // past the literal is overwritten next or past the end.
-        out[o] = gap as u8 + if short { 128 } else { 0 };
+/// the code byte and in how far the output moves.
+#[inline(always)]
+fn write_gap(plane: &[u8], mut cur: usize, p: usize, out: &mut [u8], mut o: usize) -> usize {
+    let mut gap = p - cur;
+    let (a, b, c) = (plane[cur], plane[cur + 1], plane[cur + 2]);
+    let short = (gap == 2 && a == b) | (gap == 3 && a == b && b == c);
+    // Longer literals start with whole 128-byte ones.
+    while gap > MAX_LITERAL {
+        out[o] = MAX_LITERAL as u8;
         out[o + 1..o + 1 + MAX_LITERAL].copy_from_slice(&plane[cur..cur + MAX_LITERAL]);
-        o += if short {
-            2
-        } else if gap > 0 {
-            1 + gap
-        } else {
-            0
-        };
-        if p == n {
-            break;
+        o += 1 + MAX_LITERAL;
+        cur += MAX_LITERAL;
+        gap -= MAX_LITERAL;
+    }
+    // The rest: nothing (gap 0: the code byte and the copy are overwritten next or lie past
+    // the end), a short run or one literal. A fixed-size copy (vector moves, no memcpy
+    // call); what lies past the literal is overwritten next or lies past the end.
+    out[o] = gap as u8 + if short { 128 } else { 0 };
+    out[o + 1..o + 1 + MAX_LITERAL].copy_from_slice(&plane[cur..cur + MAX_LITERAL]);
+    o + if short {
+        2
+    } else if gap > 0 {
+        1 + gap
+    } else {
+        0
+    }
+}
+
+/// [`write_channel`] once the equality mask `eq` is made.
+///
+/// rgbe.c's scan for the next run of 4 or more from the current position always lands on the
+/// start of the next maximal run of 4 or more equal bytes (the current position is never
+/// inside one: runs longer than 127 are written as 127-byte runs until fewer than 4 bytes
+/// are left, which then belong to the next gap). So the writer walks the run starts, bits of
+/// a mask computed from the data alone, instead of scanning on from each position: no chain
+/// of loads from one operation to the next.
+#[inline(always)]
+fn write_plane(plane: &[u8], n: usize, eq: &[u64], out: &mut [u8], mut o: usize) -> usize {
+    let mut cur = 0;
+    for w in 0..eq.len() - 1 {
+        let mut starts = run_starts(eq, w);
+        while starts != 0 {
+            let p = w * 64 + starts.trailing_zeros() as usize;
+            starts &= starts - 1;
+            o = write_gap(plane, cur, p, out, o);
+            let len = run_length(eq, p);
+            let mut left = len;
+            while left >= 4 {
+                let run = left.min(MAX_RUN);
+                out[o] = 128 + run as u8;
+                out[o + 1] = plane[p];
+                o += 2;
+                left -= run;
+            }
+            cur = p + len - left;
         }
-        let run = run_length(eq, p);
-        out[o] = 128 + run as u8;
-        out[o + 1] = plane[p];
-        o += 2;
-        cur = p + run;
+    }
+    if cur < n {
+        o = write_gap(plane, cur, n, out, o);
     }
     o
 }
@@ -240,13 +267,13 @@ mod tests {
         // Padding equal to the last byte: the masks must ignore it.
         plane.extend(std::iter::repeat_n(data.last().copied().unwrap_or(0), PAD));
         let mut eq = vec![0u64; mask_words(n)];
-        if avx2 {
-            eq_mask(&plane, n, &mut eq);
+        let mut out = vec![0xEE; 3 + plane_bound(n) + PAD];
+        let end = if avx2 {
+            write_channel(&plane, n, &mut eq, &mut out, 3)
         } else {
             eq_mask_portable(&plane, n, &mut eq);
-        }
-        let mut out = vec![0xEE; 3 + plane_bound(n) + PAD];
-        let end = write_plane(&plane, n, &eq, &mut out, 3);
+            write_plane(&plane, n, &eq, &mut out, 3)
+        };
         assert!(end - 3 <= plane_bound(n), "n = {n}: {} bytes", end - 3);
         out[3..end].to_vec()
     }
@@ -264,7 +291,7 @@ mod tests {
     }
 
     /// Random channels built from runs of every length and literal stretches, against the
-    /// reference loop; both mask builders.
+    /// reference loop; the portable writer and the one `write_channel` picks (AVX2 here).
     #[test]
     fn mask_writer_matches_rgbe_c() {
         let mut state = 0x2545_F491_4F6C_DD1Du64;
