@@ -250,17 +250,15 @@ mod tests {
             return;
         }
         let (w, h) = (36usize, 12usize);
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = block::tests::xorshift32(0x2545_F491);
         let mut rgb = vec![0f32; w * h * 3];
         for (i, v) in rgb.iter_mut().enumerate() {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
+            let state = next();
             let x = (i / 3) % w;
             *v = match (i / 3 / w) % 4 {
                 0 => (x as f32 * 0.3 + (i % 3) as f32).exp2() * 0.01,
-                1 => ((state >> 40) as f32 / (1u64 << 24) as f32 * 40.0 - 20.0).exp2(),
-                2 => f32::from_bits((state >> 32) as u32),
+                1 => ((state >> 8) as f32 / (1u32 << 24) as f32 * 40.0 - 20.0).exp2(),
+                2 => f32::from_bits(state),
                 _ => [0.0, -3.5, 1e5, f32::NAN, f32::INFINITY, 7.25][(state % 6) as usize],
             };
         }

@@ -21,9 +21,7 @@
 // The decoder's endpoint unquantisation (Direct3D 11 specification, "Unquantization of Color
 // Endpoints"): the encoder predicts exactly what the decoder will expand.
 use crate::decode::{unquantize, unquantize_endpoint};
-use crate::modes::{
-    pack_block, BlockFields, ModeInfo as Mode, ANCHORS as ANCHOR2, MODES, PARTITIONS, WEIGHTS3, WEIGHTS4,
-};
+use crate::modes::{ModeInfo as Mode, ANCHORS as ANCHOR2, MODES, PARTITIONS, WEIGHTS3, WEIGHTS4};
 
 /// One value per texel (row-major).
 type Plane = [f32; 16];
@@ -231,7 +229,7 @@ fn quantize<const S: bool, const L: usize>(v: &[f32; L], bits: u32) -> [i32; L] 
         // Unquantisation is the identity: round (half away from zero).
         for i in 0..L {
             let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
-            let q = (m + 0.5) as i32;
+            let q = floor_small(m + 0.5);
             out[i] = if S && v[i] < 0.0 { -q } else { q };
         }
         return out;
@@ -242,13 +240,27 @@ fn quantize<const S: bool, const L: usize>(v: &[f32; L], bits: u32) -> [i32; L] 
     let scale = (1u32 << mag_bits) as f32 / span;
     for i in 0..L {
         let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
-        // floor(x) for x >= -0.5, by truncation of x + 1; then the nearer of q and q + 1.
-        let q = (((m * scale + 0.5) as i32) - 1).clamp(0, max);
+        // round(x) - 1 (floor(x + 0.5) >= 0), then the nearer of q and q + 1.
+        let q = (floor_small(m * scale + 0.5) - 1).clamp(0, max);
         let q1 = (q + 1).min(max);
         let nearer = (unquantize::<S>(q1, bits) as f32 - m).abs() < (unquantize::<S>(q, bits) as f32 - m).abs();
         let q = if nearer { q1 } else { q };
         out[i] = if S && v[i] < 0.0 { -q } else { q };
     }
+    out
+}
+
+/// [`quantize`] of the endpoints of a block (`[end][channel]` flattened): 6 lanes for one
+/// region, 12 for two.
+#[inline(always)]
+fn quantize_endpoints<const S: bool>(lanes: &[f32; 12], regions: u8, bits: u32) -> [i32; 12] {
+    if regions == 2 {
+        return quantize::<S, 12>(lanes, bits);
+    }
+    let mut six = [0f32; 6];
+    six.copy_from_slice(&lanes[..6]);
+    let mut out = [0i32; 12];
+    out[..6].copy_from_slice(&quantize::<S, 6>(&six, bits));
     out
 }
 
@@ -302,7 +314,7 @@ impl Candidate {
         if mode.regions == 2 {
             values[12] = self.partition as u32;
         }
-        pack_block(&BlockFields { mode: self.mode, values, indices: self.indices })
+        PACKERS[self.mode](&values, &self.indices)
     }
 
     /// The decoded texels as half bits, recomputed from the endpoints and indices the way a
@@ -332,6 +344,57 @@ impl Candidate {
         }
         out
     }
+}
+
+/// One specialised packer per mode: with the layout known at compile time the runs become
+/// constant shifts and masks.
+#[allow(clippy::type_complexity)]
+static PACKERS: [fn(&[u32; 13], &[u8; 16]) -> [u8; 16]; 14] = [
+    pack_mode::<0>,
+    pack_mode::<1>,
+    pack_mode::<2>,
+    pack_mode::<3>,
+    pack_mode::<4>,
+    pack_mode::<5>,
+    pack_mode::<6>,
+    pack_mode::<7>,
+    pack_mode::<8>,
+    pack_mode::<9>,
+    pack_mode::<10>,
+    pack_mode::<11>,
+    pack_mode::<12>,
+    pack_mode::<13>,
+];
+
+/// [`pack_block`] for mode `M` (an index into [`MODES`]): the same bits, written without a
+/// bit writer, and the indices gathered with shifts (each anchor index drops its top bit, which
+/// is 0). The tests compare it with `pack_block`.
+fn pack_mode<const M: usize>(values: &[u32; 13], indices: &[u8; 16]) -> [u8; 16] {
+    let info = &MODES[M];
+    let mut bits = info.mode_value as u128;
+    let mut pos = info.mode_bits as u32;
+    for run in info.layout {
+        let n = run.len();
+        let lo = run.first.min(run.last) as u32;
+        let mut v = (values[run.field as usize] >> lo) & ((1u32 << n) - 1);
+        if run.reversed() {
+            v = v.reverse_bits() >> (32 - n);
+        }
+        bits |= (v as u128) << pos;
+        pos += n;
+    }
+    let ib = info.index_bits();
+    let mut packed = 0u64;
+    for &index in indices.iter().rev() {
+        packed = (packed << ib) | index as u64;
+    }
+    let drop_bit = |packed: u64, bit: u32| (packed & ((1u64 << bit) - 1)) | ((packed >> (bit + 1)) << bit);
+    if info.regions == 2 {
+        // The second anchor first: it sits above texel 0's slot.
+        packed = drop_bit(packed, ANCHOR2[(values[12] & 31) as usize] as u32 * ib + ib - 1);
+    }
+    packed = drop_bit(packed, ib - 1);
+    (bits | (packed as u128) << pos).to_le_bytes()
 }
 
 /// How hard to search, derived from the effort level.
@@ -369,25 +432,28 @@ impl Search {
 }
 
 /// Principal-axis endpoints of the texels weighted by `member` (1.0 in, 0.0 out): the mean,
-/// the dominant eigenvector of the covariance (power iteration), and the extreme projections.
+/// the dominant eigenvector of the covariance, and the extreme projections. `reference` is a
+/// member texel.
 #[inline(always)]
-fn fit_line(target: &[Plane; 3], member: &Plane) -> [[f32; 3]; 2] {
+fn fit_line(target: &[Plane; 3], member: &Plane, reference: usize) -> [[f32; 3]; 2] {
     let n = sum16(member);
     if n == 0.0 {
         return [[0.0; 3]; 2];
     }
-    let mut mean = [0f32; 3];
-    for c in 0..3 {
-        mean[c] = dot16(&target[c], member) / n;
-    }
+    // Moments of the offsets from a member texel (small numbers, so the one-pass covariance
+    // does not cancel), all nine reduced independently.
     let mut d = [[0f32; 16]; 3];
     for c in 0..3 {
+        let origin = target[c][reference];
         for i in 0..16 {
-            d[c][i] = (target[c][i] - mean[c]) * member[i];
+            d[c][i] = (target[c][i] - origin) * member[i];
         }
     }
-    // Covariance (upper triangle): xx, xy, xz, yy, yz, zz.
-    let cov = [
+    let mut offset = [0f32; 3];
+    for c in 0..3 {
+        offset[c] = sum16(&d[c]) / n;
+    }
+    let products = [
         dot16(&d[0], &d[0]),
         dot16(&d[0], &d[1]),
         dot16(&d[0], &d[2]),
@@ -395,11 +461,21 @@ fn fit_line(target: &[Plane; 3], member: &Plane) -> [[f32; 3]; 2] {
         dot16(&d[1], &d[2]),
         dot16(&d[2], &d[2]),
     ];
+    // Covariance (upper triangle): xx, xy, xz, yy, yz, zz.
+    let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+    let mut cov = [0f32; 6];
+    for (k, &(x, y)) in pairs.iter().enumerate() {
+        cov[k] = products[k] - n * offset[x] * offset[y];
+    }
+    let mut mean = [0f32; 3];
+    for c in 0..3 {
+        mean[c] = target[c][reference] + offset[c];
+    }
     let axis = principal_axis(&cov);
     let mut lo = [0f32; 16];
     let mut hi = [0f32; 16];
     for i in 0..16 {
-        let p = d[0][i] * axis[0] + d[1][i] * axis[1] + d[2][i] * axis[2];
+        let p = (d[0][i] - offset[0]) * axis[0] + (d[1][i] - offset[1]) * axis[1] + (d[2][i] - offset[2]) * axis[2];
         lo[i] = if member[i] != 0.0 { p } else { f32::INFINITY };
         hi[i] = if member[i] != 0.0 { p } else { f32::NEG_INFINITY };
     }
@@ -506,7 +582,7 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
                 lanes[6 * r + 3 + c] = b[c];
             }
         }
-        let quantized = quantize::<S, 12>(&lanes, bits);
+        let quantized = quantize_endpoints::<S>(&lanes, mode.regions, bits);
         let mut q = [[0i32; 3]; 4];
         for e in 0..4 {
             for c in 0..3 {
@@ -551,7 +627,7 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
                 lanes[3 * e + c] = ends[e / 2][e % 2][c];
             }
         }
-        let q = quantize::<S, 12>(&lanes, bits);
+        let q = quantize_endpoints::<S>(&lanes, mode.regions, bits);
         for e in 1..mode.regions as usize * 2 {
             for c in 0..3 {
                 let half_range = 1i32 << (mode.delta_bits[c] - 1);
@@ -722,7 +798,7 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
         let target = &self.tex.target;
         // One region.
         if allowed & 0x3C00 != 0 {
-            let start1: Ends = [fit_line(target, &ONES), [[0.0; 3]; 2]];
+            let start1: Ends = [fit_line(target, &ONES, 0), [[0.0; 3]; 2]];
             let modes = if self.search.all_one_region || only_mode.is_some() {
                 0x3C00
             } else {
@@ -759,7 +835,7 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             for i in 0..16 {
                 region0[i] = 1.0 - region1[i];
             }
-            let ends: Ends = [fit_line(target, &region0), fit_line(target, region1)];
+            let ends: Ends = [fit_line(target, &region0, 0), fit_line(target, region1, ANCHOR2[p] as usize)];
             let modes = if self.search.all_two_region || only_mode.is_some() {
                 0x03FF
             } else {
@@ -805,11 +881,29 @@ fn nearest_entries<const N: usize, const TWO: bool>(
     }
 }
 
+/// floor(x) for 0 <= x < 2^22 without a float-to-int cast (Rust's saturating casts are not
+/// vectorised): adding 2^23 leaves round(x) in the low mantissa bits.
+#[inline(always)]
+fn floor_small(x: f32) -> i32 {
+    let r = ((x + 8_388_608.0).to_bits() as i32) - 0x4B00_0000;
+    if r as f32 > x {
+        r - 1
+    } else {
+        r
+    }
+}
+
 /// The interpolation weight of palette entry `k` of `n`: `round(64 k / (n - 1))`, which is what
 /// the specification's weight tables hold (checked in the tests).
 #[inline(always)]
 fn weight_of(k: i32, n: usize) -> i32 {
-    (k as f32 * (64.0 / (n - 1) as f32) + 0.5) as i32
+    // round(64 k / 15) = floor((64 k + 7) / 15) and round(64 k / 7) = floor((64 k + 3) / 7), the
+    // divisions as multiply-and-shift (exact for k < 16), which vectorise.
+    if n == 16 {
+        ((64 * k + 7) * 4370) >> 16
+    } else {
+        ((64 * k + 3) * 9363) >> 16
+    }
 }
 
 /// For each texel, the nearer of the two palette entries around its projection onto the line
@@ -862,9 +956,9 @@ fn nearest_by_projection<const S: bool, const N: usize, const TWO: bool>(
             t += (half[c][i] - lane_first[c][i]) * lane_dir[c][i];
         }
         let t = t * lane_scale[i];
-        let t = if t < 0.0 { 0.0 } else { t };
+        let t = t.clamp(0.0, 16.0);
         let hi = last[i] - 1;
-        let k = t as i32;
+        let k = floor_small(t);
         k0[i] = if k < hi { k } else { hi };
     }
     let mut d = [[0f32; 16]; 2];
@@ -982,8 +1076,19 @@ fn region_residuals(s: &[[f32; 32]; 9], n: &[f32; 32]) -> [f32; 32] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::modes::{pack_block, BlockFields};
+
+    /// Marsaglia's xorshift32: test data.
+    pub(crate) fn xorshift32(mut state: u32) -> impl FnMut() -> u32 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        }
+    }
 
     /// The branch-free conversion agrees with the `half` crate (IEEE round-to-nearest-even)
     /// plus the specification's clamping, on the boundaries of every half and on random bits.
@@ -1004,16 +1109,36 @@ mod tests {
                 values.push(-v);
             }
         }
-        let mut state = 0x9E37_79B9u32;
+        let mut next = xorshift32(0x9E37_79B9);
         for _ in 0..1_000_000 {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            values.push(f32::from_bits(state));
+            values.push(f32::from_bits(next()));
         }
         for &v in &values {
             assert_eq!(f32_to_half_int::<false>(v), reference(v, false), "{v:e} unsigned");
             assert_eq!(f32_to_half_int::<true>(v), reference(v, true), "{v:e} signed");
+        }
+    }
+
+    /// The per-mode packers write exactly what the general `pack_block` writes.
+    #[test]
+    fn pack_mode_matches_pack_block() {
+        let mut next = xorshift32(0x1234_5678);
+        for m in 0..14 {
+            for _ in 0..2000 {
+                let mut fields = BlockFields { mode: m, values: [0; 13], indices: [0; 16] };
+                for v in fields.values.iter_mut() {
+                    *v = next();
+                }
+                let info = &MODES[m];
+                fields.values[12] = if info.regions == 2 { next() % 32 } else { 0 };
+                let ib = info.index_bits();
+                let partition = fields.values[12] as usize;
+                for (i, index) in fields.indices.iter_mut().enumerate() {
+                    let anchor = i == 0 || (info.regions == 2 && i == ANCHOR2[partition] as usize);
+                    *index = (next() % (1 << (ib - anchor as u32))) as u8;
+                }
+                assert_eq!(PACKERS[m](&fields.values, &fields.indices), pack_block(&fields), "mode {}", m + 1);
+            }
         }
     }
 
@@ -1035,13 +1160,7 @@ mod tests {
     /// close to it; a wrong lane or region would be far off.
     #[test]
     fn partition_residuals_match_explicit_covariances() {
-        let mut state = 12345u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = xorshift32(12345);
         for n in 0..200 {
             // Odd rounds: each region of a partition on its own line (random base and direction),
             // so that partition must rank first. Even rounds: noise over a wide range.
