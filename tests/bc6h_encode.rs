@@ -219,8 +219,9 @@ fn partial_blocks_replicate_edges() {
     }
 }
 
-/// Our effort level that is set against each ISPC profile (the bench shows the speeds).
-const MATCHING_EFFORT: [(&str, u8); 5] = [("veryfast", 0), ("fast", 2), ("basic", 4), ("slow", 6), ("veryslow", 8)];
+/// Our effort level that is set against each ISPC profile: the fastest one with RMSLE no worse
+/// in `benches/bc6h_encode.rs`, which shows that it also encodes faster.
+const MATCHING_EFFORT: [(&str, u8); 5] = [("veryfast", 0), ("fast", 2), ("basic", 3), ("slow", 3), ("veryslow", 3)];
 
 fn hdr_image(w: usize, h: usize, rgb: Vec<f32>) -> HdrImage {
     HdrImage::new(w as u32, h as u32, Channels::Rgb, rgb, ColorInfo::default()).unwrap()

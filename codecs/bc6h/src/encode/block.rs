@@ -404,8 +404,11 @@ pub(crate) struct Search {
     all_one_region: bool,
     /// Number of best-estimated partitions to encode with two-region modes (0 = none).
     partitions: usize,
-    /// Try every two-region mode (otherwise mode 10 plus the most precise fitting one).
+    /// Try every two-region mode (otherwise the most precise one whose deltas fit, plus mode 10
+    /// if `mode10_too`).
     all_two_region: bool,
+    /// With `all_two_region` off, also try mode 10 when a transformed mode fits.
+    mode10_too: bool,
     /// Least-squares refinement passes.
     iterations: u32,
     /// Compare every texel with every palette entry (otherwise only with the two entries around
@@ -427,7 +430,8 @@ impl Search {
             8 => (true, 24, true, 6, true),
             _ => (true, 32, true, 8, true),
         };
-        Search { all_one_region: all1, partitions, all_two_region: all2, iterations, exhaustive }
+        let mode10_too = effort >= 4;
+        Search { all_one_region: all1, partitions, all_two_region: all2, mode10_too, iterations, exhaustive }
     }
 }
 
@@ -839,10 +843,14 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             let modes = if self.search.all_two_region || only_mode.is_some() {
                 0x03FF
             } else {
-                // Untransformed mode 10 always fits; add the most precise transformed mode
-                // whose deltas hold this partition's endpoints.
+                // The most precise transformed mode whose deltas hold this partition's
+                // endpoints, and untransformed mode 10 (which always fits) if none does or if
+                // asked to.
                 let fitting = self.first_fitting(&[2, 3, 4, 0, 5, 6, 7, 8, 1], &ends);
-                (1 << 9) | fitting.map_or(0, |m| 1 << m)
+                match fitting {
+                    Some(m) if !self.search.mode10_too => 1 << m,
+                    _ => (1 << 9) | fitting.map_or(0, |m| 1 << m),
+                }
             };
             self.try_modes(modes & allowed, p, &ends, &mut best);
         }
@@ -861,6 +869,8 @@ fn nearest_entries<const N: usize, const TWO: bool>(
     best: &mut Plane,
     best_k: &mut [i32; 16],
 ) {
+    // Local copies, so that the updates stay in registers rather than becoming masked stores.
+    let (mut b, mut bk) = (*best, *best_k);
     for k in entries {
         let p0 = [palette[0][0][k], palette[0][1][k], palette[0][2][k]];
         let dp = [palette[1][0][k] - p0[0], palette[1][1][k] - p0[1], palette[1][2][k] - p0[2]];
@@ -873,12 +883,13 @@ fn nearest_entries<const N: usize, const TWO: bool>(
                 let e = half[c][i] - p;
                 d += e * e;
             }
-            // Selects rather than a branch, so that the loop becomes blends, not masked stores.
-            let nearer = d < best[i];
-            best[i] = if nearer { d } else { best[i] };
-            best_k[i] = if nearer { kf } else { best_k[i] };
+            // Selects rather than a branch, so that the loop becomes blends.
+            let nearer = d < b[i];
+            b[i] = if nearer { d } else { b[i] };
+            bk[i] = if nearer { kf } else { bk[i] };
         }
     }
+    (*best, *best_k) = (b, bk);
 }
 
 /// floor(x) for 0 <= x < 2^22 without a float-to-int cast (Rust's saturating casts are not
