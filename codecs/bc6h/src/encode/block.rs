@@ -226,25 +226,29 @@ const ZEROS: Plane = [0.0; 16];
 fn quantize<const S: bool, const L: usize>(v: &[f32; L], bits: u32) -> [i32; L] {
     let mut out = [0i32; L];
     if (S && bits >= 16) || (!S && bits >= 15) {
-        // Unquantisation is the identity: round (half away from zero).
+        // Unquantisation is the identity: round the magnitude (a tie to the lower).
         for i in 0..L {
             let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
-            let q = floor_small(m + 0.5);
+            let q = integer_below(m + 0.5);
             out[i] = if S && v[i] < 0.0 { -q } else { q };
         }
         return out;
     }
-    // Magnitude bits and the unquantised range they span.
-    let (mag_bits, span) = if S { (bits - 1, 32768.0) } else { (bits, 65536.0) };
+    // Unquantised, magnitude q of `bits` precision is (q + 1/2) * step in the interior, 0 for
+    // q = 0 and `full` for the top code (decode.rs, `unquantize`). So the nearest code is
+    // floor(m / step), except near the two ends (0 against 1, max - 1 against max); ties go to
+    // the lower code.
+    let mag_bits = if S { bits - 1 } else { bits };
     let max = (1i32 << mag_bits) - 1;
-    let scale = (1u32 << mag_bits) as f32 / span;
+    let full = if S { 32767.0 } else { 65535.0 };
+    let step = (1u32 << (16 - bits)) as f32;
+    let below_top = full + 1.0 - 1.5 * step; // the unquantised value of code max - 1
     for i in 0..L {
         let m = if S { v[i].abs().min(32767.0) } else { v[i].clamp(0.0, 65535.0) };
-        // round(x) - 1 (floor(x + 0.5) >= 0), then the nearer of q and q + 1.
-        let q = (floor_small(m * scale + 0.5) - 1).clamp(0, max);
-        let q1 = (q + 1).min(max);
-        let nearer = (unquantize::<S>(q1, bits) as f32 - m).abs() < (unquantize::<S>(q, bits) as f32 - m).abs();
-        let q = if nearer { q1 } else { q };
+        // The largest integer below m / step, not floor: a value on a boundary is a tie.
+        let q = integer_below(m * (1.0 / step)).clamp(0, max - 1);
+        let q = if q == 0 && m > 0.75 * step { 1 } else { q };
+        let q = if q == max - 1 && m - below_top > full - m { max } else { q };
         out[i] = if S && v[i] < 0.0 { -q } else { q };
     }
     out
@@ -892,6 +896,17 @@ fn nearest_entries<const N: usize, const TWO: bool>(
     (*best, *best_k) = (b, bk);
 }
 
+/// The largest integer strictly below x, for 0 <= x < 2^22 (see [`floor_small`]).
+#[inline(always)]
+fn integer_below(x: f32) -> i32 {
+    let f = floor_small(x);
+    if (f as f32) < x {
+        f
+    } else {
+        f - 1
+    }
+}
+
 /// floor(x) for 0 <= x < 2^22 without a float-to-int cast (Rust's saturating casts are not
 /// vectorised): adding 2^23 leaves round(x) in the low mantissa bits.
 #[inline(always)]
@@ -1128,6 +1143,44 @@ pub(crate) mod tests {
             assert_eq!(f32_to_half_int::<false>(v), reference(v, false), "{v:e} unsigned");
             assert_eq!(f32_to_half_int::<true>(v), reference(v, true), "{v:e} signed");
         }
+    }
+
+    /// `quantize` picks the code whose unquantised value (the decoder's `unquantize`) is nearest,
+    /// the lower one on a tie: checked against a search over every code, for every precision
+    /// the modes use, on values around every code's unquantised value and at random.
+    #[test]
+    fn quantize_finds_the_nearest_code() {
+        fn check<const S: bool>(bits: u32, values: &[f32]) {
+            let mag_bits = if S { bits - 1 } else { bits };
+            let got = values.iter().map(|&v| quantize::<S, 1>(&[v], bits)[0]);
+            for (&v, q) in values.iter().zip(got) {
+                let m = if S { v.abs().min(32767.0) } else { v.clamp(0.0, 65535.0) };
+                let mut best = 0;
+                for c in 0..1i32 << mag_bits {
+                    if (unquantize::<S>(c, bits) as f32 - m).abs() < (unquantize::<S>(best, bits) as f32 - m).abs() {
+                        best = c;
+                    }
+                }
+                let want = if S && v < 0.0 { -best } else { best };
+                assert_eq!(q, want, "value {v} bits {bits} signed {S}");
+            }
+        }
+        let mut next = xorshift32(77);
+        for bits in [6, 7, 8, 9, 10, 11, 12] {
+            let mut values = Vec::new();
+            for c in 0..1i32 << bits {
+                let u = unquantize::<false>(c, bits) as f32;
+                values.extend([u - 0.75, u - 0.5, u, u + 0.25, u + 0.5, u + 1.0]);
+            }
+            for _ in 0..2000 {
+                values.push((next() % 6_600_000) as f32 / 100.0 - 5.0);
+            }
+            check::<false>(bits, &values);
+            let signed: Vec<f32> = values.iter().map(|&v| if next() % 2 == 0 { v / 2.0 } else { -v / 2.0 }).collect();
+            check::<true>(bits, &signed);
+        }
+        check::<false>(16, &[0.0, 0.4, 0.5, 0.6, 1000.49, 65534.6, 70000.0]);
+        check::<true>(16, &[-0.6, -0.5, 0.49, 31000.5, -40000.0]);
     }
 
     /// The per-mode packers write exactly what the general `pack_block` writes.
