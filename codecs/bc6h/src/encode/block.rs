@@ -206,6 +206,19 @@ static REGION1_BY_TEXEL: [[f32; 32]; 16] = {
     t
 };
 
+/// Per region (0, 1) and partition: the number of texels in the region.
+static REGION_COUNTS: [[f32; 32]; 2] = {
+    let mut t = [[0f32; 32]; 2];
+    let mut p = 0;
+    while p < 32 {
+        let ones = PARTITIONS[p].count_ones() as f32;
+        t[0][p] = 16.0 - ones;
+        t[1][p] = ones;
+        p += 1;
+    }
+    t
+};
+
 const fn region1_table() -> [Plane; 32] {
     let mut t = [[0f32; 16]; 32];
     let mut k = 0;
@@ -498,14 +511,16 @@ fn fit_line(target: &[Plane; 3], member: &Plane, reference: usize) -> [[f32; 3];
 
 /// An unnormalised dominant eigenvector of a symmetric 3x3 matrix (upper triangle xx, xy, xz,
 /// yy, yz, zz): eight power iterations as three squarings of the matrix (short dependency
-/// chains, one division), scaled by the trace first so that C^8 stays in range (every entry of
-/// C / trace is at most 1 and its largest eigenvalue at least 1/3). C^8 applied to the unit
+/// chains, no division), scaled by about 1 / trace first so that C^8 stays in range (every
+/// entry of the scaled matrix is at most 2 and its largest eigenvalue at least 1/3). C^8 applied to the unit
 /// vector of its largest diagonal entry (never orthogonal to the answer unless the matrix is
 /// degenerate) is that column. Zero for a zero matrix. Branch-free, so it vectorises over lanes.
 #[inline(always)]
 fn dominant_direction(cov: &[f32; 6]) -> [f32; 3] {
     let trace = cov[0] + cov[3] + cov[5];
-    let inv = if trace > f32::MIN_POSITIVE { 1.0 / trace } else { 0.0 };
+    // A power of two within a factor 2 of 1 / trace, from the exponent bits (no division).
+    let inv =
+        if trace > f32::MIN_POSITIVE { f32::from_bits(0x7F00_0000 - (trace.to_bits() & 0x7F80_0000)) } else { 0.0 };
     let mut m = [cov[0] * inv, cov[1] * inv, cov[2] * inv, cov[3] * inv, cov[4] * inv, cov[5] * inv];
     for _ in 0..3 {
         m = [
@@ -1033,36 +1048,30 @@ fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
     for k in 0..9 {
         total[k] = sum16(&moments[k]);
     }
-    // Region-1 sums for every partition.
+    // Region-1 sums for every partition, one moment at a time (the 32 accumulators stay in
+    // registers).
     let mut s1 = [[0f32; 32]; 9];
-    for i in 0..16 {
-        let lanes = &REGION1_BY_TEXEL[i];
-        for k in 0..9 {
+    for k in 0..9 {
+        let mut acc = [0f32; 32];
+        for i in 0..16 {
             let v = moments[k][i];
+            let lanes = &REGION1_BY_TEXEL[i];
             for p in 0..32 {
-                s1[k][p] += lanes[p] * v;
+                acc[p] += lanes[p] * v;
             }
         }
-    }
-    let mut n1 = [0f32; 32];
-    for i in 0..16 {
-        for p in 0..32 {
-            n1[p] += REGION1_BY_TEXEL[i][p];
-        }
+        s1[k] = acc;
     }
     let mut out = [0f32; 32];
     for region in 0..2 {
         let mut s = [[0f32; 32]; 9];
-        let mut n = [0f32; 32];
-        for p in 0..32 {
-            n[p] = if region == 1 { n1[p] } else { 16.0 - n1[p] };
-        }
+        let n = &REGION_COUNTS[region];
         for k in 0..9 {
             for p in 0..32 {
                 s[k][p] = if region == 1 { s1[k][p] } else { total[k] - s1[k][p] };
             }
         }
-        let residual = region_residuals(&s, &n);
+        let residual = region_residuals(&s, n);
         for p in 0..32 {
             out[p] += residual[p];
         }
@@ -1076,8 +1085,9 @@ fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
 fn region_residuals(s: &[[f32; 32]; 9], n: &[f32; 32]) -> [f32; 32] {
     let mut out = [0f32; 32];
     for p in 0..32 {
-        let np = if n[p] > 0.0 { n[p] } else { 1.0 };
-        let mu = [s[0][p] / np, s[1][p] / np, s[2][p] / np];
+        let np = n[p];
+        let inv_n = if np > 0.0 { 1.0 / np } else { 0.0 };
+        let mu = [s[0][p] * inv_n, s[1][p] * inv_n, s[2][p] * inv_n];
         let cov = [
             s[3][p] - np * mu[0] * mu[0],
             s[4][p] - np * mu[0] * mu[1],
