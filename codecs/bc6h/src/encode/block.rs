@@ -492,11 +492,19 @@ fn fit_line(target: &[Plane; 3], member: &Plane, reference: usize) -> [[f32; 3];
     for c in 0..3 {
         mean[c] = target[c][reference] + offset[c];
     }
-    let axis = principal_axis(&cov);
+    line_through(target, member, &mean, &cov)
+}
+
+/// The endpoints of the member texels' extent along the principal axis of `cov` through `mean`.
+#[inline(always)]
+fn line_through(target: &[Plane; 3], member: &Plane, mean: &[f32; 3], cov: &[f32; 6]) -> [[f32; 3]; 2] {
+    let axis = principal_axis(cov);
     let mut lo = [0f32; 16];
     let mut hi = [0f32; 16];
     for i in 0..16 {
-        let p = (d[0][i] - offset[0]) * axis[0] + (d[1][i] - offset[1]) * axis[1] + (d[2][i] - offset[2]) * axis[2];
+        let p = (target[0][i] - mean[0]) * axis[0]
+            + (target[1][i] - mean[1]) * axis[1]
+            + (target[2][i] - mean[2]) * axis[2];
         lo[i] = if member[i] != 0.0 { p } else { f32::INFINITY };
         hi[i] = if member[i] != 0.0 { p } else { f32::NEG_INFINITY };
     }
@@ -843,7 +851,7 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
         if partitions == 0 {
             return best;
         }
-        let mut residuals = partition_residuals(target);
+        let (mut residuals, moments) = partition_residuals(target);
         for _ in 0..partitions {
             // The best remaining partition (selection, not a sort: few are taken).
             let mut p = 0;
@@ -858,7 +866,10 @@ impl<'a, const S: bool> BlockEncoder<'a, S> {
             for i in 0..16 {
                 region0[i] = 1.0 - region1[i];
             }
-            let ends: Ends = [fit_line(target, &region0, 0), fit_line(target, region1, ANCHOR2[p] as usize)];
+            let (mean0, cov0) = moments.region(p, 0);
+            let (mean1, cov1) = moments.region(p, 1);
+            let ends: Ends =
+                [line_through(target, &region0, &mean0, &cov0), line_through(target, region1, &mean1, &cov1)];
             let modes = if self.search.all_two_region || only_mode.is_some() {
                 0x03FF
             } else {
@@ -1026,14 +1037,15 @@ fn nearest_by_projection<const S: bool, const N: usize, const TWO: bool>(
 /// from their region's principal line (from summed moments, without fitting endpoints). The
 /// 32 partitions are the SIMD lanes.
 #[inline(always)]
-fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
+fn partition_residuals(target: &[Plane; 3]) -> ([f32; 32], PartitionMoments) {
     // Per-texel moments about the block mean (which keeps f32 cancellation small): x, y, z,
     // xx, xy, xz, yy, yz, zz.
     let mut d = [[0f32; 16]; 3];
+    let mut block_mean = [0f32; 3];
     for c in 0..3 {
-        let mean = sum16(&target[c]) / 16.0;
+        block_mean[c] = sum16(&target[c]) / 16.0;
         for i in 0..16 {
-            d[c][i] = target[c][i] - mean;
+            d[c][i] = target[c][i] - block_mean[c];
         }
     }
     let mut moments = [[0f32; 16]; 9];
@@ -1076,7 +1088,37 @@ fn partition_residuals(target: &[Plane; 3]) -> [f32; 32] {
             out[p] += residual[p];
         }
     }
-    out
+    (out, PartitionMoments { block_mean, total, s1 })
+}
+
+/// The moment sums behind [`partition_residuals`], kept to fit the chosen partitions' lines
+/// without summing again.
+struct PartitionMoments {
+    block_mean: [f32; 3],
+    /// Sums over the block (x, y, z, xx, xy, xz, yy, yz, zz about the block mean).
+    total: [f32; 9],
+    /// The same over region 1, per partition.
+    s1: [[f32; 32]; 9],
+}
+
+impl PartitionMoments {
+    /// Mean and covariance (upper triangle) of region `r` of partition `p`.
+    #[inline(always)]
+    fn region(&self, p: usize, r: usize) -> ([f32; 3], [f32; 6]) {
+        let n = REGION_COUNTS[r][p];
+        let mut s = [0f32; 9];
+        for k in 0..9 {
+            s[k] = if r == 1 { self.s1[k][p] } else { self.total[k] - self.s1[k][p] };
+        }
+        let mu = [s[0] / n, s[1] / n, s[2] / n];
+        let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+        let mut cov = [0f32; 6];
+        for (k, &(x, y)) in pairs.iter().enumerate() {
+            cov[k] = s[3 + k] - n * mu[x] * mu[y];
+        }
+        let mean = [self.block_mean[0] + mu[0], self.block_mean[1] + mu[1], self.block_mean[2] + mu[2]];
+        (mean, cov)
+    }
 }
 
 /// Per lane: the squared distance of `n` points with moment sums `s` (x, y, z, xx, xy, xz, yy,
@@ -1258,7 +1300,7 @@ pub(crate) mod tests {
                     }
                 }
             }
-            let fast = partition_residuals(&tex.target);
+            let fast = partition_residuals(&tex.target).0;
             // f32 sums cancel: allow an error relative to the block's whole spread.
             let spread: f64 = (0..3)
                 .map(|c| {
