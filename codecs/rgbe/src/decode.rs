@@ -549,13 +549,7 @@ mod tests {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng(0x2545_F491_4F6C_DD1Du64);
         for n in [8usize, 100, 1024] {
             // Four channels of random runs (1..=127) and literals (1..=128), then the same
             // data cut short and with one byte corrupted, so the error paths are compared too.
@@ -607,21 +601,14 @@ mod tests {
             return;
         }
         let table = exponent_table();
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = crate::test_rng(0x9E37_79B9_7F4A_7C15u64);
         // Odd widths leave a tail after the 8-pixel vector steps; n = 256 also gets every
         // exponent 0..=255 (zero, the subnormal scales below 10, the normal ones) with
         // mantissas 0 and 255 besides random ones. Each row once as drawn (the kernel's path
         // for rows with subnormal scales) and once with exponents 1..=9 moved to 0 or 10 (its
         // shorter path for the other rows).
         for (n, subnormal) in [1usize, 7, 8, 9, 100, 256, 1023].into_iter().flat_map(|n| [(n, true), (n, false)]) {
-            let mut planes: Vec<u8> = (0..(n + SLACK) * 4)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    state as u8
-                })
-                .collect();
+            let mut planes: Vec<u8> = (0..(n + SLACK) * 4).map(|_| next() as u8).collect();
             if n == 256 {
                 for x in 0..n {
                     planes[3 * (n + SLACK) + x] = x as u8;

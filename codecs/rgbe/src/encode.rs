@@ -409,13 +409,7 @@ mod tests {
             let (y, z) = (vals[(i * 7 + 3) % len], vals[(i * 13 + 5) % len]);
             pixels.extend([[x, y, z], [y, x, z], [y, z, x], [x, x, x], [x, x * 0.5, x / 256.0], [x, 0.0, 0.0]]);
         }
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng(0x9E37_79B9_7F4A_7C15u64);
         for _ in 0..50_000 {
             let r = next();
             pixels.push([r as u32, (r >> 32) as u32, next() as u32].map(f32::from_bits));

@@ -22,6 +22,19 @@ mod decode;
 mod encode;
 mod header;
 
+/// A xorshift64 generator for the unit tests' random planes and pixels (deterministic, so a
+/// failure reproduces).
+#[cfg(test)]
+pub(crate) fn test_rng(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
 pub use decode::decode_pixel;
 pub use encode::encode_pixel;
 pub use header::{Axis, Header, PixelFormat};

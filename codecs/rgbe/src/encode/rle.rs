@@ -295,13 +295,7 @@ mod tests {
     /// reference loop; the portable writer and the one `write_channel` picks (AVX2 here).
     #[test]
     fn mask_writer_matches_rgbe_c() {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng(0x2545_F491_4F6C_DD1Du64);
         let mut cases: Vec<Vec<u8>> = Vec::new();
         for n in (1..300).chain([511, 512, 513, 1000, 1024, 4097]) {
             for style in 0..4 {
@@ -339,16 +333,9 @@ mod tests {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = crate::test_rng(0x9E37_79B9_7F4A_7C15u64);
         for n in (0..200).chain([1023, 1024, 1025]) {
-            let plane: Vec<u8> = (0..n + PAD)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    (state % 3) as u8
-                })
-                .collect();
+            let plane: Vec<u8> = (0..n + PAD).map(|_| (next() % 3) as u8).collect();
             let (mut a, mut b) = (vec![1u64; mask_words(n)], vec![2u64; mask_words(n)]);
             eq_mask_portable(&plane, n, &mut a);
             // SAFETY: AVX2 support was checked above.
