@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the reference implementations the validation tests compare against
 # (see ../shared/REFERENCES.md): Debian's OpenImageIO, OpenEXR, libtiff, jxrlib,
-# libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs.
+# libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs,
+# and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
 # Idempotent: re-running it on a prepared machine takes a few seconds.
 set -euo pipefail
 
@@ -34,4 +35,19 @@ if ! "$venv/bin/python" -c 'import imagecodecs, sys; sys.exit(imagecodecs.__vers
   "$venv/bin/pip" install -q --disable-pip-version-check "imagecodecs==2026.3.6"
 fi
 "$venv/bin/python" -c 'import imagecodecs, OpenImageIO, numpy' >/dev/null
+
+# --- KTX2 reference (tests/bc6h_ktx2_reference.rs): Node.js and the pinned npm package ktx-parse.
+if ! command -v node >/dev/null 2>&1; then
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  echo "setup: installing nodejs and npm" >&2
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
+fi
+if [ ! -f "$here/tests/ktx2/node_modules/ktx-parse/package.json" ] ||
+   ! grep -q '"version": "2.0.0"' "$here/tests/ktx2/node_modules/ktx-parse/package.json"; then
+  echo "setup: installing ktx-parse (tests/ktx2, npm ci)" >&2
+  (cd "$here/tests/ktx2" && npm ci --silent --no-audit --no-fund >/dev/null)
+fi
+(cd "$here/tests/ktx2" && node --input-type=module -e 'await import("ktx-parse")')
 echo "setup: reference tools ready (venv: $venv)" >&2

@@ -247,8 +247,9 @@ pub fn write_dds(tex: &Bc6hTexture) -> Result<Vec<u8>> {
 
 /// Header (48) + index (32).
 const KTX2_LEVEL_INDEX: usize = 80;
-/// KHR_DF_MODEL_BC6H.
-const KHR_DF_MODEL_BC6H: u32 = 131;
+/// KHR_DF_MODEL_BC6H (Khronos Data Format Specification 1.3, colorModel enumeration: 133;
+/// 131 is KHR_DF_MODEL_BC4).
+const KHR_DF_MODEL_BC6H: u32 = 133;
 const KHR_DF_PRIMARIES_BT709: u32 = 1;
 const KHR_DF_TRANSFER_LINEAR: u32 = 1;
 const KHR_DF_SAMPLE_DATATYPE_FLOAT: u32 = 0x80;
@@ -319,7 +320,7 @@ fn align(v: usize, to: usize) -> usize {
 }
 
 /// The data format descriptor of a BC6H texture (Khronos Data Format Specification 1.3,
-/// "BC6H" descriptor: model 131, 4x4 texel blocks, 16 bytes, one 128-bit float sample).
+/// "BC6H" descriptor: model 133, 4x4 texel blocks, 16 bytes, one 128-bit float sample).
 fn ktx2_dfd(signed: bool) -> Vec<u8> {
     let mut qualifiers = KHR_DF_SAMPLE_DATATYPE_FLOAT;
     if signed {
