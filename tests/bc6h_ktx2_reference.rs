@@ -20,8 +20,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Vulkan `VK_FORMAT_BC6H_UFLOAT_BLOCK` / `VK_FORMAT_BC6H_SFLOAT_BLOCK` (Vulkan specification,
-/// VkFormat; the KTX 2.0 header's vkFormat field, KTX 2.0 §3.1). Not 131/132: those are the
-/// BC1_RGB formats.
+/// VkFormat; the header's vkFormat field in the KTX 2.0 specification). Not 131/132: those are
+/// the BC1_RGB formats.
 const VK_BC6H_UFLOAT: u32 = 143;
 const VK_BC6H_SFLOAT: u32 = 144;
 
@@ -57,7 +57,7 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 /// Size in bytes of a BC6H surface: 16 bytes per 4x4 block, partial blocks rounded up
-/// (Microsoft "BC6H format"; KTX 2.0 §3.9.6 level sizes for block-compressed formats).
+/// (Microsoft "BC6H format"; KTX 2.0, "Level Index": byteLength of block-compressed levels).
 fn blocks_bytes(w: u32, h: u32) -> usize {
     w.div_ceil(4) as usize * h.div_ceil(4) as usize * 16
 }
@@ -86,7 +86,7 @@ fn image(w: u32, h: u32, signed: bool, seed: u64) -> HdrImage {
 const CASES: [(u32, u32, bool, u8); 6] =
     [(1, 1, false, 1), (5, 3, false, 3), (5, 3, true, 2), (13, 7, true, 4), (64, 64, false, 1), (64, 64, true, 3)];
 
-/// Levels of a full mip chain: floor(log2(max(w, h))) + 1 (KTX 2.0 §3.7 levelCount).
+/// Levels of a full mip chain: floor(log2(max(w, h))) + 1 (KTX 2.0, "levelCount").
 fn full_levels(w: u32, h: u32) -> usize {
     let mut n = 1;
     let mut m = w.max(h);
@@ -101,7 +101,8 @@ fn full_levels(w: u32, h: u32) -> usize {
 /// number of DFD/header fields compared.
 fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usize, signed: bool) -> usize {
     let vk = if signed { VK_BC6H_SFLOAT } else { VK_BC6H_UFLOAT };
-    // KTX 2.0 §3.1-3.8: typeSize 1 for block-compressed formats; a 2D texture has
+    // KTX 2.0 header fields ("typeSize", "pixelWidth/Height/Depth", "layerCount", "faceCount",
+    // "supercompressionScheme"): typeSize 1 for block-compressed formats; a 2D texture has
     // pixelDepth 0; a non-array texture layerCount 0; no cube map: faceCount 1; no
     // supercompression: scheme 0.
     let header = [
@@ -115,16 +116,17 @@ fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usiz
         ("levelCount", levels.to_string()),
         ("supercompressionScheme", "0".into()),
     ];
-    // Khronos Data Format Specification 1.3 (the DFD that KTX 2.0 §3.10 embeds):
-    // §5.1-5.3 vendorId KHR (0), descriptorType BASICFORMAT (0), versionNumber 2 (KDF 1.3);
-    // §5.6 colorModel KHR_DF_MODEL_BC6H = 133; §5.7 colorPrimaries BT709 = 1;
-    // §5.8 transferFunction LINEAR = 1 (BC6H holds linear floats); §5.9 flags 0;
-    // §5.10 texelBlockDimension stores dimension - 1: a 4x4x1x1 block is 3,3,0,0;
-    // §5.11 bytesPlane0 = 16 (one 128-bit block), planes 1-7 unused;
-    // §5.12-5.17 one sample covering bits 0..127: bitOffset 0, bitLength = bits - 1 = 127,
-    // channelType KHR_DF_CHANNEL_BC6H_COLOR (0) with qualifier FLOAT (0x80), plus SIGNED (0x40)
-    // for SF16; samplePosition 0; sampleLower/Upper are float bit patterns: 0 (unsigned) or
-    // -1.0 = 0xBF800000 (signed) to 1.0 = 0x3F800000 (the KDF's BC6H descriptors, §5.17).
+    // Khronos Data Format Specification 1.3, chapter "Khronos Basic Data Format Descriptor
+    // Block" (the DFD that KTX 2.0's "Data Format Descriptor" section embeds), field by field:
+    // vendorId KHRONOS (0), descriptorType BASICFORMAT (0), versionNumber 2 (KDF 1.3);
+    // colorModel KHR_DF_MODEL_BC6H = 133 (its "BC6H" model section); colorPrimaries BT709 = 1;
+    // transferFunction LINEAR = 1 (BC6H holds linear floats); flags 0; texelBlockDimension
+    // stores each dimension - 1, so a 4x4x1x1 block is 3,3,0,0; bytesPlane0 = 16 (one 128-bit
+    // block), planes 1-7 unused; one sample over bits 0..127: bitOffset 0, bitLength = bits - 1
+    // = 127, channelType KHR_DF_CHANNEL_BC6H_COLOR (0) with the qualifier FLOAT (0x80), plus
+    // SIGNED (0x40) for SF16; samplePosition 0; sampleLower/sampleUpper hold float bit
+    // patterns for float samples: 0 (unsigned) or -1.0 = 0xBF800000 (signed), to 1.0 =
+    // 0x3F800000 (the descriptors khr_df.h / the KDF give for BC6H UFLOAT and SFLOAT).
     let channel_type = 0x80 | if signed { 0x40 } else { 0 };
     let lower: u32 = if signed { 0xBF80_0000 } else { 0 };
     let dfd = [
@@ -157,7 +159,7 @@ fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usiz
         assert_eq!(get(facts, &format!("dfd.bytesPlane.{p}")), "0", "bytesPlane{p}");
     }
     assert!(!facts.contains_key("dfd.samples.1.bitLength"), "BC6H has exactly one sample");
-    // KTX 2.0 §3.9.7: without supercompression uncompressedByteLength equals byteLength.
+    // KTX 2.0, "Level Index": without supercompression uncompressedByteLength = byteLength.
     for i in 0..levels {
         let (lw, lh) = ((w >> i).max(1), (h >> i).max(1));
         let need = blocks_bytes(lw, lh).to_string();
