@@ -71,8 +71,15 @@ fn bench(c: &mut Criterion) {
         let mut ours = vec![0f32; s.width as usize * s.height as usize * 3];
         group.bench_with_input(BenchmarkId::new("hdrcodec", &s.name), &s, |b, s| {
             b.iter(|| {
-                decode_surface_into(s.width, s.height, black_box(&s.blocks), s.signed, false, black_box(&mut ours))
-                    .unwrap()
+                decode_surface_into(
+                    s.width,
+                    s.height,
+                    black_box(&s.blocks),
+                    s.signed,
+                    &hdrcodec_core::ThreadPool::single(),
+                    black_box(&mut ours),
+                )
+                .unwrap()
             })
         });
         group.bench_with_input(BenchmarkId::new("bcdec_rs", &s.name), &s, |b, s| {

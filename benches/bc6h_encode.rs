@@ -34,7 +34,7 @@ fn ours(effort: u8) -> Encoder {
     (
         format!("hdrcodec-e{effort}"),
         Box::new(move |img: &peers::Image| {
-            let opts = EncodeOptions { signed: false, effort, threads: 1 };
+            let opts = EncodeOptions { signed: false, effort, ..Default::default() };
             encode_surface(img.width as u32, img.height as u32, &img.rgb, &opts).unwrap()
         }),
     )

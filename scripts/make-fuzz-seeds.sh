@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:?usage: make-fuzz-seeds.sh DIR}"
 rm -rf "$out"; mkdir -p "$out"
-cargo build --release --quiet --bin hdrcodec
+cargo build --release --quiet -p hdrcodec-cli --bin hdrcodec
 bin=target/release/hdrcodec
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 "$bin" corpus write "$work/scenes" >/dev/null

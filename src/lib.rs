@@ -8,10 +8,14 @@
 //! use hdrcodec::core::{EncodeSettings, Limits};
 //! let reg = hdrcodec::registry();
 //! let (_codec, image) = reg.read(std::path::Path::new("in.exr"), &Limits::default())?;
-//! let pfm = reg.for_output(std::path::Path::new("out.pfm"))?.encode(&image, &EncodeSettings::default())?;
+//! let codec = reg.for_output(std::path::Path::new("out.pfm"))?;
+//! // PFM records no primaries: the samples are kept as they are, and a note says so.
+//! let (pfm, _notes) = hdrcodec::encode_for(codec.as_ref(), &image, &EncodeSettings::default())?;
 //! hdrcodec::write_atomic(std::path::Path::new("out.pfm"), &pfm)?;
 //! # Ok::<(), hdrcodec::core::Error>(())
 //! ```
+
+#![forbid(unsafe_code)]
 
 pub use hdrcodec_bc6h as bc6h;
 pub use hdrcodec_container as container;
@@ -21,10 +25,9 @@ pub use hdrcodec_logluv as logluv;
 pub use hdrcodec_pfm as pfm;
 pub use hdrcodec_rgbe as rgbe;
 
-pub mod bench;
-pub mod corpus;
-
-use crate::core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use crate::core::{
+    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result,
+};
 use std::borrow::Cow;
 use std::io::Write;
 use std::path::Path;
@@ -161,8 +164,18 @@ impl Registry {
 
     /// Decodes `data` (the contents of `path`) with the codec [`Registry::for_input`] picks.
     pub fn decode(&self, path: &Path, data: &[u8], limits: &Limits) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
+        self.decode_with(path, data, &DecodeOptions::new(limits.clone()))
+    }
+
+    /// [`Registry::decode`] with the caller's limits and threads.
+    pub fn decode_with(
+        &self,
+        path: &Path,
+        data: &[u8],
+        options: &DecodeOptions,
+    ) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
         let codec = self.for_input(path, data)?;
-        let image = codec.decode(data, limits)?;
+        let image = codec.decode_with(data, options)?;
         Ok((codec, image))
     }
 
@@ -178,25 +191,130 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))))
 }
 
-/// Encodes `image` with `codec` so that its colours survive the round trip. The result is
-/// decoded once (a codec must read what it wrote); a format that cannot record primaries reads
-/// back with fixed ones (PFM and DDS read as BT.709), and then the pixels are converted to those
-/// primaries and encoded again. Returns the bytes and the image they encode.
-pub fn encode_keeping_colours<'a>(
+/// The option every codec accepts through the facade: `primaries=NAME` converts the image to
+/// the named primaries before encoding (see [`prepare_colour`]).
+pub const PRIMARIES_OPTION: &str = "primaries";
+
+/// An image made ready for one codec's colour signalling by [`prepare_colour`].
+#[derive(Debug)]
+pub struct PreparedImage<'a> {
+    /// The samples to encode: the input itself, or a converted copy.
+    pub image: Cow<'a, HdrImage>,
+    /// The settings to encode with, without the facade's own `primaries` option.
+    pub settings: EncodeSettings,
+    /// What was done or kept, one sentence each, for the user.
+    pub notes: Vec<String>,
+}
+
+/// Makes `image` ready for `codec`, converting its colour at most once and only into what the
+/// format can say ([`ImageCodec::color_signalling`]):
+/// - `primaries=NAME` among the settings' options converts explicitly to NAME (an error if the
+///   format records primaries but not these; for a format that records none, the converted
+///   samples are stored without a label). The option is removed before the codec sees it.
+/// - Otherwise a format that records any primaries gets the image as it is; one that records a
+///   fixed set gets it as it is when its primaries are in the set, else converted to BT.2020
+///   (or the set's first entry) with a note; one that records none keeps the samples as they are
+///   (no gamut conversion, no clipping) and a note says that they will read back unspecified.
+///
+/// Samples whose primaries are unspecified (from a PFM or DDS file) are never converted:
+/// `primaries=NAME` *labels* them as NAME (the user knows what the samples are), and without it
+/// a format that records primaries but cannot say "unknown" stores its default (BT.709 for
+/// OpenEXR and Radiance) and its encoder's report says so.
+pub fn prepare_colour<'a>(
     codec: &dyn ImageCodec,
     image: &'a HdrImage,
     settings: &EncodeSettings,
-) -> Result<(Vec<u8>, Cow<'a, HdrImage>)> {
-    let bytes = codec.encode(image, settings)?;
-    let back = codec.decode(&bytes, &Limits::none()).map_err(|e| {
-        Error::invalid(format!("the {} data just encoded does not decode ({e}); nothing written", codec.name()))
-    })?;
-    if back.color.primaries == image.color.primaries {
-        return Ok((bytes, Cow::Borrowed(image)));
+) -> Result<PreparedImage<'a>> {
+    let requested = match settings.option(PRIMARIES_OPTION) {
+        None => None,
+        Some(name) => Some(ColorPrimaries::from_name(name).ok_or_else(|| {
+            Error::invalid(format!(
+                "option primaries={name}: unknown primaries (known: bt709, bt2020, p3, dci-p3, aces, acescg, adobe-rgb, xyz)"
+            ))
+        })?),
+    };
+    let settings = settings.clone().without_option(PRIMARIES_OPTION);
+    let signalling = codec.color_signalling();
+    let from = image.color.primaries;
+    let mut notes = Vec::new();
+    let target = match (requested, signalling) {
+        (Some(p), ColorSignalling::None) => {
+            notes.push(format!(
+                "{} records no primaries: the samples were converted to {} and are stored without a label",
+                codec.name(),
+                p.name()
+            ));
+            Some(p)
+        }
+        (Some(p), s) if !s.can_record(&p) => {
+            return Err(Error::unsupported(format!(
+                "{} cannot record {} primaries{}",
+                codec.name(),
+                p.name(),
+                recordable(&s)
+            )))
+        }
+        (Some(p), _) => Some(p),
+        (None, ColorSignalling::Only(set)) if !set.contains(&from) && from.is_specified() => {
+            let to = if set.contains(&ColorPrimaries::Bt2020) { ColorPrimaries::Bt2020 } else { set[0] };
+            notes.push(format!(
+                "{} cannot record {} primaries{}: the samples were converted to {}",
+                codec.name(),
+                from.name(),
+                recordable(&signalling),
+                to.name()
+            ));
+            Some(to)
+        }
+        (None, ColorSignalling::None) if from.is_specified() => {
+            notes.push(format!(
+                "{} records no primaries: the {} samples are stored as they are and read back as unspecified \
+                 (--opt primaries=NAME converts them)",
+                codec.name(),
+                from.name()
+            ));
+            None
+        }
+        (None, _) => None,
+    };
+    let image = match target {
+        Some(to) if !from.is_specified() => {
+            notes.push(format!("the input records no primaries: its samples are labelled {} as asked", to.name()));
+            let mut labelled = image.clone();
+            labelled.color.primaries = to;
+            Cow::Owned(labelled)
+        }
+        Some(to) if to != from => Cow::Owned(crate::core::color::convert_primaries(image, to)),
+        // A format that cannot say "unspecified" notes what it recorded instead (EncodeReport).
+        _ => Cow::Borrowed(image),
+    };
+    Ok(PreparedImage { image, settings, notes })
+}
+
+/// ", which can record X, Y and Z" for an error message.
+fn recordable(s: &ColorSignalling) -> String {
+    match s {
+        ColorSignalling::Only(set) => {
+            let names: Vec<_> = set.iter().filter(|p| p.is_specified()).map(|p| p.name()).collect();
+            format!(" (it records {})", names.join(", "))
+        }
+        _ => String::new(),
     }
-    let converted = crate::core::color::convert_primaries(image, back.color.primaries);
-    let bytes = codec.encode(&converted, settings)?;
-    Ok((bytes, Cow::Owned(converted)))
+}
+
+/// Encodes `image` for `codec`: [`prepare_colour`], then the codec. Returns the bytes and the
+/// notes of both (colour decisions, values the format clipped).
+pub fn encode_for(
+    codec: &dyn ImageCodec,
+    image: &HdrImage,
+    settings: &EncodeSettings,
+) -> Result<(Vec<u8>, Vec<String>)> {
+    let prepared = prepare_colour(codec, image, settings)?;
+    let mut bytes = Vec::new();
+    let report = codec.encode_to(&prepared.image, &prepared.settings, &mut bytes)?;
+    let mut notes = prepared.notes;
+    notes.extend(report.notes);
+    Ok((bytes, notes))
 }
 
 /// Writes `bytes` to `path` so that `path` either gets the whole content or is left untouched:
@@ -254,11 +372,20 @@ mod tests {
         fn sniff(&self, head: &[u8]) -> bool {
             head.starts_with(self.2)
         }
-        fn decode(&self, _: &[u8], _: &Limits) -> Result<HdrImage> {
+        fn color_signalling(&self) -> crate::core::ColorSignalling {
+            crate::core::ColorSignalling::Any
+        }
+        fn decode_with(&self, _: &[u8], _: &crate::core::DecodeOptions) -> Result<HdrImage> {
             Err(Error::unsupported(self.0))
         }
-        fn encode(&self, _: &HdrImage, _: &EncodeSettings) -> Result<Vec<u8>> {
-            Ok(self.2.to_vec())
+        fn encode_to(
+            &self,
+            _: &HdrImage,
+            _: &EncodeSettings,
+            out: &mut dyn Write,
+        ) -> Result<crate::core::EncodeReport> {
+            out.write_all(self.2)?;
+            Ok(crate::core::EncodeReport::new())
         }
     }
 

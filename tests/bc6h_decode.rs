@@ -96,7 +96,8 @@ fn differential_surface(signed: bool, seed: u64) {
             let (x, y) = (i % BX, i / BX);
             bcdec_rs::bc6h_float(blk, &mut theirs[y * 4 * pitch + x * 12..], pitch, signed);
         }
-        decode_surface_into(w as u32, h as u32, &blocks, signed, false, &mut ours).unwrap();
+        decode_surface_into(w as u32, h as u32, &blocks, signed, &hdrcodec_core::ThreadPool::single(), &mut ours)
+            .unwrap();
         for y in 0..h {
             let (a, b) = (&ours[y * w * 3..][..w * 3], &theirs[y * pitch..][..w * 3]);
             if let Some(k) = a.iter().zip(b).position(|(p, q)| p.to_bits() != q.to_bits()) {
@@ -278,7 +279,7 @@ fn dds_we_write_decodes_identically_in_imagecodecs_and_openimageio() {
         // And a file from our encoder (a 124x76 crop of the decoded corpus image, full mips).
         let full = src.decode_level(0, &Limits::default()).unwrap();
         let crop: Vec<f32> = (0..76).flat_map(|y| full[y * 644 * 3..(y * 644 + 124) * 3].to_vec()).collect();
-        let options = EncodeOptions { signed: src.signed, effort: 1, threads: 1 };
+        let options = EncodeOptions { signed: src.signed, effort: 1, ..Default::default() };
         let tex = encode_texture(124, 76, &crop, &options, true).expect("encode");
         let out = dir.join(format!("encoded{i}.dds"));
         std::fs::write(&out, write_dds(&tex).unwrap()).unwrap();

@@ -139,13 +139,13 @@ fn corpus_blocks_decode_with_bcdec_as_the_encoder_believes() {
             let rgb: Vec<f32> =
                 img.rgb.iter().enumerate().map(|(i, &v)| if signed && i % 7 == 0 { -v } else { v }).collect();
             for effort in [0, 3, 6] {
-                let opts = EncodeOptions { signed, effort, threads: 1 };
+                let opts = EncodeOptions { signed, effort, ..Default::default() };
                 let serial = encode_surface(img.width as u32, img.height as u32, &rgb, &opts).unwrap();
                 let parallel = encode_surface(
                     img.width as u32,
                     img.height as u32,
                     &rgb,
-                    &EncodeOptions { threads: 0, ..opts.clone() },
+                    &EncodeOptions { pool: hdrcodec_core::ThreadPool::new(0).unwrap(), ..opts.clone() },
                 )
                 .unwrap();
                 assert_eq!(serial, parallel, "{} effort {effort}", img.name);
@@ -176,7 +176,8 @@ fn nan_inf_and_negatives_never_produce_garbage() {
     for signed in [false, true] {
         // Whole blocks of one special value.
         for &v in &specials {
-            let blocks = encode_surface(4, 4, &[v; 48], &EncodeOptions { signed, effort: 5, threads: 1 }).unwrap();
+            let blocks =
+                encode_surface(4, 4, &[v; 48], &EncodeOptions { signed, effort: 5, ..Default::default() }).unwrap();
             let out = peers::decode_blocks(4, 4, &blocks, signed);
             let expect = if v.is_nan() || (!signed && v < 0.0) { 0.0 } else { v.clamp(-65504.0, 65504.0) };
             for &o in &out {
@@ -189,7 +190,7 @@ fn nan_inf_and_negatives_never_produce_garbage() {
             *x = if rng.below(4) == 0 { specials[rng.below(8) as usize] } else { rng.below(1000) as f32 / 10.0 };
         }
         for effort in [0, 5, 9] {
-            let blocks = encode_surface(16, 16, &rgb, &EncodeOptions { signed, effort, threads: 1 }).unwrap();
+            let blocks = encode_surface(16, 16, &rgb, &EncodeOptions { signed, effort, ..Default::default() }).unwrap();
             for (i, &o) in peers::decode_blocks(16, 16, &blocks, signed).iter().enumerate() {
                 assert!(o.is_finite(), "sample {i}: {o}");
                 assert!(signed || o >= 0.0, "sample {i}: {o} negative in UF16");
@@ -212,7 +213,7 @@ fn partial_blocks_replicate_edges() {
         }
     }
     for effort in [0, 9] {
-        let opts = EncodeOptions { effort, threads: 1, ..Default::default() };
+        let opts = EncodeOptions { effort, ..Default::default() };
         let blocks = encode_surface(5, 3, &rgb, &opts).unwrap();
         assert_eq!(blocks.len(), 32);
         assert_eq!(blocks, encode_surface(8, 4, &padded, &opts).unwrap());
@@ -256,7 +257,7 @@ fn quality_against_ispc_and_block_compression() {
                 img.width as u32,
                 img.height as u32,
                 &img.rgb,
-                &EncodeOptions { signed: false, effort, threads: 0 },
+                &EncodeOptions { signed: false, effort, pool: hdrcodec_core::ThreadPool::new(0).unwrap() },
             )
             .unwrap()
         }

@@ -180,13 +180,14 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
         for (case, &(w, h, mips, effort)) in CASES.iter().enumerate() {
             let img = image(w, h, signed, 0x6b74_7832 + case as u64);
             let flag = |b: bool| if b { "true" } else { "false" };
-            let settings = EncodeSettings { effort, threads: 1, ..EncodeSettings::default() }
+            let settings = EncodeSettings::default()
+                .with_effort(effort)
                 .with_option("signed", flag(signed))
                 .with_option("mips", flag(mips));
             let ktx = Bc6hKtx2Codec.encode(&img, &settings).expect("KTX2 encode");
             let dds = Bc6hDdsCodec.encode(&img, &settings).expect("DDS encode");
             // The blocks the writer was given: the same encoder run directly.
-            let options = EncodeOptions { signed, effort, threads: 1 };
+            let options = EncodeOptions { signed, effort, ..Default::default() };
             let tex = encode_texture(w, h, img.samples(), &options, mips).expect("encode_texture");
             assert_eq!(hdrcodec::bc6h::write_ktx2(&tex).unwrap(), ktx, "codec and write_ktx2 agree");
 

@@ -35,7 +35,7 @@ fn rgbe_tiles_decode_exactly_like_the_whole_image() {
     let whole = rgbe.decode(&rgbe.encode(&img, &s).unwrap(), &Limits::default()).unwrap();
     let file = encode_image(&img, &rgbe, &s, Some(64)).unwrap();
     let resolve = |id: [u8; 4]| (id == rgbe.id()).then_some(&rgbe as &dyn ImageCodec);
-    let back = decode_image(&file, &Limits::default(), &resolve).unwrap();
+    let back = decode_image(&file, &Limits::default().into(), &resolve).unwrap();
     assert_eq!(back.samples(), whole.samples());
     let r = Reader::new(&file, &Limits::default()).unwrap();
     assert_eq!(r.data_chunks().len(), 15);

@@ -26,7 +26,7 @@ fn bench(c: &mut Criterion) {
         });
         let file = encode_image(&img, codec, &s, Some(256)).unwrap();
         g.bench_function(format!("decode {} tiles 256", codec.name()), |b| {
-            b.iter(|| decode_image(black_box(&file), &Limits::default(), &|_| Some(codec)).unwrap())
+            b.iter(|| decode_image(black_box(&file), &Limits::default().into(), &|_| Some(codec)).unwrap())
         });
     }
     let data = vec![0xA5u8; 64 << 20];

@@ -326,6 +326,8 @@ pub(crate) fn parse_index(p: &[u8]) -> Result<Vec<IndexEntry>> {
 
 // The COLR chunk stores 1 + the index into this list; the order is part of the format.
 const NAMED_PRIMARIES: [ColorPrimaries; 8] = ColorPrimaries::NAMED;
+/// The COLR primaries id of [`ColorPrimaries::Unspecified`].
+const UNSPECIFIED_ID: u8 = 255;
 
 fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
     for x in v {
@@ -337,7 +339,8 @@ fn chroma_values(c: &Chromaticities) -> [f64; 8] {
     [c.red[0], c.red[1], c.green[0], c.green[1], c.blue[0], c.blue[1], c.white[0], c.white[1]]
 }
 
-/// COLR: primaries id (0 = custom, followed by eight f64 chromaticities), then `nits_per_unit` (f32).
+/// COLR: primaries id (0 = custom, followed by eight f64 chromaticities; 255 = unspecified),
+/// then `nits_per_unit` (f32).
 pub(crate) fn color_bytes(color: &ColorInfo) -> Vec<u8> {
     let mut b = Vec::with_capacity(69);
     match color.primaries {
@@ -345,7 +348,15 @@ pub(crate) fn color_bytes(color: &ColorInfo) -> Vec<u8> {
             b.push(0);
             put_f64s(&mut b, &chroma_values(&ch));
         }
-        named => b.push(NAMED_PRIMARIES.iter().position(|p| *p == named).map_or(0, |i| i as u8 + 1)),
+        ColorPrimaries::Unspecified => b.push(UNSPECIFIED_ID),
+        named => match NAMED_PRIMARIES.iter().position(|p| *p == named) {
+            Some(i) => b.push(i as u8 + 1),
+            // A space without a number of its own: its chromaticities.
+            None => {
+                b.push(0);
+                put_f64s(&mut b, &chroma_values(&named.chromaticities()));
+            }
+        },
     }
     b.extend_from_slice(&color.nits_per_unit.to_be_bytes());
     b
@@ -368,6 +379,10 @@ pub(crate) fn parse_color(p: &[u8]) -> Result<ColorInfo> {
         1..=8 => {
             Cursor::exact(p, 5, "COLR with named primaries")?;
             NAMED_PRIMARIES[usize::from(id - 1)]
+        }
+        UNSPECIFIED_ID => {
+            Cursor::exact(p, 5, "COLR with unspecified primaries")?;
+            ColorPrimaries::Unspecified
         }
         _ => return Err(Error::invalid(format!("unknown primaries id {id}"))),
     };

@@ -5,21 +5,8 @@ use crate::format::{DataHeader, Head, SIGNATURE};
 use crate::raw::{RawF16Codec, RawF32Codec};
 use crate::reader::{in_chunk, Reader};
 use crate::writer::Writer;
-use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
-use rayon::prelude::*;
+use hdrcodec_core::{DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Result};
 use std::sync::Arc;
-
-/// Runs `f` on a pool of `threads` workers (0: rayon's global pool, one per core).
-fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
-    if threads == 0 {
-        return Ok(f());
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| Error::Io(std::io::Error::other(e.to_string())))?;
-    Ok(pool.install(f))
-}
 
 /// The pixels of `image` inside the tile `t`, as an image of their own (same colour, no metadata).
 fn crop(image: &HdrImage, t: &DataHeader) -> Result<HdrImage> {
@@ -45,8 +32,8 @@ pub fn encode_image(
 ///
 /// Each frame is cut into tiles of `tile_size` × `tile_size` pixels (`None`: one tile per
 /// frame); each tile is a complete stand-alone encoding by `payload_codec` with `settings`,
-/// and the tiles are encoded in parallel (`settings.threads` workers, 0 = one per core). COLR,
-/// HDRM and META come from the first frame.
+/// and the tiles are encoded in parallel on `settings.pool` (which the payload codec shares:
+/// no second pool is started). COLR, HDRM and META come from the first frame.
 pub fn encode_frames(
     frames: &[HdrImage],
     payload_codec: &dyn ImageCodec,
@@ -78,15 +65,11 @@ pub fn encode_frames(
     }
     let tiles: Vec<(usize, DataHeader)> =
         frames.iter().enumerate().flat_map(|(i, _)| head.frame_tiles(i as u32).map(move |t| (i, t))).collect();
-    let payloads: Vec<Result<Vec<u8>>> = with_threads(settings.threads, || {
-        tiles
-            .par_iter()
-            .map(|(i, t)| {
-                let tile = crop(&frames[*i], t)?;
-                payload_codec.encode(&tile, settings)
-            })
-            .collect()
-    })?;
+    let payloads: Vec<Result<Vec<u8>>> = settings.pool.map(tiles.len(), |k| {
+        let (i, t) = &tiles[k];
+        let tile = crop(&frames[*i], t)?;
+        payload_codec.encode(&tile, settings)
+    });
     let mut w = Writer::new(Vec::new(), &head)?;
     w.write_color(&first.color)?;
     if let Some(h) = &first.color.hdr10 {
@@ -105,34 +88,34 @@ pub fn encode_frames(
 /// codec for the HEAD's codec id.
 pub fn decode_image<'c>(
     data: &[u8],
-    limits: &Limits,
+    options: &DecodeOptions,
     resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
 ) -> Result<HdrImage> {
-    let r = Reader::new(data, limits)?;
+    let r = Reader::new(data, &options.limits)?;
     if r.head().frames != 1 {
         return Err(Error::unsupported(format!(
             "the .hdrc file holds {} frames; decode it as a frame sequence",
             r.head().frames
         )));
     }
-    let mut v = decode_reader(&r, limits, resolve)?;
+    let mut v = decode_reader(&r, options, resolve)?;
     Ok(v.remove(0))
 }
 
-/// Decodes every frame of a `.hdrc` file. The tiles of each frame are decoded in parallel and
-/// each must decode to exactly its rectangle's size. A tile that decodes with a different
+/// Decodes every frame of a `.hdrc` file. The tiles of each frame are decoded in parallel on
+/// `options.pool` and each must decode to exactly its rectangle's size. A tile that decodes with a different
 /// channel layout (a payload codec without alpha) is converted: alpha dropped or set to 1.
 pub fn decode_frames<'c>(
     data: &[u8],
-    limits: &Limits,
+    options: &DecodeOptions,
     resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
 ) -> Result<Vec<HdrImage>> {
-    decode_reader(&Reader::new(data, limits)?, limits, resolve)
+    decode_reader(&Reader::new(data, &options.limits)?, options, resolve)
 }
 
 fn decode_reader<'c>(
     r: &Reader<'_>,
-    limits: &Limits,
+    options: &DecodeOptions,
     resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
 ) -> Result<Vec<HdrImage>> {
     let h = *r.head();
@@ -140,37 +123,32 @@ fn decode_reader<'c>(
         Error::unsupported(format!("the payload codec '{}' of this .hdrc file", crate::format::type_name(h.codec)))
     })?;
     let frame_bytes = (u64::from(h.width) * u64::from(h.height)).saturating_mul(h.channels.count() as u64 * 4);
+    let limits = &options.limits;
     limits.check_alloc(frame_bytes.saturating_mul(u64::from(h.frames)), "the decoded frames")?;
     let color = r.color_info();
     let c = h.channels.count();
     let mut out = Vec::with_capacity(h.frames as usize);
     for f in 0..h.frames {
         let refs: Vec<_> = r.frame_tiles(f).collect();
-        let tiles: Vec<HdrImage> = refs
-            .par_iter()
-            .map(|d| {
-                let t = d.header;
-                let tile_limits = Limits {
-                    max_width: t.width,
-                    max_height: t.height,
-                    max_pixels: u64::from(t.width) * u64::from(t.height),
-                    max_alloc_bytes: limits.max_alloc_bytes,
-                };
-                let ctx = format!(
-                    "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
-                    d.offset, t.width, t.height, t.x, t.y
-                );
-                let img = codec.decode(d.payload, &tile_limits).map_err(|e| in_chunk(&ctx, e))?;
-                if (img.width(), img.height()) != (t.width, t.height) {
-                    return Err(Error::invalid(format!(
-                        "{ctx}: the payload decodes to {}x{}",
-                        img.width(),
-                        img.height()
-                    )));
-                }
-                Ok(img.with_channels(h.channels))
-            })
-            .collect::<Result<_>>()?;
+        let tiles: Vec<Result<HdrImage>> = options.pool.map(refs.len(), |k| {
+            let d = &refs[k];
+            let t = d.header;
+            // A clone shares the caller's allocation budget; the tile's own size bounds it.
+            let mut tile_options = options.clone();
+            tile_options.limits.max_width = t.width;
+            tile_options.limits.max_height = t.height;
+            tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
+            let ctx = format!(
+                "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
+                d.offset, t.width, t.height, t.x, t.y
+            );
+            let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
+            if (img.width(), img.height()) != (t.width, t.height) {
+                return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
+            }
+            Ok(img.with_channels(h.channels))
+        });
+        let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
         // Allocated only once every tile has decoded to its rectangle.
         let mut frame = HdrImage::zeroed(h.width, h.height, h.channels);
         for (d, tile) in refs.iter().zip(tiles) {
@@ -242,13 +220,24 @@ impl ImageCodec for HdrcCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.starts_with(&SIGNATURE)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        decode_image(data, limits, &|id| self.resolve(id))
+    /// The COLR chunk records any primaries.
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::Any
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        decode_image(data, options, &|id| self.resolve(id))
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
         let (inner, own): (Vec<_>, Vec<_>) =
             settings.options.iter().cloned().partition(|(k, _)| k.starts_with("payload."));
-        let own = EncodeSettings { options: own, ..settings.clone() };
+        let mut own_settings = settings.clone();
+        own_settings.options = own;
+        let own = own_settings;
         own.check_options("hdrc", &["payload", "tile", "payload.<key>"])?;
         let name = own.option("payload").unwrap_or("raw-f32");
         let codec = self.codecs.iter().find(|c| c.name() == name).ok_or_else(|| {
@@ -256,10 +245,10 @@ impl ImageCodec for HdrcCodec {
             Error::invalid(format!("option payload={name}: unknown codec (known: {})", names.join(", ")))
         })?;
         let tile = own.parse_option::<u32>("tile")?.filter(|&t| t > 0);
-        let inner = EncodeSettings {
-            options: inner.into_iter().map(|(k, v)| (k["payload.".len()..].to_string(), v)).collect(),
-            ..settings.clone()
-        };
-        encode_image(image, codec.as_ref(), &inner, tile)
+        let mut inner_settings = settings.clone();
+        inner_settings.options = inner.into_iter().map(|(k, v)| (k["payload.".len()..].to_string(), v)).collect();
+        let inner = inner_settings;
+        out.write_all(&encode_image(image, codec.as_ref(), &inner, tile)?)?;
+        Ok(hdrcodec_core::EncodeReport::new())
     }
 }

@@ -16,7 +16,7 @@
 //! let samples = (0..5 * 3 * 3).map(|i| i as f32 * 0.5).collect();
 //! let img = HdrImage::new(5, 3, Channels::Rgb, samples, ColorInfo::default())?;
 //! let file = encode_image(&img, &RawF32Codec, &EncodeSettings::default(), Some(2))?;
-//! let back = decode_image(&file, &Limits::default(), &|id| (id == *b"RF32").then_some(&RawF32Codec as &dyn ImageCodec))?;
+//! let back = decode_image(&file, &Limits::default().into(), &|id| (id == *b"RF32").then_some(&RawF32Codec as &dyn ImageCodec))?;
 //! assert_eq!(back, img);
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```

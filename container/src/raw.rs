@@ -118,11 +118,21 @@ macro_rules! raw_codec {
             fn sniff(&self, head: &[u8]) -> bool {
                 head.starts_with(&<$t as Sample>::ID)
             }
-            fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-                decode::<$t>(data, limits)
+            /// Raw samples carry no colour of their own: the container's COLR chunk does.
+            fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+                hdrcodec_core::ColorSignalling::None
             }
-            fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
-                encode::<$t>(image, settings)
+            fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+                decode::<$t>(data, &options.limits)
+            }
+            fn encode_to(
+                &self,
+                image: &HdrImage,
+                settings: &EncodeSettings,
+                out: &mut dyn std::io::Write,
+            ) -> Result<hdrcodec_core::EncodeReport> {
+                out.write_all(&encode::<$t>(image, settings)?)?;
+                Ok(hdrcodec_core::EncodeReport::new())
             }
         }
     };

@@ -87,7 +87,7 @@ impl<R: Read + Seek> SeekReader<R> {
         if grid.windows(2).any(|w| w[0].0 == w[1].0) {
             return Err(Error::invalid(format!("{ctx}: a tile is listed twice")));
         }
-        Ok(SeekReader { inner, head, index, grid, indx_at, limits: *limits })
+        Ok(SeekReader { inner, head, index, grid, indx_at, limits: limits.clone() })
     }
 
     /// The HEAD chunk.

@@ -41,7 +41,7 @@ fn assert_rejected(data: &[u8], what: &str) {
         Err(e) => e.to_string(),
     };
     assert!(e.contains("chunk") || e.contains("signature"), "{what}: the error does not say where: {e}");
-    assert!(decode_frames(data, &Limits::fuzzing(), &raw).is_err(), "{what}: decode_frames accepted it");
+    assert!(decode_frames(data, &Limits::fuzzing().into(), &raw).is_err(), "{what}: decode_frames accepted it");
 }
 
 #[test]
@@ -49,7 +49,7 @@ fn every_truncation_is_an_error() {
     for codec in [&RawF32Codec as &dyn ImageCodec, &RawF16Codec] {
         let file = sample_file(codec);
         assert_eq!(Reader::new(&file, &Limits::fuzzing()).unwrap().data_chunks().len(), 12);
-        assert_eq!(decode_frames(&file, &Limits::fuzzing(), &raw).unwrap().len(), 2);
+        assert_eq!(decode_frames(&file, &Limits::fuzzing().into(), &raw).unwrap().len(), 2);
         for n in 0..file.len() {
             assert_rejected(&file[..n], &format!("{} truncated to {n} of {} bytes", codec.name(), file.len()));
         }

@@ -54,7 +54,7 @@ fn a_million_by_a_million_head_fails_before_allocating() {
     LARGEST.store(0, Ordering::Relaxed);
     let e = Reader::new(&file, &Limits::default()).unwrap_err();
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
-    let e = decode_image(&file, &Limits::none(), &|_| Some(&RawF32Codec as &dyn ImageCodec)).unwrap_err();
+    let e = decode_image(&file, &Limits::none().into(), &|_| Some(&RawF32Codec as &dyn ImageCodec)).unwrap_err();
     // Without limits the 4-byte payload is what stops it, still before the frame is allocated.
     assert!(matches!(e, Error::Truncated { .. }), "{e}");
     let largest = LARGEST.load(Ordering::Relaxed);

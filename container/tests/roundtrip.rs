@@ -39,7 +39,7 @@ fn raw_f32_round_trips_are_bit_exact() {
         for (w, h, tile) in [(1, 1, None), (3, 5, None), (3, 5, Some(2)), (257, 129, Some(64)), (257, 129, None)] {
             let img = pattern(w, h, ch, w * 31 + h);
             let file = encode_image(&img, &RawF32Codec, &EncodeSettings::default(), tile).unwrap();
-            let back = decode_image(&file, &Limits::default(), &raw).unwrap();
+            let back = decode_image(&file, &Limits::default().into(), &raw).unwrap();
             assert_eq!((back.width(), back.height(), back.channels()), (w, h, ch));
             assert_eq!(bits(&back), bits(&img), "{w}x{h} {ch:?} tile {tile:?}");
             let r = Reader::new(&file, &Limits::default()).unwrap();
@@ -54,7 +54,7 @@ fn raw_f16_round_trip_equals_ieee_half_rounding() {
     // The reference is the `half` crate's IEEE 754 binary16 round-to-nearest-even conversion.
     let img = pattern(257, 129, Channels::Rgba, 7);
     let file = encode_image(&img, &RawF16Codec, &EncodeSettings::default(), Some(64)).unwrap();
-    let back = decode_image(&file, &Limits::default(), &raw).unwrap();
+    let back = decode_image(&file, &Limits::default().into(), &raw).unwrap();
     let expect: Vec<u32> = img.samples().iter().map(|&v| half::f16::from_f32(v).to_f32().to_bits()).collect();
     assert_eq!(bits(&back), expect);
     // About half the size of raw f32 (two bytes per sample plus headers).
@@ -90,7 +90,7 @@ fn colour_hdr10_and_metadata_are_preserved() {
     img.set_metadata("software", "hdrcodec ✓");
     img.set_metadata("exposure", "");
     let file = encode_image(&img, &RawF32Codec, &EncodeSettings::default(), None).unwrap();
-    let back = decode_image(&file, &Limits::default(), &raw).unwrap();
+    let back = decode_image(&file, &Limits::default().into(), &raw).unwrap();
     assert_eq!(back, img);
 
     for primaries in [ColorPrimaries::Bt2020, ColorPrimaries::AcesAp0, ColorPrimaries::Xyz, ColorPrimaries::Bt709] {
@@ -104,18 +104,23 @@ fn colour_hdr10_and_metadata_are_preserved() {
         let r = Reader::new(&file, &Limits::default()).unwrap();
         assert_eq!(r.color().unwrap().primaries, primaries);
         assert_eq!(r.hdr10(), img.color.hdr10.as_ref());
-        assert_eq!(decode_image(&file, &Limits::default(), &raw).unwrap(), img);
+        assert_eq!(decode_image(&file, &Limits::default().into(), &raw).unwrap(), img);
     }
 }
 
 #[test]
 fn frames_round_trip_and_random_access_uses_the_index() {
     let frames: Vec<HdrImage> = (0..4).map(|i| pattern(70, 33, Channels::Rgb, i)).collect();
-    let file =
-        encode_frames(&frames, &RawF32Codec, &EncodeSettings { threads: 2, ..Default::default() }, Some(32)).unwrap();
-    let back = decode_frames(&file, &Limits::default(), &raw).unwrap();
+    let file = encode_frames(
+        &frames,
+        &RawF32Codec,
+        &EncodeSettings::default().with_pool(hdrcodec_core::ThreadPool::new(2).unwrap()),
+        Some(32),
+    )
+    .unwrap();
+    let back = decode_frames(&file, &Limits::default().into(), &raw).unwrap();
     assert_eq!(back, frames);
-    let err = decode_image(&file, &Limits::default(), &raw).unwrap_err().to_string();
+    let err = decode_image(&file, &Limits::default().into(), &raw).unwrap_err().to_string();
     assert!(err.contains("4 frames"), "{err}");
 
     let r = Reader::new(&file, &Limits::default()).unwrap();
@@ -185,7 +190,7 @@ fn with_private(first_letter: u8) -> Vec<u8> {
 #[test]
 fn unknown_ancillary_chunks_are_skipped_and_unknown_critical_ones_rejected() {
     let ok = with_private(b'z');
-    assert_eq!(decode_image(&ok, &Limits::default(), &raw).unwrap(), pattern(1, 1, Channels::Rgb, 9));
+    assert_eq!(decode_image(&ok, &Limits::default().into(), &raw).unwrap(), pattern(1, 1, Channels::Rgb, 9));
     let bad = with_private(b'Z');
     let e = Reader::new(&bad, &Limits::default()).unwrap_err();
     assert!(matches!(e, Error::Unsupported { .. }), "{e}");
@@ -292,7 +297,7 @@ fn the_largest_declared_sizes_fail_cleanly_even_without_limits() {
         }
         let e = Reader::new(&file, &Limits::none()).unwrap_err().to_string();
         assert!(e.contains("HEAD chunk #0"), "{e}");
-        assert!(decode_image(&file, &Limits::none(), &raw).is_err());
+        assert!(decode_image(&file, &Limits::none().into(), &raw).is_err());
     }
     // A raw payload that declares the same, decoded without limits: refused before allocating.
     let mut payload = b"RF32".to_vec();

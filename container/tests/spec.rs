@@ -47,6 +47,6 @@ fn the_readme_example_is_what_the_writer_writes_and_the_reader_reads() {
     assert_eq!(written, spec);
     let r = Reader::new(&spec, &Limits::default()).unwrap();
     assert_eq!((r.head().width, r.head().height, r.head().codec), (1, 1, *b"RF32"));
-    let back = decode_image(&spec, &Limits::default(), &|_| Some(&RawF32Codec as &dyn ImageCodec)).unwrap();
+    let back = decode_image(&spec, &Limits::default().into(), &|_| Some(&RawF32Codec as &dyn ImageCodec)).unwrap();
     assert_eq!(back.samples(), &[1.0, 2.0, 0.5]);
 }

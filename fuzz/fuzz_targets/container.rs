@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(r.tile(d.header.frame, c, row).map(|t| t.offset), Some(d.offset));
         }
         assert_eq!(r.data_chunks().len() as u64, u64::from(h.frames) * h.tiles_per_frame());
-        if let Ok(frames) = decode_frames(data, &limits, &raw) {
+        if let Ok(frames) = decode_frames(data, &limits.clone().into(), &raw) {
             assert_eq!(frames.len() as u64, u64::from(h.frames));
             for f in &frames {
                 assert_eq!((f.width(), f.height(), f.channels()), (h.width, h.height, h.channels));

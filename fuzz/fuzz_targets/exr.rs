@@ -36,7 +36,7 @@ fuzz_target!(|data: &[u8]| {
             let flags = data.last().copied().unwrap_or(0) as usize;
             let c = ExrCompression::ALL[flags % ExrCompression::ALL.len()];
             let pixel = if flags & 0x80 == 0 { "half" } else { "float" };
-            let settings = EncodeSettings { threads: 1, ..Default::default() }
+            let settings = EncodeSettings::default()
                 .with_option("compression", c.name())
                 .with_option("pixel", pixel);
             let bytes = ExrCodec.encode(&img, &settings).expect("a decoded image always encodes");

@@ -8,7 +8,8 @@ use std::process::{Command, Output};
 
 /// The workspace root (where the root Cargo.toml is).
 pub fn workspace_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    // The test packages (tests/, cli/) sit one level below the workspace root.
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("a package directory has a parent").to_path_buf()
 }
 
 /// True when running in CI, where a missing reference or corpus is a failure.

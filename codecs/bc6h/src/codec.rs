@@ -1,8 +1,9 @@
 //! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
 //! optional mip chains.
+use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
 use crate::files::{is_bc6h_dds, is_bc6h_ktx2, level_size, read_dds, read_ktx2, write_dds, write_ktx2, Bc6hTexture};
-use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Result};
 
 /// The options both codecs understand.
 const OPTIONS: &[&str] = &["signed", "mips"];
@@ -79,14 +80,20 @@ fn encode_with(image: &HdrImage, settings: &EncodeSettings, codec: &str) -> Resu
     let signed = settings.bool_option("signed")?.unwrap_or(false);
     let mips = settings.bool_option("mips")?.unwrap_or(false);
     let options =
-        EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), threads: settings.threads };
+        EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), pool: settings.pool.clone() };
     let rgb = image.with_channels(Channels::Rgb);
     encode_texture(image.width(), image.height(), rgb.samples(), &options, mips)
 }
 
-fn to_image(tex: &Bc6hTexture, limits: &Limits) -> Result<HdrImage> {
-    let samples = tex.decode_level(0, limits)?;
-    HdrImage::new(tex.width, tex.height, Channels::Rgb, samples, ColorInfo::default())
+/// Level 0 of `tex` as an image, block rows decoded on `options.pool`.
+fn to_image(tex: &Bc6hTexture, options: &DecodeOptions) -> Result<HdrImage> {
+    let (w, h) = (tex.width, tex.height);
+    let _charge = options.limits.charge_image(u64::from(w), u64::from(h), Channels::Rgb)?;
+    let mut samples = vec![0f32; w as usize * h as usize * 3];
+    let level0 = tex.levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
+    decode_surface_into(w, h, level0, tex.signed, &options.pool, &mut samples)?;
+    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
+    HdrImage::new(w, h, Channels::Rgb, samples, color)
 }
 
 /// BC6H in a DDS file (DX10 header, DXGI 95/96). Decoding returns mip level 0.
@@ -106,11 +113,21 @@ impl ImageCodec for Bc6hDdsCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         is_bc6h_dds(head)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        to_image(&read_dds(data, limits)?, limits)
+    /// DDS records no colour: samples are stored as they are.
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::None
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
-        write_dds(&encode_with(image, settings, self.name())?)
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        to_image(&read_dds(data, &options.limits)?, options)
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
+        out.write_all(&write_dds(&encode_with(image, settings, self.name())?)?)?;
+        Ok(hdrcodec_core::EncodeReport::new())
     }
 }
 
@@ -131,11 +148,22 @@ impl ImageCodec for Bc6hKtx2Codec {
     fn sniff(&self, head: &[u8]) -> bool {
         is_bc6h_ktx2(head)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        to_image(&read_ktx2(data, limits)?, limits)
+    /// KTX2 files written before the colour work say nothing of their primaries (BT.709 is
+    /// what readers assume); until the DFD's colour primaries are written, none are recorded.
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::None
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
-        write_ktx2(&encode_with(image, settings, self.name())?)
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        to_image(&read_ktx2(data, &options.limits)?, options)
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
+        out.write_all(&write_ktx2(&encode_with(image, settings, self.name())?)?)?;
+        Ok(hdrcodec_core::EncodeReport::new())
     }
 }
 

@@ -1,8 +1,7 @@
 //! The BC6H block decoder (D3D11 functional specification, "BC6H Format": decoding steps) and
 //! the parallel whole-surface decoder.
 use crate::modes::{Field, ANCHORS, MODES, MODE_FROM_BITS, PARTITIONS, WEIGHTS3, WEIGHTS4};
-use hdrcodec_core::{Error, Result};
-use rayon::prelude::*;
+use hdrcodec_core::{Error, Result, ThreadPool};
 
 /// Sign-extends the low `bits` bits of `v`.
 #[inline(always)]
@@ -282,8 +281,8 @@ pub fn surface_bytes(width: u32, height: u32) -> Option<usize> {
 }
 
 /// Decodes a surface of BC6H blocks (block rows top to bottom) into interleaved linear RGB `f32`,
-/// `width * height * 3` samples, cropping partial edge blocks. Block rows are decoded in parallel
-/// on rayon's pool. `blocks` must hold exactly [`surface_bytes`] bytes.
+/// `width * height * 3` samples, cropping partial edge blocks, on the calling thread.
+/// `blocks` must hold exactly [`surface_bytes`] bytes.
 pub fn decode_surface(width: u32, height: u32, blocks: &[u8], signed: bool) -> Result<Vec<f32>> {
     let need = surface_bytes(width, height).ok_or_else(|| Error::invalid("BC6H surface size overflows"))?;
     if blocks.len() != need {
@@ -296,18 +295,18 @@ pub fn decode_surface(width: u32, height: u32, blocks: &[u8], signed: bool) -> R
         .and_then(|n| n.checked_mul(3))
         .ok_or_else(|| Error::invalid("BC6H surface size overflows"))?;
     let mut out = vec![0f32; samples];
-    decode_surface_into(width, height, blocks, signed, true, &mut out)?;
+    decode_surface_into(width, height, blocks, signed, &ThreadPool::single(), &mut out)?;
     Ok(out)
 }
 
 /// [`decode_surface`] into a caller's buffer of exactly `width * height * 3` samples (so that a
-/// buffer can be reused), on rayon's pool if `parallel`, else on the calling thread only.
+/// buffer can be reused), block rows in parallel on `pool`.
 pub fn decode_surface_into(
     width: u32,
     height: u32,
     blocks: &[u8],
     signed: bool,
-    parallel: bool,
+    pool: &ThreadPool,
     out: &mut [f32],
 ) -> Result<()> {
     let need = surface_bytes(width, height).ok_or_else(|| Error::invalid("BC6H surface size overflows"))?;
@@ -327,15 +326,9 @@ pub fn decode_surface_into(
     let (bx, _) = block_dims(width, height);
     let row_floats = width as usize * 3 * 4;
     let w = width as usize;
-    if parallel {
-        out.par_chunks_mut(row_floats)
-            .zip(blocks.par_chunks(bx * 16))
-            .for_each(|(rows, row_blocks)| decode_block_row(w, row_blocks, rows, signed));
-    } else {
-        for (rows, row_blocks) in out.chunks_mut(row_floats).zip(blocks.chunks(bx * 16)) {
-            decode_block_row(w, row_blocks, rows, signed);
-        }
-    }
+    pool.for_each_chunk_mut(out, row_floats, |by, rows| {
+        decode_block_row(w, &blocks[by * bx * 16..(by + 1) * bx * 16], rows, signed)
+    });
     Ok(())
 }
 

@@ -7,7 +7,7 @@
 //!
 //! Values BC6H cannot store are replaced as the Direct3D specification advises: NaN becomes 0,
 //! ±Inf the largest finite half of that sign, and negative values 0 in UF16 (unsigned) blocks.
-use hdrcodec_core::{Error, Result};
+use hdrcodec_core::{Error, Result, ThreadPool};
 
 mod block;
 
@@ -20,13 +20,13 @@ pub struct EncodeOptions {
     pub signed: bool,
     /// 0 (fastest) to 9 (exhaustive search).
     pub effort: u8,
-    /// Worker threads, 0 = one per core.
-    pub threads: usize,
+    /// Worker threads (block rows are shared out among them); default the calling thread.
+    pub pool: ThreadPool,
 }
 
 impl Default for EncodeOptions {
     fn default() -> Self {
-        EncodeOptions { signed: false, effort: 5, threads: 0 }
+        EncodeOptions { signed: false, effort: 5, pool: ThreadPool::single() }
     }
 }
 
@@ -125,25 +125,7 @@ pub fn encode_surface(width: u32, height: u32, rgb: &[f32], options: &EncodeOpti
     }
     let surface =
         Surface { rgb, width: w, height: h, search: Search::for_effort(options.effort), signed: options.signed };
-    let row_bytes = bw * 16;
-    let serial = |out: &mut [u8]| {
-        for (by, row) in out.chunks_exact_mut(row_bytes).enumerate() {
-            surface.encode_row(by, row);
-        }
-    };
-    let parallel = |out: &mut [u8]| {
-        use rayon::prelude::*;
-        out.par_chunks_exact_mut(row_bytes).enumerate().for_each(|(by, row)| surface.encode_row(by, row));
-    };
-    match options.threads {
-        1 => serial(&mut out),
-        0 => parallel(&mut out),
-        n => match rayon::ThreadPoolBuilder::new().num_threads(n).build() {
-            Ok(pool) => pool.install(|| parallel(&mut out)),
-            // No threads to be had: the serial path gives the same bytes.
-            Err(_) => serial(&mut out),
-        },
-    }
+    options.pool.for_each_chunk_mut(&mut out, bw * 16, |by, row| surface.encode_row(by, row));
     Ok(out)
 }
 

@@ -27,7 +27,8 @@ fn mip_chains_average_the_source_in_linear_light() {
     let (w, h) = (37u32, 22u32); // odd sizes on purpose
     for signed in [false, true] {
         let img = image(w, h, signed);
-        let settings = EncodeSettings { effort: 2, ..Default::default() }
+        let settings = EncodeSettings::default()
+            .with_effort(2)
             .with_option("mips", "true")
             .with_option("signed", if signed { "true" } else { "false" });
         let dds = Bc6hDdsCodec.encode(&img, &settings).unwrap();

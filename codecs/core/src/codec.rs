@@ -1,9 +1,14 @@
-use crate::{Error, HdrImage, Limits, Result};
+use crate::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result, ThreadPool};
+use std::io::Write;
 use std::str::FromStr;
 
 /// The one trait every codec of the family implements (object-safe), so that the CLI, the
 /// container, fuzzers and benches can treat all codecs alike. Each codec crate also offers a
 /// typed API of its own with an options struct.
+///
+/// Implementors provide [`decode_with`](ImageCodec::decode_with) and
+/// [`encode_to`](ImageCodec::encode_to); [`decode`](ImageCodec::decode) and
+/// [`encode`](ImageCodec::encode) are the short forms most callers use.
 pub trait ImageCodec: Send + Sync {
     /// Short stable name: `"rgbe"`, `"logluv32"`, `"bc6h"`, `"exr"`, ...
     fn name(&self) -> &'static str;
@@ -13,35 +18,240 @@ pub trait ImageCodec: Send + Sync {
     fn extensions(&self) -> &'static [&'static str];
     /// Cheap magic-number test on the first bytes of a file.
     fn sniff(&self, head: &[u8]) -> bool;
-    /// Decodes a whole file held in memory. Never panics; checks `limits` before allocating.
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage>;
-    /// Encodes an image to a whole file.
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>>;
+    /// What colour signalling the format's files carry. Tools convert an image once, before
+    /// encoding, only into what the format can say (see [`ColorSignalling`]).
+    fn color_signalling(&self) -> ColorSignalling;
+    /// Size, channels and colour of an encoded image, read from its header without decoding
+    /// the pixels (for `info` and for planning the memory of a batch). Never panics.
+    ///
+    /// The provided version decodes the whole image; codecs whose header says all of this
+    /// override it.
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        let image = self.decode(data, limits)?;
+        Ok(ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone()))
+    }
+    /// Decodes a whole file held in memory, with the caller's limits and threads. Never
+    /// panics; checks (and charges) `options.limits` before allocating.
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage>;
+    /// Encodes an image and writes the file to `out`, reporting what the caller should know
+    /// (values clipped to the format's range, a scale chosen for it).
+    fn encode_to(&self, image: &HdrImage, settings: &EncodeSettings, out: &mut dyn Write) -> Result<EncodeReport>;
+
+    /// Decodes a whole file held in memory on the calling thread.
+    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+        self.decode_with(data, &DecodeOptions::new(limits.clone()))
+    }
+    /// Encodes an image to a whole file in memory.
+    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        self.encode_to(image, settings, &mut out)?;
+        Ok(out)
+    }
+}
+
+/// Which colour signalling a format's files carry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ColorSignalling {
+    /// Any primaries: the file records chromaticities (OpenEXR, Radiance `PRIMARIES`, `.hdrc`),
+    /// or colour absolutely (LogLuv's CIE XYZ).
+    Any,
+    /// Only these named spaces (KTX2's data format descriptor).
+    Only(&'static [ColorPrimaries]),
+    /// None: the samples are stored as they are and read back with
+    /// [`ColorPrimaries::Unspecified`] (PFM, DDS).
+    None,
+}
+
+impl ColorSignalling {
+    /// True when a file of this format can say that its samples are in `primaries`.
+    pub fn can_record(&self, primaries: &ColorPrimaries) -> bool {
+        match self {
+            ColorSignalling::Any => true,
+            ColorSignalling::Only(set) => set.contains(primaries),
+            ColorSignalling::None => false,
+        }
+    }
+}
+
+/// What a decoder is given besides the data: the caller's [`Limits`] and threads.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct DecodeOptions {
+    /// What the decoder may allocate.
+    pub limits: Limits,
+    /// Worker threads the decoder may use (default: the calling thread only).
+    pub pool: ThreadPool,
+}
+
+impl DecodeOptions {
+    /// These limits, on the calling thread.
+    pub fn new(limits: Limits) -> Self {
+        DecodeOptions { limits, pool: ThreadPool::single() }
+    }
+
+    /// The same options with the threads of `pool`.
+    pub fn with_pool(mut self, pool: ThreadPool) -> Self {
+        self.pool = pool;
+        self
+    }
+}
+
+impl From<Limits> for DecodeOptions {
+    /// These limits, on the calling thread.
+    fn from(limits: Limits) -> Self {
+        DecodeOptions::new(limits)
+    }
+}
+
+/// What an encoder tells its caller besides the bytes: the choices it made for the format's
+/// range and anything it could not keep, as sentences a user can read.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct EncodeReport {
+    /// One sentence each, e.g. "12 samples above 65504 were clipped to 65504 (half float)".
+    pub notes: Vec<String>,
+}
+
+impl EncodeReport {
+    /// A report with no notes.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a note.
+    pub fn note(&mut self, note: impl Into<String>) {
+        self.notes.push(note.into());
+    }
+}
+
+/// What [`ImageCodec::probe`] reads from a header.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct ImageInfo {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The channel layout [`ImageCodec::decode`] returns.
+    pub channels: Channels,
+    /// The colour the decoded image will carry.
+    pub color: ColorInfo,
+    /// Frames in the file (1 for a still image).
+    pub frames: u32,
+    /// The stored sample format in a few words ("half, PIZ", "BC6H UF16, 3 mips"), if known.
+    pub format: String,
+}
+
+impl ImageInfo {
+    /// One frame of `width` × `height` with these channels and colour.
+    pub fn new(width: u32, height: u32, channels: Channels, color: ColorInfo) -> Self {
+        ImageInfo { width, height, channels, color, frames: 1, format: String::new() }
+    }
+
+    /// The same with the sample format described as `format`.
+    pub fn with_format(mut self, format: impl Into<String>) -> Self {
+        self.format = format.into();
+        self
+    }
+
+    /// The same with `frames` frames.
+    pub fn with_frames(mut self, frames: u32) -> Self {
+        self.frames = frames;
+        self
+    }
+
+    /// Bytes of the `f32` samples of one decoded frame.
+    pub fn decoded_bytes(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height) * self.channels.count() as u64 * 4
+    }
+}
+
+/// A stream of frames being encoded (video, or frame sequences in a container): frames are
+/// pushed one at a time and written as they come; `finish` completes the stream. Separate from
+/// [`ImageCodec`] because an encoder of frames keeps state between them.
+pub trait VideoEncoder: Send {
+    /// Encodes the next frame (same size and channels as the first).
+    fn push_frame(&mut self, frame: &HdrImage) -> Result<()>;
+    /// Flushes what is buffered and completes the stream; returns how many frames it holds.
+    fn finish(self: Box<Self>) -> Result<u64>;
+}
+
+/// A stream of frames being decoded, one at a time.
+pub trait VideoDecoder: Send {
+    /// Size, channels, colour and frame count of the stream.
+    fn info(&self) -> &ImageInfo;
+    /// The next frame, or `None` after the last.
+    fn next_frame(&mut self) -> Result<Option<HdrImage>>;
+}
+
+/// A codec of frame sequences: starts encoders and decoders of streams.
+pub trait VideoCodec: Send + Sync {
+    /// Short stable name.
+    fn name(&self) -> &'static str;
+    /// File extensions (lower case, without the dot).
+    fn extensions(&self) -> &'static [&'static str];
+    /// Starts a stream of frames described by `info` (size, channels, colour; `frames` may be 0
+    /// when unknown) written to `out`.
+    fn begin_encode(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+        out: Box<dyn Write + Send>,
+    ) -> Result<Box<dyn VideoEncoder>>;
+    /// Starts decoding the stream in `data`.
+    fn begin_decode(&self, data: std::sync::Arc<[u8]>, options: &DecodeOptions) -> Result<Box<dyn VideoDecoder>>;
 }
 
 /// What every encoder understands, plus codec-specific `key=value` options that the codec
 /// parses itself (an unknown key is an error, see [`EncodeSettings::check_options`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct EncodeSettings {
     /// 0-100; each lossy codec maps it onto its own quantiser. Lossless codecs ignore it.
     pub quality: u8,
     /// 0-9: 0 is the fastest encode, 9 the most thorough search. Default 5.
     pub effort: u8,
-    /// Worker threads; 0 means one per core.
-    pub threads: usize,
+    /// Worker threads the encoder may use (default: the calling thread only).
+    pub pool: ThreadPool,
     /// Codec-specific options in the order given.
     pub options: Vec<(String, String)>,
 }
 
 impl Default for EncodeSettings {
     fn default() -> Self {
-        EncodeSettings { quality: 90, effort: 5, threads: 0, options: Vec::new() }
+        EncodeSettings { quality: 90, effort: 5, pool: ThreadPool::single(), options: Vec::new() }
     }
 }
 
 impl EncodeSettings {
     /// Largest `effort` value.
     pub const MAX_EFFORT: u8 = 9;
+
+    /// The same settings with this quality (0-100).
+    pub fn with_quality(mut self, quality: u8) -> Self {
+        self.quality = quality.min(100);
+        self
+    }
+
+    /// The same settings with this effort (0-9).
+    pub fn with_effort(mut self, effort: u8) -> Self {
+        self.effort = effort.min(Self::MAX_EFFORT);
+        self
+    }
+
+    /// The same settings with the threads of `pool`.
+    pub fn with_pool(mut self, pool: ThreadPool) -> Self {
+        self.pool = pool;
+        self
+    }
+
+    /// The same settings without the options named `key` (a tool that handles an option
+    /// itself, such as the facade's `primaries`, removes it before the codec sees it).
+    pub fn without_option(mut self, key: &str) -> Self {
+        self.options.retain(|(k, _)| k != key);
+        self
+    }
 
     /// Adds a codec-specific option.
     pub fn with_option(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {

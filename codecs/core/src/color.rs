@@ -27,7 +27,12 @@ pub const ACES_WHITE: [f64; 2] = [0.32168, 0.33767];
 pub const ILLUMINANT_E: [f64; 2] = [1.0 / 3.0, 1.0 / 3.0];
 
 /// The RGB colour spaces the family names; anything else is [`ColorPrimaries::Custom`].
+///
+/// [`ColorPrimaries::Unspecified`] is what a decoder returns for a format that records no
+/// primaries (PFM, DDS): the samples are whatever the writer had. Tools that must interpret them
+/// (metrics, a conversion) treat them as BT.709 ([`ColorPrimaries::or_bt709`]) and say so.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum ColorPrimaries {
     /// ITU-R BT.709 / sRGB, D65.
     Bt709,
@@ -47,6 +52,8 @@ pub enum ColorPrimaries {
     Xyz,
     /// Any other chromaticities.
     Custom(Chromaticities),
+    /// The file does not say: the samples are kept as they were written.
+    Unspecified,
 }
 
 impl ColorPrimaries {
@@ -69,7 +76,41 @@ impl ColorPrimaries {
             ColorPrimaries::AdobeRgb => c([0.640, 0.330], [0.210, 0.710], [0.150, 0.060], D65),
             ColorPrimaries::Xyz => c([1.0, 0.0], [0.0, 1.0], [0.0, 0.0], ILLUMINANT_E),
             ColorPrimaries::Custom(ch) => ch,
+            // Only where something must be assumed: see `or_bt709`.
+            ColorPrimaries::Unspecified => ColorPrimaries::Bt709.chromaticities(),
         }
+    }
+
+    /// False for [`ColorPrimaries::Unspecified`].
+    pub fn is_specified(&self) -> bool {
+        !matches!(self, ColorPrimaries::Unspecified)
+    }
+
+    /// These primaries, or BT.709 where they are unspecified: what a tool assumes when it must
+    /// interpret samples whose file recorded no primaries (and then says that it assumed).
+    pub fn or_bt709(self) -> Self {
+        match self {
+            ColorPrimaries::Unspecified => ColorPrimaries::Bt709,
+            p => p,
+        }
+    }
+
+    /// The named space called `name` (as given on a command line: `bt709`, `srgb`, `bt2020`,
+    /// `rec2020`, `p3`, `display-p3`, `dci-p3`, `aces`, `ap0`, `acescg`, `ap1`, `adobe-rgb`, `xyz`;
+    /// case, `-`, `_`, `.` and spaces are ignored).
+    pub fn from_name(name: &str) -> Option<Self> {
+        let key: String = name.chars().filter(|c| c.is_ascii_alphanumeric()).collect::<String>().to_ascii_lowercase();
+        Some(match key.as_str() {
+            "bt709" | "rec709" | "srgb" | "709" => ColorPrimaries::Bt709,
+            "bt2020" | "rec2020" | "bt2100" | "2020" => ColorPrimaries::Bt2020,
+            "p3" | "displayp3" | "p3d65" => ColorPrimaries::DisplayP3,
+            "dcip3" | "p3dci" => ColorPrimaries::DciP3,
+            "aces" | "ap0" | "acesap0" | "aces20651" => ColorPrimaries::AcesAp0,
+            "acescg" | "ap1" | "acesap1" => ColorPrimaries::AcesAp1,
+            "adobergb" | "adobergb1998" => ColorPrimaries::AdobeRgb,
+            "xyz" | "ciexyz" => ColorPrimaries::Xyz,
+            _ => return None,
+        })
     }
 
     /// Every named space, in a fixed order (file formats may store an index into it).
@@ -108,6 +149,7 @@ impl ColorPrimaries {
             ColorPrimaries::AdobeRgb => "Adobe RGB",
             ColorPrimaries::Xyz => "CIE XYZ",
             ColorPrimaries::Custom(_) => "custom",
+            ColorPrimaries::Unspecified => "unspecified",
         }
     }
 }
@@ -282,7 +324,11 @@ pub fn bradford(src_white: [f64; 2], dst_white: [f64; 2]) -> Mat3 {
 /// The linear RGB→RGB matrix from `from` to `to`, through XYZ, with a Bradford adaptation when
 /// the white points differ. CIE XYZ ([`ColorPrimaries::Xyz`]) has no adapted white: conversions
 /// to or from it are plain colorimetric (no adaptation), as Radiance XYZE and TIFF LogLuv expect.
+///
+/// Unspecified primaries are taken as BT.709 here (a caller that converts such samples has
+/// decided to assume it and says so).
 pub fn rgb_to_rgb(from: &ColorPrimaries, to: &ColorPrimaries) -> Mat3 {
+    let (from, to) = (&from.or_bt709(), &to.or_bt709());
     if from == to {
         return IDENTITY;
     }

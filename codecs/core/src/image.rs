@@ -2,6 +2,7 @@ use crate::{ColorPrimaries, Error, Hdr10Metadata, Result};
 
 /// The channel layout of an [`HdrImage`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum Channels {
     /// Red, green, blue.
     Rgb,

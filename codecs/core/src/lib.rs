@@ -3,7 +3,10 @@
 //! - [`HdrImage`]: interleaved scene-linear `f32` pixels (RGB or RGBA) with their [`ColorInfo`].
 //! - [`ImageCodec`]: the one object-safe trait every codec implements, so that the CLI, the
 //!   container, fuzzers and benches can treat all codecs alike.
-//! - [`Limits`]: what a decoder may allocate; checked before every allocation.
+//! - [`Limits`]: what a decoder may allocate; checked before every allocation, with a budget
+//!   that decoders charge as they allocate.
+//! - [`ThreadPool`]: the one handle to worker threads, passed down through encode and decode.
+//! - [`cpu`]: CPU features detected once; `HDRCODEC_CPU=scalar` selects the portable kernels.
 //! - [`Error`]: the one error enum of the family.
 //! - [`color`], [`transfer`], [`metrics`], [`tonemap`], [`hdr10`]: colour science services.
 //!
@@ -14,22 +17,30 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
+
 mod codec;
 pub mod color;
+pub mod cpu;
 mod error;
 pub mod hdr10;
 mod image;
 mod limits;
 pub mod metrics;
+pub mod threads;
 pub mod tonemap;
 pub mod transfer;
 
-pub use codec::{EncodeSettings, ImageCodec};
+pub use codec::{
+    ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, VideoCodec, VideoDecoder,
+    VideoEncoder,
+};
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};
 pub use hdr10::{Av1MdcvUnits, ContentLightLevel, Hdr10Metadata, MasteringDisplay, St2086Units};
 pub use image::{Channels, ColorInfo, HdrImage};
-pub use limits::Limits;
+pub use limits::{Allocation, Limits};
 pub use metrics::Comparison;
+pub use threads::ThreadPool;
 pub use tonemap::{GtToneCurve, GtToneLut};
 pub use transfer::{Bt1886Transfer, HlgTransfer, PqTransfer, SrgbTransfer};

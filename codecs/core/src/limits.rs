@@ -1,8 +1,18 @@
 use crate::{Channels, Error, Result};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 /// What a decoder may allocate. Every decoder checks the declared size of its input against
 /// these limits *before* allocating, so a 100-byte file can never make it allocate gigabytes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+///
+/// Besides the per-allocation checks, a `Limits` carries an allocation budget: decoders
+/// [`charge`](Limits::charge) each large buffer they hold (the image, planes, block rows) and
+/// the charge is returned when the buffer goes. Clones share the budget, so a caller that
+/// passes clones of one `Limits` to several decodes running at once (a batch) bounds their sum.
+/// Construct with [`Limits::default`], [`Limits::none`] or [`Limits::fuzzing`] and set the
+/// fields you want to change (the struct is `#[non_exhaustive]`).
+#[derive(Clone, Debug)]
+#[non_exhaustive]
 pub struct Limits {
     /// Largest width in pixels.
     pub max_width: u32,
@@ -12,24 +22,94 @@ pub struct Limits {
     pub max_pixels: u64,
     /// Largest single allocation, and largest total of the buffers a decode keeps, in bytes.
     pub max_alloc_bytes: u64,
+    /// Bytes charged and not yet returned, shared by clones.
+    in_use: Arc<AtomicU64>,
 }
+
+impl PartialEq for Limits {
+    /// Equal limits (the budgets in use are not compared).
+    fn eq(&self, o: &Self) -> bool {
+        (self.max_width, self.max_height, self.max_pixels, self.max_alloc_bytes)
+            == (o.max_width, o.max_height, o.max_pixels, o.max_alloc_bytes)
+    }
+}
+impl Eq for Limits {}
 
 impl Default for Limits {
     /// 65536 × 65536 at most, 256 megapixels, 4 GiB.
     fn default() -> Self {
-        Limits { max_width: 1 << 16, max_height: 1 << 16, max_pixels: 1 << 28, max_alloc_bytes: 1 << 32 }
+        Limits::new(1 << 16, 1 << 16, 1 << 28, 1 << 32)
     }
 }
 
 impl Limits {
+    /// Limits of these sizes, with a budget of its own.
+    pub fn new(max_width: u32, max_height: u32, max_pixels: u64, max_alloc_bytes: u64) -> Self {
+        Limits { max_width, max_height, max_pixels, max_alloc_bytes, in_use: Arc::default() }
+    }
+
     /// No limits at all (for trusted input only).
     pub fn none() -> Self {
-        Limits { max_width: u32::MAX, max_height: u32::MAX, max_pixels: u64::MAX, max_alloc_bytes: u64::MAX }
+        Limits::new(u32::MAX, u32::MAX, u64::MAX, u64::MAX)
     }
 
     /// Small limits for fuzzing: 4096 × 4096, 4 MP, 64 MiB.
     pub fn fuzzing() -> Self {
-        Limits { max_width: 4096, max_height: 4096, max_pixels: 1 << 22, max_alloc_bytes: 1 << 26 }
+        Limits::new(4096, 4096, 1 << 22, 1 << 26)
+    }
+
+    /// The same limits with at most `pixels` pixels.
+    pub fn with_max_pixels(mut self, pixels: u64) -> Self {
+        self.max_pixels = pixels;
+        self
+    }
+
+    /// The same limits with at most `bytes` bytes allocated.
+    pub fn with_max_alloc_bytes(mut self, bytes: u64) -> Self {
+        self.max_alloc_bytes = bytes;
+        self
+    }
+
+    /// The same limits with a fresh budget of their own (not shared with `self`).
+    pub fn with_own_budget(&self) -> Self {
+        Limits { in_use: Arc::default(), ..self.clone() }
+    }
+
+    /// Bytes charged against the budget and not yet returned.
+    pub fn in_use(&self) -> u64 {
+        self.in_use.load(Ordering::Relaxed)
+    }
+
+    /// Charges `bytes` (a buffer about to be allocated, described as `what`) against the
+    /// budget shared by this `Limits` and its clones; fails, charging nothing, if the total in
+    /// use would exceed `max_alloc_bytes`. The charge is returned when the [`Allocation`] is
+    /// dropped: keep it alive as long as the buffer.
+    pub fn charge(&self, bytes: u64, what: &str) -> Result<Allocation> {
+        let mut current = self.in_use.load(Ordering::Relaxed);
+        loop {
+            let total = current.saturating_add(bytes);
+            if total > self.max_alloc_bytes {
+                return Err(Error::limit(if current == 0 {
+                    format!("{what} needs {bytes} bytes, more than the limit of {}", self.max_alloc_bytes)
+                } else {
+                    format!(
+                        "{what} needs {bytes} bytes; with {current} already in use that exceeds the limit of {}",
+                        self.max_alloc_bytes
+                    )
+                }));
+            }
+            match self.in_use.compare_exchange_weak(current, total, Ordering::AcqRel, Ordering::Relaxed) {
+                Ok(_) => return Ok(Allocation { in_use: Arc::clone(&self.in_use), bytes }),
+                Err(now) => current = now,
+            }
+        }
+    }
+
+    /// Charges the `f32` buffer of a decoded image of this size, after checking its dimensions.
+    pub fn charge_image(&self, width: u64, height: u64, channels: Channels) -> Result<Allocation> {
+        self.check_dimensions(width, height)?;
+        let bytes = width.saturating_mul(height).saturating_mul(channels.count() as u64 * 4);
+        self.charge(bytes, "the decoded image")
     }
 
     /// Checks declared dimensions. Zero width or height is invalid.
@@ -70,6 +150,27 @@ impl Limits {
     }
 }
 
+/// A charge against a [`Limits`] budget, returned when dropped.
+#[derive(Debug)]
+#[must_use = "the charge is returned as soon as the Allocation is dropped"]
+pub struct Allocation {
+    in_use: Arc<AtomicU64>,
+    bytes: u64,
+}
+
+impl Allocation {
+    /// The bytes charged.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+impl Drop for Allocation {
+    fn drop(&mut self) {
+        self.in_use.fetch_sub(self.bytes, Ordering::AcqRel);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -85,5 +186,24 @@ mod tests {
         let max = u64::from(u32::MAX);
         assert!(Limits::none().check_image(max, max, Channels::Rgba).is_ok());
         assert!(l.check_image(max, max, Channels::Rgba).is_err());
+    }
+
+    #[test]
+    fn the_budget_is_shared_by_clones_and_returned_on_drop() {
+        let l = Limits::default().with_max_alloc_bytes(1000);
+        let a = l.charge(600, "the planes").unwrap();
+        let other = l.clone();
+        let e = other.charge(500, "the image").unwrap_err().to_string();
+        assert!(e.contains("the image needs 500 bytes; with 600 already in use"), "{e}");
+        assert_eq!(l.in_use(), 600);
+        // A fresh budget is not affected.
+        assert!(l.with_own_budget().charge(1000, "x").is_ok());
+        drop(a);
+        assert_eq!(other.in_use(), 0);
+        let b = other.charge_image(8, 8, Channels::Rgb).unwrap();
+        assert_eq!(b.bytes(), 8 * 8 * 3 * 4);
+        assert!(other.charge_image(10, 10, Channels::Rgb).is_err());
+        drop(b);
+        assert!(l.charge(1001, "y").is_err() && l.in_use() == 0);
     }
 }

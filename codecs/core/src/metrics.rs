@@ -9,6 +9,9 @@
 //! - When the test image has other primaries or another `nits_per_unit` than the reference,
 //!   it is converted into the reference's primaries and units first (a 3x3 matrix per pixel,
 //!   no allocation). ΔE ITP converts both images to BT.2020 cd/m² instead.
+//! - A test image whose primaries are [unspecified](ColorPrimaries::Unspecified) (decoded from
+//!   a format that records none) is taken to be in the reference's primaries: the figures then
+//!   score the codec, not a conversion. An unspecified reference is taken as BT.709.
 //! - No allocation per pixel; only ΔE ITP keeps one `f32` per pixel (for its percentile).
 
 use crate::color::{mat_apply, mat_mul, rgb_to_rgb, Mat3, LMS_P_TO_ICTCP, RGB2020_TO_LMS};
@@ -149,12 +152,22 @@ fn check_sizes(reference: &HdrImage, test: &HdrImage) -> Result<()> {
 /// or `None` when they already agree.
 fn test_to_reference(reference: &HdrImage, test: &HdrImage) -> Option<Mat3> {
     let (rc, tc) = (&reference.color, &test.color);
-    if rc.primaries == tc.primaries && rc.nits_per_unit == tc.nits_per_unit {
+    let tp = test_primaries(reference, test);
+    if rc.primaries == tp && rc.nits_per_unit == tc.nits_per_unit {
         return None;
     }
     let scale = tc.nits_per_unit as f64 / rc.nits_per_unit as f64;
-    let m = rgb_to_rgb(&tc.primaries, &rc.primaries);
+    let m = rgb_to_rgb(&tp, &rc.primaries);
     Some(m.map(|row| row.map(|v| v * scale)))
+}
+
+/// The primaries the test image's samples are taken to be in: its own, or the reference's when
+/// its file recorded none.
+pub fn test_primaries(reference: &HdrImage, test: &HdrImage) -> ColorPrimaries {
+    match test.color.primaries {
+        ColorPrimaries::Unspecified => reference.color.primaries,
+        p => p,
+    }
 }
 
 /// Calls `f(reference_rgb, test_rgb)` for every pixel, both cleaned and in reference units.
@@ -277,8 +290,8 @@ pub fn pu21_psnr_rgb(reference: &HdrImage, test: &HdrImage) -> Result<f64> {
 }
 
 /// The matrix from an image's samples to linear BT.2020 RGB in cd/m².
-fn to_bt2020_nits(image: &HdrImage) -> Mat3 {
-    let m = rgb_to_rgb(&image.color.primaries, &ColorPrimaries::Bt2020);
+fn to_bt2020_nits(image: &HdrImage, primaries: &ColorPrimaries) -> Mat3 {
+    let m = rgb_to_rgb(primaries, &ColorPrimaries::Bt2020);
     let s = image.color.nits_per_unit as f64;
     mat_mul(&[[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, s]], &m)
 }
@@ -289,7 +302,8 @@ fn to_bt2020_nits(image: &HdrImage) -> Mat3 {
 /// nearest-rank one (the ⌈0.99·N⌉-th smallest value). One unit is about one JND.
 pub fn delta_e_itp(reference: &HdrImage, test: &HdrImage) -> Result<(f64, f64)> {
     check_sizes(reference, test)?;
-    let (mr, mt) = (to_bt2020_nits(reference), to_bt2020_nits(test));
+    let (mr, mt) =
+        (to_bt2020_nits(reference, &reference.color.primaries), to_bt2020_nits(test, &test_primaries(reference, test)));
     let (nr, nt) = (reference.channels().count(), test.channels().count());
     let mut de: Vec<f32> = Vec::with_capacity(reference.pixel_count());
     let mut sum = 0.0;
@@ -377,7 +391,7 @@ pub fn compare(reference: &HdrImage, test: &HdrImage) -> Result<Comparison> {
     let peak = if peak > 0.0 { peak } else { 1.0 };
     let (de_itp_mean, de_itp_p99) = delta_e_itp(reference, test)?;
     let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
-    let identical = reference.color.primaries == test.color.primaries
+    let identical = reference.color.primaries == test_primaries(reference, test)
         && reference.color.nits_per_unit == test.color.nits_per_unit
         && reference.rgb().zip(test.rgb()).all(|(r, t)| (0..3).all(|c| same(r[c], t[c])));
     let s = accumulate(reference, test, |s, p, r, t| {

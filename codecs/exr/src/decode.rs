@@ -14,7 +14,9 @@ use exr::block::UncompressedBlock;
 use exr::meta::attribute::SampleType;
 use exr::meta::header::Header;
 use exr::meta::MetaData;
-use hdrcodec_core::{Channels, Chromaticities, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
+use hdrcodec_core::{
+    Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, Limits, Result, ThreadPool,
+};
 use rayon::prelude::*;
 use std::io::Cursor;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -28,7 +30,12 @@ const BATCH: usize = 32;
 /// Decodes an OpenEXR file held in memory. Never panics: a panic inside the `exr` crate is
 /// turned into [`Error::Invalid`].
 pub fn decode_exr(data: &[u8], limits: &Limits) -> Result<HdrImage> {
-    guarded("reading the OpenEXR file", || decode_inner(data, limits))
+    decode_exr_with(data, &DecodeOptions::new(limits.clone()))
+}
+
+/// [`decode_exr`] with the caller's threads: chunks decompress in parallel on `options.pool`.
+pub fn decode_exr_with(data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+    guarded("reading the OpenEXR file", || decode_inner(data, &options.limits, &options.pool))
 }
 
 /// Runs `f`, turning a panic into an `Invalid` error that names `what` and the panic message.
@@ -73,7 +80,7 @@ struct Selection {
     channels: Channels,
 }
 
-fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool) -> Result<HdrImage> {
     if data.len() < 4 {
         return Err(Error::truncated("the OpenEXR magic number"));
     }
@@ -133,8 +140,8 @@ fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     let mut samples = vec![0.0f32; w * h * n];
     let mut covered = 0usize;
     let mut seen = std::collections::HashSet::new();
-    // Large files decompress on both cores; small ones (most fuzz inputs) stay on this thread.
-    let parallel = chunks.len() > 2 && data.len() > 1 << 16;
+    // Large files decompress on the pool; small ones (most fuzz inputs) stay on this thread.
+    let parallel = pool.is_parallel() && chunks.len() > 2 && data.len() > 1 << 16;
     let mut iter = chunks.into_iter();
     loop {
         let batch: Vec<Chunk> = iter.by_ref().take(batch_len).collect();
@@ -145,7 +152,7 @@ fn decode_inner(data: &[u8], limits: &Limits) -> Result<HdrImage> {
             guarded("decompressing a chunk", || UncompressedBlock::decompress_chunk(c, &meta, false).map_err(map_err))
         };
         let blocks: Vec<Result<UncompressedBlock>> = if parallel {
-            batch.into_par_iter().map(decompress).collect()
+            pool.install(|| batch.into_par_iter().map(decompress).collect())
         } else {
             batch.into_iter().map(decompress).collect()
         };

@@ -5,15 +5,15 @@ use exr::math::Vec2;
 use exr::meta::attribute::{Chromaticities as ExrChromaticities, LineOrder};
 use exr::meta::header::LayerAttributes;
 use exr::prelude::{f16, SmallVec, WritableImage};
-use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result};
+use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result, ThreadPool};
 use std::io::Cursor;
 
 use crate::decode::{guarded, map_err};
 use crate::{ExrCompression, ExrEncodeOptions, ExrPixelType};
 
-/// Encodes `image` as an OpenEXR file. `threads == 1` compresses on the calling thread;
-/// anything else lets `exr` use every core.
-pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, threads: usize) -> Result<Vec<u8>> {
+/// Encodes `image` as an OpenEXR file. A single-threaded `pool` compresses on the calling
+/// thread; a parallel one lets `exr` compress blocks in parallel.
+pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, pool: &ThreadPool) -> Result<Vec<u8>> {
     if image.width() == 0 || image.height() == 0 {
         return Err(Error::invalid(format!("cannot write an empty {}x{} image", image.width(), image.height())));
     }
@@ -40,7 +40,9 @@ pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, threads: usize) 
     let size = Vec2(image.width() as usize, image.height() as usize);
     let layer = Layer::new(size, attributes, encoding, AnyChannels::sort(list));
     let mut exr_image = Image::from_layer(layer);
-    if image.color.primaries != ColorPrimaries::Bt709 {
+    // Without the attribute OpenEXR means BT.709 primaries; unspecified samples are written that
+    // way too (the attribute cannot say "unknown").
+    if !matches!(image.color.primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified) {
         let c = image.color.primaries.chromaticities();
         let xy = |v: [f64; 2]| Vec2(v[0] as f32, v[1] as f32);
         exr_image.attributes.chromaticities =
@@ -53,7 +55,7 @@ pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, threads: usize) 
         // on exr's own worker pool aborts the process, so B44 compresses on this thread, where
         // `guarded` turns the panic into an error.
         let b44 = matches!(options.compression, ExrCompression::B44 | ExrCompression::B44A);
-        let result = if threads == 1 || b44 {
+        let result = if !pool.is_parallel() || b44 {
             writer.non_parallel().to_buffered(&mut out)
         } else {
             writer.to_buffered(&mut out)

@@ -31,11 +31,11 @@ mod encode;
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
 
-pub use decode::decode_exr;
+pub use decode::{decode_exr, decode_exr_with};
 pub use encode::encode_exr;
 
 use exr::compression::Compression;
-use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Result};
 use std::fmt;
 use std::str::FromStr;
 
@@ -235,12 +235,28 @@ impl ImageCodec for ExrCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.starts_with(&MAGIC)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        decode_exr(data, limits)
+    /// The `chromaticities` attribute records any primaries (absent means BT.709, by the
+    /// OpenEXR specification).
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::Any
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        decode_exr_with(data, options)
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
         let options = ExrEncodeOptions::from_settings(settings)?;
-        encode_exr(image, &options, settings.threads)
+        out.write_all(&encode_exr(image, &options, &settings.pool)?)?;
+        let mut report = hdrcodec_core::EncodeReport::new();
+        if !image.color.primaries.is_specified() {
+            // Without a chromaticities attribute OpenEXR means BT.709; it cannot say "unknown".
+            report.note("the input records no primaries: OpenEXR stores them as BT.709, its default (--opt primaries=NAME labels them)");
+        }
+        Ok(report)
     }
 }
 

@@ -9,7 +9,7 @@ use exr::math::Vec2;
 use exr::meta::attribute::IntegerBounds;
 use exr::meta::header::LayerAttributes;
 use exr::prelude::{f16, SmallVec, WritableImage};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Limits};
 
 fn picture(w: u32, h: u32, channels: Channels) -> HdrImage {
     let n = channels.count();
@@ -173,7 +173,7 @@ fn the_data_window_is_returned() {
 #[test]
 fn limits_are_checked_before_allocating() {
     let bytes = ExrCodec.encode(&picture(8, 8, Channels::Rgb), &EncodeSettings::default()).unwrap();
-    let e = ExrCodec.decode(&bytes, &Limits { max_pixels: 63, ..Limits::default() }).unwrap_err();
+    let e = ExrCodec.decode(&bytes, &Limits::default().with_max_pixels(63)).unwrap_err();
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
     // A data window of 16000 x 16000 in a file of a few hundred bytes.
     let mut big = bytes.clone();

@@ -282,13 +282,24 @@ impl ImageCodec for LogLuvTiffCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         tiff::is_tiff(head)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        decode(data, limits, &DecodeOptions::default())
+    /// LogLuv records colour absolutely, as CIE XYZ: any primaries survive (decoding gives
+    /// BT.709 samples, negative where a colour lies outside BT.709).
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::Any
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        decode(data, &options.limits, &DecodeOptions::default())
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
         settings.check_options(self.name(), &["rows_per_strip"])?;
         let rows_per_strip = settings.parse_option::<u32>("rows_per_strip")?.unwrap_or(0);
-        encode(image, &EncodeOptions { encoding: self.encoding, rows_per_strip })
+        out.write_all(&encode(image, &EncodeOptions { encoding: self.encoding, rows_per_strip })?)?;
+        Ok(hdrcodec_core::EncodeReport::new())
     }
 }
 

@@ -20,11 +20,12 @@
 //! let img = HdrImage::new(1, 2, Channels::Rgb, vec![1.0, 2.0, 3.0, 1e6, 0.0, -1.0], ColorInfo::default())?;
 //! let bytes = PfmCodec.encode(&img, &EncodeSettings::default())?;
 //! assert!(bytes.starts_with(b"PF\n1 2\n-1\n"));
-//! assert_eq!(PfmCodec.decode(&bytes, &Limits::default())?, img);
+//! // PFM records no primaries: the samples come back exactly, labelled "unspecified".
+//! assert_eq!(PfmCodec.decode(&bytes, &Limits::default())?.samples(), img.samples());
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
-use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
 #[derive(Clone, Copy, Debug, Default)]
@@ -134,7 +135,9 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
             samples.extend(row.chunks_exact(4).map(read));
         }
     }
-    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, ColorInfo::default())?;
+    // PFM records no colour: the samples are whatever the writer had.
+    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
+    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, color)?;
     if h.scale != 1.0 {
         image.set_metadata("pfm.scale", h.scale.to_string());
     }
@@ -174,13 +177,23 @@ impl ImageCodec for PfmCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.len() >= 3 && (head.starts_with(b"PF") || head.starts_with(b"Pf")) && head[2].is_ascii_whitespace()
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        decode_pfm(data, limits)
+    /// PFM records no colour at all: samples are stored as they are.
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::None
+    }
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        decode_pfm(data, &options.limits)
     }
     /// PFM has no options; any `key=value` is an error.
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
         settings.check_options("pfm", &[])?;
-        encode_pfm(image)
+        out.write_all(&encode_pfm(image)?)?;
+        Ok(hdrcodec_core::EncodeReport::new())
     }
 }
 

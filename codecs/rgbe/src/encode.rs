@@ -112,7 +112,10 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
     }
     let stride = image.channels().count();
     let primaries = image.color.primaries;
-    let declare = (primaries != ColorPrimaries::Bt709).then(|| primaries.chromaticities());
+    // Without a PRIMARIES line a Radiance file means the standard primaries (BT.709/sRGB): unspecified
+    // samples are written that way too, as no line can say "unknown".
+    let declare =
+        (!matches!(primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified)).then(|| primaries.chromaticities());
     let to_xyz = match opts.format {
         PixelFormat::Rgbe => None,
         PixelFormat::Xyze => {

@@ -205,10 +205,25 @@ impl ImageCodec for RgbeCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         header::sniff(head)
     }
-    fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
-        decode::decode(data, limits, &self.decode)
+    /// The `PRIMARIES` header line records any chromaticities (XYZE files are CIE XYZ).
+    fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
+        hdrcodec_core::ColorSignalling::Any
     }
-    fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
-        encode::encode(image, &RgbeEncodeOptions::from_settings(settings)?)
+    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        decode::decode(data, &options.limits, &self.decode)
+    }
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<hdrcodec_core::EncodeReport> {
+        out.write_all(&encode::encode(image, &RgbeEncodeOptions::from_settings(settings)?)?)?;
+        let mut report = hdrcodec_core::EncodeReport::new();
+        if !image.color.primaries.is_specified() {
+            // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
+            report.note("the input records no primaries: Radiance stores them as its standard (BT.709) primaries (--opt primaries=NAME labels them)");
+        }
+        Ok(report)
     }
 }

@@ -3,7 +3,6 @@
 //! non-zero status and no output file. `--json` prints exactly one JSON object on stdout.
 
 mod cli;
-mod plot;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -21,9 +20,11 @@ struct Cli {
 enum Command {
     /// Convert IN to OUT; formats are chosen by file extension, or OUT's by --codec.
     ///
-    /// The result is decoded once before it is written; if OUT's format cannot record IN's
-    /// primaries (PFM always reads as BT.709), the pixels are converted to the primaries it
-    /// reads back with, so colours survive (out-of-gamut colours become negative values).
+    /// Colour is converted at most once, only into what OUT's format can record: a format with
+    /// no primaries (PFM, DDS) keeps the samples as they are and a note on stderr says so;
+    /// `--opt primaries=NAME` (bt709, bt2020, p3, dci-p3, aces, acescg, adobe-rgb, xyz)
+    /// converts explicitly. Notes (colour, values clipped to the format's range) are printed
+    /// as `hdrcodec: note: ...` lines on stderr after the file is written.
     Convert(ConvertArgs),
     /// Print what a file holds: size, channels, colour, HDR10 metadata, luminance range.
     Info {
@@ -98,9 +99,9 @@ struct BenchArgs {
     /// Also draw bits per pixel against PU21-PSNR into this PNG file.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
-    /// Worker threads for the encoders (0 = one per core). One by default, so that speeds are
-    /// per core and comparable between codecs.
-    #[arg(long, default_value_t = 1)]
+    /// Threads of the pool behind the all-thread speed columns (0 = one per core); every
+    /// measurement is also made on one thread.
+    #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Also print one line per configuration and image.
     #[arg(long)]

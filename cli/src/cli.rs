@@ -1,8 +1,8 @@
 //! The commands of the `hdrcodec` binary. Each returns `Err` with a one-line reason; `main`
 //! prints it as `hdrcodec: <reason>` and exits non-zero.
 
-use hdrcodec::bench;
-use hdrcodec::core::{metrics, EncodeSettings, Error, HdrImage, Limits, Result};
+use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, HdrImage, Limits, Result, ThreadPool};
+use hdrcodec_cli::bench;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -119,15 +119,28 @@ pub fn convert(
     if let Some(e) = effort {
         settings.effort = e;
     }
-    if let Some(t) = threads {
-        settings.threads = t;
-    }
+    // One pool for the whole command, decoding and encoding alike.
+    settings.pool = ThreadPool::new(threads.unwrap_or(0))?;
     for kv in opts {
         settings.push_option_str(kv)?;
     }
-    let (_, image) = reg.read(input, &Limits::default())?;
-    let (bytes, _) = hdrcodec::encode_keeping_colours(out_codec.as_ref(), &image, &settings)?;
-    hdrcodec::write_atomic(output, &bytes)
+    let data = hdrcodec::read_file(input)?;
+    let options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
+    let (_, image) = reg.decode_with(input, &data, &options)?;
+    drop(data);
+    let (bytes, notes) = hdrcodec::encode_for(out_codec.as_ref(), &image, &settings)?;
+    hdrcodec::write_atomic(output, &bytes)?;
+    for n in notes {
+        note(&n);
+    }
+    Ok(())
+}
+
+/// A one-line remark on stderr after a successful command (colour kept or converted, values
+/// clipped): `hdrcodec: note: ...`.
+fn note(text: &str) {
+    let line = text.split(['\n', '\r']).map(str::trim).filter(|s| !s.is_empty()).collect::<Vec<_>>().join("; ");
+    eprintln!("hdrcodec: note: {line}");
 }
 
 fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
@@ -265,6 +278,7 @@ pub struct BenchOptions {
     pub dir: Option<PathBuf>,
     pub json: bool,
     pub plot: Option<PathBuf>,
+    /// Threads of the pool behind the all-thread speed columns (0: one per core).
     pub threads: usize,
     pub filter: Option<String>,
     pub per_image: bool,
@@ -278,7 +292,7 @@ const QUICK_MAX_PIXELS: usize = 70_000;
 /// `hdrcodec bench`.
 pub fn bench(o: &BenchOptions) -> Result<()> {
     if let Some(p) = &o.plot {
-        crate::plot::prepare(p)?;
+        hdrcodec_cli::plot::prepare(p)?;
     }
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
@@ -287,9 +301,6 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         if configs.is_empty() {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
-    }
-    for c in &mut configs {
-        c.settings.threads = o.threads;
     }
     let (mut inputs, skipped, source) = match &o.dir {
         None => (bench::generated_inputs(), Vec::new(), "generated corpus".to_string()),
@@ -305,13 +316,14 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
     }
     let pb = progress_bar(configs.len() * inputs.len(), o.json);
-    let report = bench::run(&configs, &inputs, o.runs, &source, skipped, |done, _, label| {
+    let pool = ThreadPool::new(o.threads)?;
+    let report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
         pb.set_position(done as u64);
         pb.set_message(label.to_string());
     });
     pb.finish_and_clear();
     if let Some(p) = &o.plot {
-        crate::plot::write(&report, p)?;
+        hdrcodec_cli::plot::write(&report, p)?;
     }
     if o.json {
         let v = serde_json::to_value(&report).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
@@ -327,8 +339,8 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
 /// `hdrcodec corpus write`.
 pub fn corpus_write(dir: &Path) -> Result<()> {
     let reg = hdrcodec::registry();
-    let pb = progress_bar(hdrcodec::corpus::scene_names().len(), false);
-    let written = hdrcodec::corpus::write(dir, &reg, |name| {
+    let pb = progress_bar(hdrcodec_cli::corpus::scene_names().len(), false);
+    let written = hdrcodec_cli::corpus::write(dir, &reg, |name| {
         pb.inc(1);
         pb.set_message(name.to_string());
     });

@@ -9,12 +9,12 @@
 //! All scenes use `nits_per_unit = 100` (a sample value of 1.0 is 100 cd/m²).
 //!
 //! ```
-//! let scenes = hdrcodec::corpus::scenes();
+//! let scenes = hdrcodec_cli::corpus::scenes();
 //! assert!(scenes.iter().any(|s| s.name == "sun-sky"));
 //! ```
 
-use crate::core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, Result};
-use crate::{luminance, Registry};
+use hdrcodec::core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, Result};
+use hdrcodec::{luminance, Registry};
 use std::path::{Path, PathBuf};
 
 /// Absolute luminance of a sample value 1.0 in every generated scene, cd/m².
@@ -160,11 +160,11 @@ pub fn write(dir: &Path, registry: &Registry, mut progress: impl FnMut(&str)) ->
         progress(s.name);
         let path = dir.join(format!("{}.exr", s.name));
         let bytes = exr.encode(&s.image, &settings)?;
-        crate::write_atomic(&path, &bytes)?;
+        hdrcodec::write_atomic(&path, &bytes)?;
         written.push(path);
     }
     let path = dir.join("MANIFEST.tsv");
-    crate::write_atomic(&path, manifest(&scenes).as_bytes())?;
+    hdrcodec::write_atomic(&path, manifest(&scenes).as_bytes())?;
     written.push(path);
     Ok(written)
 }
@@ -478,7 +478,7 @@ mod tests {
             }
         }
         // BT.2020 green expressed in BT.709 needs negative red and blue: out of BT.709 gamut.
-        let as709 = crate::core::color::convert_primaries(&img, ColorPrimaries::Bt709);
+        let as709 = hdrcodec::core::color::convert_primaries(&img, ColorPrimaries::Bt709);
         let out_of_gamut = as709.samples().iter().filter(|&&v| v < 0.0).count();
         assert!(out_of_gamut * 3 > as709.samples().len() / 3, "{out_of_gamut} negative samples");
         // Log rows span 0.1 .. 1e4 nits for the green band (luminance of pure BT.2020 green).

@@ -2,6 +2,7 @@
 //! `compare`, `bench --json`, `corpus write`, and bad input that must give exactly one
 //! `hdrcodec: ...` line on stderr, a non-zero exit and no output file.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use hdrcodec::core::Limits;
@@ -158,7 +159,7 @@ fn corpus_write_matches_the_committed_manifest() {
     let committed = std::fs::read_to_string(common::workspace_root().join("corpus/MANIFEST.tsv")).unwrap();
     assert_eq!(written, committed, "regenerate corpus/MANIFEST.tsv with `hdrcodec corpus write` and review the change");
     // Every scene file decodes to exactly the generator's samples.
-    for s in hdrcodec::corpus::scenes() {
+    for s in hdrcodec_cli::corpus::scenes() {
         let img = decode(&corpus().join(format!("{}.exr", s.name)));
         assert_eq!(img.samples(), s.image.samples(), "{}", s.name);
         assert_eq!(img.color.primaries, s.image.color.primaries, "{}", s.name);
@@ -313,7 +314,7 @@ fn bench_plot_writes_a_png() {
 fn info_shows_hdr10_metadata_carried_by_the_container() {
     use hdrcodec::core::{ContentLightLevel, EncodeSettings, Hdr10Metadata, MasteringDisplay};
     let dir = common::temp_dir("cli-hdr10");
-    let mut img = hdrcodec::corpus::scene("odd-257x129").unwrap().image;
+    let mut img = hdrcodec_cli::corpus::scene("odd-257x129").unwrap().image;
     let md = MasteringDisplay::bt2020(1000.0, 0.0001);
     img.color.hdr10 = Some(Hdr10Metadata {
         mastering_display: Some(md),
@@ -351,19 +352,41 @@ fn no_command_is_a_one_line_usage_error() {
 }
 
 #[test]
-fn convert_to_a_format_without_primaries_keeps_the_colours() {
+fn convert_to_a_format_without_primaries_keeps_the_samples() {
     let dir = common::temp_dir("cli-primaries");
     let src = corpus().join("bt2020-ramps.exr");
     let pfm = dir.join("r.pfm");
-    ok(&hdrcodec(&[&"convert", &src, &pfm]));
+    // PFM records no primaries: the BT.2020 samples are stored as they are (no gamut conversion,
+    // nothing clipped), and one note on stderr says so.
+    let out = hdrcodec(&[&"convert", &src, &pfm]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("hdrcodec: note: pfm records no primaries: the BT.2020 samples are stored as they are"),
+        "{err}"
+    );
     let v = json(&hdrcodec(&[&"info", &pfm, &"--json"]));
-    assert_eq!(v["primaries"], "BT.709");
-    // Same colours in other primaries: ΔE ITP far below one JND (only f32 matrix rounding),
-    // while reading the BT.2020 samples as BT.709 would be tens of JNDs off.
+    assert_eq!(v["primaries"], "unspecified");
+    // The same samples as the source: compare takes the reference's primaries for a test file
+    // that has none, so the figures score the format (lossless f32 here), not a conversion.
+    let src_img = decode(&src);
+    let pfm_img = decode(&pfm);
+    assert_eq!(pfm_img.samples(), src_img.samples());
     let v = json(&hdrcodec(&[&"compare", &src, &pfm, &"--json"]));
-    assert!(v["de_itp_p99"].as_f64().unwrap() < 0.05, "{v}");
+    assert_eq!(v["identical"], true, "{v}");
+    // Back to OpenEXR, labelled as what the user knows they are: the source exactly.
     let back = dir.join("back.exr");
-    ok(&hdrcodec(&[&"convert", &pfm, &back, &"--opt", &"pixel=float"]));
-    let v = json(&hdrcodec(&[&"compare", &src, &back, &"--json"]));
-    assert!(v["de_itp_p99"].as_f64().unwrap() < 0.05, "{v}");
+    ok(&hdrcodec(&[&"convert", &pfm, &back, &"--opt", &"pixel=float", &"--opt", &"primaries=bt2020"]));
+    let back_img = decode(&back);
+    assert_eq!((back_img.samples(), back_img.color.primaries), (src_img.samples(), src_img.color.primaries));
+    // Asked to convert, a format without primaries stores the converted samples unlabelled.
+    let conv = dir.join("709.pfm");
+    ok(&hdrcodec(&[&"convert", &src, &conv, &"--opt", &"primaries=bt709"]));
+    let v = json(&hdrcodec(&[&"compare", &src, &conv, &"--json"]));
+    assert!(v["identical"] == false && v["de_itp_p99"].as_f64().unwrap() > 5.0, "read as BT.2020 they are off: {v}");
+    let as709 = hdrcodec::core::color::convert_primaries(&src_img, hdrcodec::core::ColorPrimaries::Bt709);
+    assert_eq!(decode(&conv).samples(), as709.samples());
+    // Unknown primaries are an error naming the known ones.
+    must_fail(&[&"convert", &src, &dir.join("x.pfm"), &"--opt", &"primaries=bt999"], &dir, "unknown primaries");
 }

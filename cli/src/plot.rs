@@ -1,7 +1,7 @@
 //! `hdrcodec bench --plot FILE.png`: bits per pixel against PU21-PSNR, one labelled point per
 //! configuration, drawn with plotters into a PNG (through a temporary file and a rename).
 
-use hdrcodec::bench::Report;
+use crate::bench::Report;
 use hdrcodec::core::{Error, Result};
 use plotters::prelude::*;
 use std::path::Path;

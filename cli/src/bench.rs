@@ -5,10 +5,15 @@
 //! and a label (`"exr:piz-half"`). Each codec contributes its configurations in
 //! [`configurations`] (one line per codec). Quality is measured with
 //! [`hdrcodec_core::metrics::compare`] on the RGB channels (lossy codecs may drop alpha), speed
-//! as the median wall time of a few runs.
+//! as the median wall time of a few runs, once on one thread and once on a pool of all threads
+//! (both directions, labelled).
+//!
+//! Every codec sees the same samples: the image's colour is prepared for the codec once
+//! ([`hdrcodec::prepare_colour`]), so a format without primaries stores the samples as they
+//! are, reads them back unspecified, and is scored in the reference's primaries.
 
-use crate::core::{metrics, Channels, EncodeSettings, HdrImage, ImageCodec, Limits};
-use crate::Registry;
+use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
+use hdrcodec::Registry;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -36,7 +41,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     };
     let opts = |kv: &[(&str, &str)]| kv.iter().fold(EncodeSettings::default(), |s, (k, v)| s.with_option(*k, *v));
     // OpenEXR baselines: every compression the codec writes, half and float samples.
-    for c in crate::exr::ExrCompression::ALL.map(|c| c.name()) {
+    for c in hdrcodec::exr::ExrCompression::ALL.map(|c| c.name()) {
         for p in ["half", "float"] {
             add("exr", format!("exr:{c}-{p}"), opts(&[("compression", c), ("pixel", p)]));
         }
@@ -48,7 +53,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     // BC6H at its fast efforts: the thorough ones take minutes per megapixel and belong in
     // `cargo bench --bench bc6h_encode`.
     for effort in [0, 2] {
-        add("bc6h", format!("bc6h:effort{effort}"), EncodeSettings { effort, ..EncodeSettings::default() });
+        add("bc6h", format!("bc6h:effort{effort}"), EncodeSettings::default().with_effort(effort));
     }
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
@@ -81,15 +86,19 @@ pub struct Skipped {
 /// Every file under `dir` (and its subdirectories, a few levels deep) that some codec of
 /// `registry` decodes, sorted by path; files without a known extension or magic number are
 /// ignored, and files that fail to decode are listed as skipped. Names are relative to `dir`.
-pub fn dir_inputs(dir: &Path, registry: &Registry, limits: &Limits) -> crate::core::Result<(Vec<Input>, Vec<Skipped>)> {
+pub fn dir_inputs(
+    dir: &Path,
+    registry: &Registry,
+    limits: &Limits,
+) -> hdrcodec::core::Result<(Vec<Input>, Vec<Skipped>)> {
     let mut paths = Vec::new();
     collect_files(dir, 4, &mut paths)
-        .map_err(|e| crate::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
+        .map_err(|e| hdrcodec::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
     paths.sort();
     let (mut inputs, mut skipped) = (Vec::new(), Vec::new());
     for p in paths {
         let file = p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().into_owned();
-        let data = match crate::read_file(&p) {
+        let data = match hdrcodec::read_file(&p) {
             Ok(d) => d,
             Err(e) => {
                 skipped.push(Skipped { file, reason: e.to_string() });
@@ -144,10 +153,17 @@ pub struct Row {
     pub de_itp_mean: f64,
     /// Root mean square of log2((test + 1) / (reference + 1)) over the RGB samples.
     pub log_rmse: f64,
-    /// Encode speed, megapixels per second (median run).
+    /// Encode speed on one thread, megapixels per second (median run).
     pub encode_mps: f64,
-    /// Decode speed, megapixels per second (median run).
+    /// Decode speed on one thread, megapixels per second (median run).
     pub decode_mps: f64,
+    /// Encode speed on the report's pool of `threads` threads.
+    pub encode_mps_all: f64,
+    /// Decode speed on the report's pool of `threads` threads.
+    pub decode_mps_all: f64,
+    /// What the codec or the colour preparation said (a format without primaries, clipping).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Why this configuration failed on this image, if it did (then the numbers are zero).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -178,6 +194,10 @@ pub struct Summary {
     pub encode_mps: f64,
     /// Total pixels over total median decode time.
     pub decode_mps: f64,
+    /// Total pixels over total median encode time, on all threads.
+    pub encode_mps_all: f64,
+    /// Total pixels over total median decode time, on all threads.
+    pub decode_mps_all: f64,
 }
 
 /// Everything one bench run measured.
@@ -188,6 +208,8 @@ pub struct Report {
     /// Timed runs per measurement, at most (the median is reported; a measurement whose runs
     /// have taken 2 s starts no further run).
     pub runs: usize,
+    /// Threads of the pool behind the `*_all` speeds.
+    pub threads: usize,
     /// One row per configuration and image.
     pub rows: Vec<Row>,
     /// One line per configuration.
@@ -202,7 +224,7 @@ const TIME_BUDGET: Duration = Duration::from_secs(2);
 
 /// The median of up to `runs` timings of `f` (which must succeed every time; at least one run,
 /// fewer than `runs` once [`TIME_BUDGET`] is spent), and its last result.
-fn timed<T>(runs: usize, mut f: impl FnMut() -> crate::core::Result<T>) -> crate::core::Result<(Duration, T)> {
+fn timed<T>(runs: usize, mut f: impl FnMut() -> hdrcodec::core::Result<T>) -> hdrcodec::core::Result<(Duration, T)> {
     let mut times = Vec::with_capacity(runs);
     let mut last = None;
     let start = Instant::now();
@@ -223,8 +245,8 @@ fn mps(pixels: usize, t: Duration) -> f64 {
     pixels as f64 / 1e6 / t.as_secs_f64().max(1e-9)
 }
 
-/// Runs one configuration on one image.
-fn measure(config: &Config, input: &Input, runs: usize) -> Row {
+/// Runs one configuration on one image, timing it on one thread and on `pool`.
+fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Row {
     let pixels = input.image.pixel_count();
     let mut row = Row {
         config: config.label.clone(),
@@ -238,14 +260,33 @@ fn measure(config: &Config, input: &Input, runs: usize) -> Row {
         log_rmse: 0.0,
         encode_mps: 0.0,
         decode_mps: 0.0,
+        encode_mps_all: 0.0,
+        decode_mps_all: 0.0,
+        notes: Vec::new(),
         error: None,
     };
-    let result = (|| -> crate::core::Result<()> {
-        // Encode what `convert` would: formats without primaries get the pixels in the ones
-        // they read back with, so that a BT.2020 scene is not judged as if it were BT.709.
-        let (_, source) = crate::encode_keeping_colours(config.codec.as_ref(), &input.image, &config.settings)?;
-        let (enc_t, bytes) = timed(runs, || config.codec.encode(&source, &config.settings))?;
-        let (dec_t, decoded) = timed(runs, || config.codec.decode(&bytes, &Limits::default()))?;
+    let result = (|| -> hdrcodec::core::Result<()> {
+        // The colour is prepared once, as `convert` does; only the codec is timed.
+        let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
+        let codec = config.codec.as_ref();
+        let one = prepared.settings.clone().with_pool(ThreadPool::single());
+        let all = prepared.settings.clone().with_pool(pool.clone());
+        let mut notes = prepared.notes.clone();
+        let (enc_t, bytes) = timed(runs, || {
+            let mut out = Vec::new();
+            let report = codec.encode_to(&prepared.image, &one, &mut out)?;
+            for n in report.notes {
+                if !notes.contains(&n) {
+                    notes.push(n);
+                }
+            }
+            Ok(out)
+        })?;
+        let (enc_all_t, _) = timed(runs, || codec.encode(&prepared.image, &all))?;
+        let dec_one = DecodeOptions::new(Limits::default());
+        let dec_all = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
+        let (dec_t, decoded) = timed(runs, || codec.decode_with(&bytes, &dec_one))?;
+        let (dec_all_t, _) = timed(runs, || codec.decode_with(&bytes, &dec_all))?;
         // Lossy codecs may drop alpha: quality is always measured on RGB.
         let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
         row.bytes = bytes.len();
@@ -256,6 +297,9 @@ fn measure(config: &Config, input: &Input, runs: usize) -> Row {
         row.log_rmse = cmp.log_rmse;
         row.encode_mps = mps(pixels, enc_t);
         row.decode_mps = mps(pixels, dec_t);
+        row.encode_mps_all = mps(pixels, enc_all_t);
+        row.decode_mps_all = mps(pixels, dec_all_t);
+        row.notes = notes;
         Ok(())
     })();
     if let Err(e) = result {
@@ -283,15 +327,18 @@ fn summarize(label: &str, rows: &[&Row]) -> Summary {
         log_rmse: mean(&|r| r.log_rmse, &ok),
         encode_mps: pixels as f64 / 1e6 / secs(&|r| r.encode_mps).max(1e-12),
         decode_mps: pixels as f64 / 1e6 / secs(&|r| r.decode_mps).max(1e-12),
+        encode_mps_all: pixels as f64 / 1e6 / secs(&|r| r.encode_mps_all).max(1e-12),
+        decode_mps_all: pixels as f64 / 1e6 / secs(&|r| r.decode_mps_all).max(1e-12),
     }
 }
 
-/// Runs every configuration on every input, `runs` timed runs each, calling `progress` after
-/// each (configuration, image) pair with the number done and the total.
+/// Runs every configuration on every input, `runs` timed runs each on one thread and on `pool`,
+/// calling `progress` after each (configuration, image) pair with the number done and the total.
 pub fn run(
     configs: &[Config],
     inputs: &[Input],
     runs: usize,
+    pool: &ThreadPool,
     source: &str,
     skipped: Vec<Skipped>,
     mut progress: impl FnMut(usize, usize, &str),
@@ -300,7 +347,7 @@ pub fn run(
     let mut rows = Vec::with_capacity(total);
     for c in configs {
         for i in inputs {
-            rows.push(measure(c, i, runs));
+            rows.push(measure(c, i, runs, pool));
             progress(rows.len(), total, &c.label);
         }
     }
@@ -308,7 +355,7 @@ pub fn run(
         .iter()
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
         .collect();
-    Report { source: source.to_string(), runs, rows, summary, skipped }
+    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped }
 }
 
 fn fmt_db(v: f64) -> String {
@@ -319,15 +366,22 @@ fn fmt_db(v: f64) -> String {
     }
 }
 
+/// The speed column headers: one thread, then all threads of the report's pool.
+fn speed_headers(report: &Report) -> (String, String, String, String) {
+    let n = report.threads;
+    ("enc 1T".into(), "dec 1T".into(), format!("enc {n}T"), format!("dec {n}T"))
+}
+
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
+    let (e1, d1, en, dn) = speed_headers(report);
     let mut s = format!(
-        "{:<20} {:<24} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9}\n",
-        "config", "image", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc MP/s", "dec MP/s"
+        "{:<20} {:<24} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
+        "config", "image", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", e1, d1, en, dn
     );
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
         s.push_str(&format!(
-            "{:<20} {:<24} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1}\n",
+            "{:<20} {:<24} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
             r.config,
             r.image,
             r.bytes,
@@ -336,7 +390,9 @@ pub fn per_image_table(report: &Report) -> String {
             r.de_itp_mean,
             r.log_rmse,
             r.encode_mps,
-            r.decode_mps
+            r.decode_mps,
+            r.encode_mps_all,
+            r.decode_mps_all
         ));
     }
     s.push('\n');
@@ -345,14 +401,15 @@ pub fn per_image_table(report: &Report) -> String {
 
 /// The report as a plain-text table, one line per configuration.
 pub fn table(report: &Report) -> String {
+    let (e1, d1, en, dn) = speed_headers(report);
     let mut s = format!(
-        "{:<20} {:>6} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9}\n",
-        "config", "images", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc MP/s", "dec MP/s"
+        "{:<20} {:>6} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
+        "config", "images", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", e1, d1, en, dn
     );
     for r in &report.summary {
         let images = if r.failed > 0 { format!("{}/{}", r.images, r.images + r.failed) } else { r.images.to_string() };
         s.push_str(&format!(
-            "{:<20} {:>6} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1}\n",
+            "{:<20} {:>6} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
             r.config,
             images,
             r.bytes,
@@ -361,12 +418,27 @@ pub fn table(report: &Report) -> String {
             r.de_itp_mean,
             r.log_rmse,
             r.encode_mps,
-            r.decode_mps
+            r.decode_mps,
+            r.encode_mps_all,
+            r.decode_mps_all
         ));
     }
     for r in report.rows.iter().filter(|r| r.error.is_some()) {
         s.push_str(&format!("{} on {}: {}\n", r.config, r.image, r.error.as_deref().unwrap_or("")));
     }
+    let mut seen = Vec::new();
+    for r in &report.rows {
+        for n in &r.notes {
+            if !seen.contains(&n) {
+                s.push_str(&format!("note: {n}\n"));
+                seen.push(n);
+            }
+        }
+    }
+    s.push_str(&format!(
+        "speeds in MP/s: 1T on one thread, {}T on a pool of {} threads (--threads)\n",
+        report.threads, report.threads
+    ));
     for k in &report.skipped {
         s.push_str(&format!("skipped {}: {}\n", k.file, k.reason));
     }

@@ -1,0 +1,9 @@
+//! `hdrcodec-cli`: what the `hdrcodec` command line tool adds on top of the library: the bench
+//! engine ([`bench`]), the project's generated corpus ([`corpus`]) and the rate-distortion plot
+//! ([`plot`]). Kept out of the `hdrcodec` facade so that a program embedding the codecs pulls no
+//! clap, plotters, png or serde.
+#![forbid(unsafe_code)]
+
+pub mod bench;
+pub mod corpus;
+pub mod plot;

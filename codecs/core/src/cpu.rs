@@ -1,0 +1,121 @@
+//! CPU features, detected once for the whole family.
+//!
+//! Every SIMD site asks this module, never `is_x86_feature_detected!` itself, so that one
+//! switch selects the portable code everywhere: `HDRCODEC_CPU=scalar` (the portable twins only)
+//! or `HDRCODEC_CPU=avx2` (at most AVX2; the same as the machine's best today). The variable
+//! can only lower the level the hardware has, so a kernel chosen through [`level`] is always
+//! safe to run. CI runs the codec tests once more with `HDRCODEC_CPU=scalar`.
+
+use std::sync::OnceLock;
+
+/// The instruction-set levels the family's kernels are written for, in increasing order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[non_exhaustive]
+pub enum CpuLevel {
+    /// Portable Rust only (whatever the compiler's baseline target allows).
+    Scalar,
+    /// x86-64 with AVX2, FMA and F16C (Haswell and later, Zen and later).
+    Avx2,
+}
+
+impl CpuLevel {
+    /// The name `HDRCODEC_CPU` accepts for this level.
+    pub fn name(self) -> &'static str {
+        match self {
+            CpuLevel::Scalar => "scalar",
+            CpuLevel::Avx2 => "avx2",
+        }
+    }
+
+    /// The level called `name` in `HDRCODEC_CPU` (`scalar`/`portable`/`none`, `avx2`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "scalar" | "portable" | "none" | "generic" => Some(CpuLevel::Scalar),
+            "avx2" | "native" | "best" => Some(CpuLevel::Avx2),
+            _ => None,
+        }
+    }
+}
+
+/// The environment variable that caps the level: `HDRCODEC_CPU=scalar`.
+pub const ENV_VAR: &str = "HDRCODEC_CPU";
+
+/// What the hardware supports, ignoring `HDRCODEC_CPU`.
+pub fn detected() -> CpuLevel {
+    static DETECTED: OnceLock<CpuLevel> = OnceLock::new();
+    *DETECTED.get_or_init(detect)
+}
+
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+fn detect() -> CpuLevel {
+    if std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("fma")
+        && std::arch::is_x86_feature_detected!("f16c")
+    {
+        CpuLevel::Avx2
+    } else {
+        CpuLevel::Scalar
+    }
+}
+
+#[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+fn detect() -> CpuLevel {
+    CpuLevel::Scalar
+}
+
+/// The level the kernels use: the hardware's, capped by `HDRCODEC_CPU` (read once). An
+/// unknown value of the variable is ignored with a message on stderr.
+pub fn level() -> CpuLevel {
+    static LEVEL: OnceLock<CpuLevel> = OnceLock::new();
+    *LEVEL.get_or_init(|| {
+        let hw = detected();
+        match std::env::var(ENV_VAR) {
+            Err(_) => hw,
+            Ok(v) => match CpuLevel::from_name(&v) {
+                Some(cap) => hw.min(cap),
+                None => {
+                    eprintln!("hdrcodec: ignoring {ENV_VAR}={v} (known: scalar, avx2)");
+                    hw
+                }
+            },
+        }
+    })
+}
+
+/// True when the AVX2 (+FMA, F16C) kernels may run: the hardware has them and
+/// `HDRCODEC_CPU` does not forbid them.
+pub fn avx2() -> bool {
+    level() >= CpuLevel::Avx2
+}
+
+/// For a test that compares a SIMD kernel with its portable twin: true when the hardware can
+/// run the kernel at `needed` (the override does not matter: the test calls both directly).
+/// When it cannot, the test has nothing to compare: under `CI=true` that is a failure (the CI
+/// machine must exercise every kernel), elsewhere it prints `SKIPPED` and the test returns.
+pub fn twin_test_can_run(needed: CpuLevel, test: &str) -> bool {
+    if detected() >= needed {
+        return true;
+    }
+    let ci = std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
+    assert!(!ci, "{test}: this CPU lacks {} (CI=true requires every SIMD kernel to be tested)", needed.name());
+    eprintln!("SKIPPED {test}: this CPU lacks {}", needed.name());
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_override_only_lowers_the_level() {
+        assert!(level() <= detected());
+        assert_eq!(CpuLevel::from_name(" Scalar "), Some(CpuLevel::Scalar));
+        assert_eq!(CpuLevel::from_name("avx2"), Some(CpuLevel::Avx2));
+        assert_eq!(CpuLevel::from_name("avx512"), None);
+        assert!(CpuLevel::Scalar < CpuLevel::Avx2);
+        match std::env::var(ENV_VAR).ok().and_then(|v| CpuLevel::from_name(&v)) {
+            Some(CpuLevel::Scalar) => assert!(!avx2()),
+            _ => assert_eq!(level(), detected()),
+        }
+    }
+}
