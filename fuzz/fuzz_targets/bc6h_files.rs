@@ -3,8 +3,7 @@
 //! identically.
 #![no_main]
 
-use hdrcodec_bc6h::files::{read_dds, read_ktx2, write_dds, write_ktx2};
-use hdrcodec_bc6h::{Bc6hDdsCodec, Bc6hKtx2Codec};
+use hdrcodec_bc6h::{read_dds, read_ktx2, write_dds, write_ktx2, Bc6hDdsCodec, Bc6hKtx2Codec};
 use hdrcodec_core::{ImageCodec, Limits};
 use libfuzzer_sys::fuzz_target;
 

@@ -1,8 +1,10 @@
 //! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
 //! optional mip chains.
+use crate::dds::{is_bc6h_dds, read_dds, write_dds};
 use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
-use crate::files::{is_bc6h_dds, is_bc6h_ktx2, level_size, read_dds, read_ktx2, write_dds, write_ktx2, Bc6hTexture};
+use crate::ktx2::{is_bc6h_ktx2, read_ktx2, write_ktx2};
+use crate::texture::{full_mip_count, level_size, Bc6hTexture};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Result};
 
 /// The options both codecs understand.
@@ -65,7 +67,7 @@ pub fn encode_texture(
     if mips {
         let mut prev = rgb.to_vec();
         let mut size = (width, height);
-        for i in 1..crate::files::full_mip_count(width, height) {
+        for i in 1..full_mip_count(width, height) {
             let (w, h) = level_size(width, height, i);
             prev = downsample_box(&prev, size.0, size.1, w, h);
             size = (w, h);

@@ -10,8 +10,12 @@
 use hdrcodec_core::{Error, Result, ThreadPool};
 
 mod block;
+mod fit;
+mod partition;
+mod texels;
 
-use block::{sanitize_half, BlockEncoder, Search, Texels};
+use block::{BlockEncoder, Search};
+use texels::{sanitize_half, Texels};
 
 /// Encoder options.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -233,7 +237,7 @@ mod tests {
             return;
         }
         let (w, h) = (36usize, 12usize);
-        let mut next = block::tests::xorshift32(0x2545_F491);
+        let mut next = texels::tests::xorshift32(0x2545_F491);
         let mut rgb = vec![0f32; w * h * 3];
         for (i, v) in rgb.iter_mut().enumerate() {
             let state = next();

@@ -3,16 +3,22 @@
 //! - [`decode_block`] / [`decode_surface`]: the decoder (all 14 modes, UF16 and SF16),
 //!   bit-exact with the D3D11 specification and bcdec.
 //! - [`modes`]: the format tables and block packing shared with the encoder.
-//! - [`files`]: DDS (DX10 header) and KTX2 with mip levels; [`Bc6hDdsCodec`] and
-//!   [`Bc6hKtx2Codec`] implement [`hdrcodec_core::ImageCodec`].
+//! - [`dds`] (DX10 header) and [`ktx2`]: the two files, with mip levels, holding a
+//!   [`Bc6hTexture`] ([`texture`]); [`Bc6hDdsCodec`] and [`Bc6hKtx2Codec`] implement
+//!   [`hdrcodec_core::ImageCodec`].
 //! - [`encode`]: the encoder.
 
 mod codec;
+pub mod dds;
 mod decode;
 pub mod encode;
-pub mod files;
+pub mod ktx2;
 pub mod modes;
+pub mod texture;
 
 pub use codec::{downsample_box, encode_texture, Bc6hDdsCodec, Bc6hKtx2Codec};
+pub use dds::{read_dds, write_dds};
 pub use decode::{block_dims, decode_block, decode_surface, decode_surface_into, surface_bytes};
-pub use files::{read_dds, read_ktx2, write_dds, write_ktx2, Bc6hTexture};
+pub use ktx2::{read_ktx2, write_ktx2};
+pub use texture::Bc6hTexture;
+

@@ -1,7 +1,7 @@
 //! Truncation and corruption sweeps over DDS and KTX2 files: every prefix and many corrupted
 //! variants must give `Ok` or an `Error`, never a panic, and never a silently short image.
-use hdrcodec_bc6h::files::{level_size, write_dds, write_ktx2, Bc6hTexture};
-use hdrcodec_bc6h::{surface_bytes, Bc6hDdsCodec, Bc6hKtx2Codec};
+use hdrcodec_bc6h::texture::level_size;
+use hdrcodec_bc6h::{surface_bytes, write_dds, write_ktx2, Bc6hDdsCodec, Bc6hKtx2Codec, Bc6hTexture};
 use hdrcodec_core::{Error, ImageCodec, Limits};
 
 /// A 2-level 9x7 texture whose blocks are arbitrary bytes (every block decodes to something).

@@ -1,8 +1,8 @@
 //! Writing through the codecs with `mips=true`: a full chain whose every level decodes to the
 //! linear-light box average of the source (a smooth image, so BC6H's error is small next to
 //! the check), in DDS and KTX2, UF16 and SF16.
-use hdrcodec_bc6h::files::{full_mip_count, read_dds, read_ktx2};
-use hdrcodec_bc6h::{Bc6hDdsCodec, Bc6hKtx2Codec};
+use hdrcodec_bc6h::texture::full_mip_count;
+use hdrcodec_bc6h::{read_dds, read_ktx2, Bc6hDdsCodec, Bc6hKtx2Codec};
 use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
 
 /// A smooth HDR gradient (0.01 to ~40), negative in the blue channel when `signed`.
