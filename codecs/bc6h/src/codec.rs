@@ -5,7 +5,9 @@ use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
 use crate::ktx2::{is_bc6h_ktx2, read_ktx2, write_ktx2};
 use crate::texture::{full_mip_count, level_size, Bc6hTexture};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Result};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, Result,
+};
 
 /// The options both codecs understand.
 const OPTIONS: &[&str] = &["signed", "mips"];
@@ -77,14 +79,30 @@ pub fn encode_texture(
     Ok(Bc6hTexture { width, height, signed: options.signed, levels })
 }
 
-fn encode_with(image: &HdrImage, settings: &EncodeSettings, codec: &str) -> Result<Bc6hTexture> {
+/// Encodes the texture and reports the samples BC6H could not hold (see [`clip_note`]).
+fn encode_with(image: &HdrImage, settings: &EncodeSettings, codec: &str) -> Result<(Bc6hTexture, EncodeReport)> {
     settings.check_options(codec, OPTIONS)?;
     let signed = settings.bool_option("signed")?.unwrap_or(false);
     let mips = settings.bool_option("mips")?.unwrap_or(false);
     let options =
         EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), pool: settings.pool.clone() };
     let rgb = image.with_channels(Channels::Rgb);
-    encode_texture(image.width(), image.height(), rgb.samples(), &options, mips)
+    let texture = encode_texture(image.width(), image.height(), rgb.samples(), &options, mips)?;
+    let mut report = EncodeReport::new();
+    if let Some(note) = clip_note(image, signed) {
+        report.note(note);
+    }
+    Ok((texture, report))
+}
+
+/// What the encoder replaced (NaN by 0, values beyond the half range by ±65504, negatives in
+/// UF16 by 0; Direct3D 11 functional specification, BC6H), as a sentence, if anything.
+fn clip_note(image: &HdrImage, signed: bool) -> Option<String> {
+    const MAX: f32 = 65504.0;
+    let lo = if signed { -MAX } else { 0.0 };
+    let counts = image.count_outside(lo, MAX, false);
+    let below_as = if signed { "-65504" } else { "0 (--opt signed=true keeps negatives)" };
+    counts.describe(if signed { "BC6H SF16" } else { "BC6H UF16" }, lo, MAX, below_as, "65504", "0")
 }
 
 /// Level 0 of `tex` as an image, block rows decoded on `options.pool`.
@@ -128,8 +146,9 @@ impl ImageCodec for Bc6hDdsCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        out.write_all(&write_dds(&encode_with(image, settings, self.name())?)?)?;
-        Ok(hdrcodec_core::EncodeReport::new())
+        let (texture, report) = encode_with(image, settings, self.name())?;
+        out.write_all(&write_dds(&texture)?)?;
+        Ok(report)
     }
 }
 
@@ -164,8 +183,9 @@ impl ImageCodec for Bc6hKtx2Codec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        out.write_all(&write_ktx2(&encode_with(image, settings, self.name())?)?)?;
-        Ok(hdrcodec_core::EncodeReport::new())
+        let (texture, report) = encode_with(image, settings, self.name())?;
+        out.write_all(&write_ktx2(&texture)?)?;
+        Ok(report)
     }
 }
 
@@ -189,6 +209,28 @@ mod tests {
         assert!((one[0] - 4.0).abs() < 1e-5 && (one[1] - 1.0).abs() < 1e-6 && (one[2] - 7.0).abs() < 1e-5);
         let flat = vec![0.25f32; 7 * 5 * 3];
         assert!(downsample_box(&flat, 7, 5, 3, 2).iter().all(|&v| (v - 0.25).abs() < 1e-6));
+    }
+
+    #[test]
+    fn clipped_samples_are_reported() {
+        let img =
+            HdrImage::new(2, 1, Channels::Rgb, vec![-1.0, 1e6, 0.5, 1.0, f32::NAN, 2.0], ColorInfo::default()).unwrap();
+        let mut out = Vec::new();
+        let report = Bc6hDdsCodec.encode_to(&img, &EncodeSettings::default(), &mut out).unwrap();
+        assert_eq!(report.notes.len(), 1, "{report:?}");
+        let n = &report.notes[0];
+        assert!(
+            n.starts_with("BC6H UF16 holds values from 0 to 65504")
+                && n.contains("1 below 0")
+                && n.contains("1 above 65504")
+                && n.contains("1 NaN"),
+            "{n}"
+        );
+        let signed = EncodeSettings::default().with_option("signed", "true");
+        let report = Bc6hKtx2Codec.encode_to(&img, &signed, &mut Vec::new()).unwrap();
+        assert!(!report.notes[0].contains("below"), "{report:?}");
+        let fine = HdrImage::zeroed(4, 4, Channels::Rgb);
+        assert!(Bc6hDdsCodec.encode_to(&fine, &EncodeSettings::default(), &mut Vec::new()).unwrap().notes.is_empty());
     }
 
     #[test]

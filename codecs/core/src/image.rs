@@ -153,6 +153,27 @@ impl HdrImage {
             metadata: self.metadata.clone(),
         }
     }
+    /// How many samples fall outside `[lo, hi]` (and how many are NaN), over the RGB channels
+    /// and, if `alpha`, the alpha channel too: what an encoder with a fixed range tells its
+    /// caller it clipped (see [`RangeCount::describe`]).
+    pub fn count_outside(&self, lo: f32, hi: f32, alpha: bool) -> RangeCount {
+        let n = self.channels.count();
+        let take = if alpha { n } else { 3 };
+        let mut c = RangeCount::default();
+        for px in self.samples.chunks_exact(n) {
+            for &v in &px[..take] {
+                if v < lo {
+                    c.below += 1;
+                } else if v > hi {
+                    c.above += 1;
+                } else if v.is_nan() {
+                    c.nan += 1;
+                }
+            }
+        }
+        c
+    }
+
     /// The value of metadata `key`, if present.
     pub fn metadata_value(&self, key: &str) -> Option<&str> {
         self.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
@@ -168,6 +189,51 @@ impl HdrImage {
     }
 }
 
+/// Samples outside a format's range, counted by [`HdrImage::count_outside`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RangeCount {
+    /// Samples below the lower bound (−∞ included).
+    pub below: u64,
+    /// Samples above the upper bound (+∞ included).
+    pub above: u64,
+    /// NaN samples.
+    pub nan: u64,
+}
+
+impl RangeCount {
+    /// True when every sample was inside the range.
+    pub fn is_empty(&self) -> bool {
+        self.below == 0 && self.above == 0 && self.nan == 0
+    }
+
+    /// A sentence for an [`EncodeReport`](crate::EncodeReport) note, `None` when nothing was
+    /// outside: "{format} stores [lo, hi]: 12 samples below were stored as {below_as}, ...".
+    pub fn describe(
+        &self,
+        format: &str,
+        lo: f32,
+        hi: f32,
+        below_as: &str,
+        above_as: &str,
+        nan_as: &str,
+    ) -> Option<String> {
+        if self.is_empty() {
+            return None;
+        }
+        let mut parts = Vec::new();
+        if self.below > 0 {
+            parts.push(format!("{} below {lo} became {below_as}", self.below));
+        }
+        if self.above > 0 {
+            parts.push(format!("{} above {hi} became {above_as}", self.above));
+        }
+        if self.nan > 0 {
+            parts.push(format!("{} NaN became {nan_as}", self.nan));
+        }
+        Some(format!("{format} holds values from {lo} to {hi}: of the samples, {}", parts.join(", ")))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,6 +242,32 @@ mod tests {
     fn buffer_length_is_checked() {
         assert!(HdrImage::new(2, 2, Channels::Rgb, vec![0.0; 11], ColorInfo::default()).is_err());
         assert!(HdrImage::new(2, 2, Channels::Rgba, vec![0.0; 16], ColorInfo::default()).is_ok());
+    }
+
+    #[test]
+    fn samples_outside_a_range_are_counted() {
+        let img = HdrImage::new(
+            2,
+            1,
+            Channels::Rgba,
+            vec![-1.0, 70000.0, f32::NAN, -5.0, f32::INFINITY, 1.0, 2.0, 0.5],
+            ColorInfo::default(),
+        )
+        .unwrap();
+        let rgb = img.count_outside(0.0, 65504.0, false);
+        assert_eq!(rgb, RangeCount { below: 1, above: 2, nan: 1 });
+        assert_eq!(img.count_outside(0.0, 65504.0, true).below, 2);
+        let s = rgb.describe("BC6H UF16", 0.0, 65504.0, "0", "65504", "0").unwrap();
+        assert_eq!(s, "BC6H UF16 holds values from 0 to 65504: of the samples, 1 below 0 became 0, 2 above 65504 became 65504, 1 NaN became 0");
+        assert!(img
+            .count_outside(f32::MIN, f32::MAX, true)
+            .describe("x", 0.0, 1.0, "", "", "")
+            .unwrap()
+            .contains("1 above"));
+        assert_eq!(
+            HdrImage::zeroed(1, 1, Channels::Rgb).count_outside(0.0, 1.0, true).describe("x", 0.0, 1.0, "", "", ""),
+            None
+        );
     }
 
     #[test]

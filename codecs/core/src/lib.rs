@@ -38,7 +38,7 @@ pub use codec::{
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};
 pub use hdr10::{Av1MdcvUnits, ContentLightLevel, Hdr10Metadata, MasteringDisplay, St2086Units};
-pub use image::{Channels, ColorInfo, HdrImage};
+pub use image::{Channels, ColorInfo, HdrImage, RangeCount};
 pub use limits::{Allocation, Limits};
 pub use metrics::Comparison;
 pub use threads::ThreadPool;
