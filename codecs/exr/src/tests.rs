@@ -275,3 +275,83 @@ fn offset_tables_pointing_at_one_chunk_are_refused() {
     let e = ExrCodec.decode(&dup, &Limits::default()).unwrap_err();
     assert!(matches!(e, Error::Invalid { .. }), "{e}");
 }
+
+/// A smooth picture whose neighbouring samples differ by about 1%, so B44's error stays small
+/// whatever the size.
+fn smooth(w: u32, h: u32, channels: Channels) -> HdrImage {
+    let n = channels.count();
+    let s = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x as f32, y as f32)))
+        .flat_map(|(x, y)| {
+            let rgba = [0.5 + 0.011 * x + 0.007 * y, 3.0 + 0.02 * y, 200.0 - 0.15 * x, 0.25 + 0.001 * (x + y)];
+            rgba.into_iter().take(n)
+        })
+        .collect();
+    HdrImage::new(w, h, channels, s, ColorInfo::default()).unwrap()
+}
+
+/// The sizes of each scan-line chunk's pixel data in `bytes`, in file order.
+fn chunk_sizes(bytes: &[u8]) -> Vec<usize> {
+    use exr::block::chunk::CompressedBlock;
+    let reader = exr::block::read(std::io::Cursor::new(bytes), true).unwrap();
+    let chunks = reader.all_chunks(true).unwrap();
+    chunks
+        .map(|c| match c.unwrap().compressed_block {
+            CompressedBlock::ScanLine(b) => b.compressed_pixels_le.len(),
+            other => panic!("not a scan-line chunk: {other:?}"),
+        })
+        .collect()
+}
+
+/// exr 1.74.2's B44 compressor panics on a chunk of fewer than 4 lines whose packed size
+/// passes 2048 bytes (see `encode::b44_overflows`), e.g. the last line of 257x129. Every size
+/// must write, at its own size, and decode close to the input.
+#[test]
+fn b44_writes_every_size() {
+    let mut sizes: Vec<(u32, u32)> = (1..=20).flat_map(|w| [1, 2, 3, 4, 5, 33, 35].map(|h| (w, h))).collect();
+    sizes.extend([(257, 129), (257, 13), (257, 1), (256, 1), (197, 33), (145, 65), (1000, 7), (1000, 33), (999, 98)]);
+    for (w, h) in sizes {
+        for channels in [Channels::Rgb, Channels::Rgba] {
+            let img = smooth(w, h, channels);
+            for c in [ExrCompression::B44, ExrCompression::B44A] {
+                let what = format!("{c} {w}x{h}x{}", channels.count());
+                let bytes = ExrCodec.encode(&img, &settings(c, "half")).unwrap_or_else(|e| panic!("{what}: {e}"));
+                let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap_or_else(|e| panic!("{what}: {e}"));
+                assert_eq!((back.width(), back.height(), back.channels()), (w, h, channels), "{what}");
+                assert_eq!(back.metadata_value("exr.compression"), Some(c.name()), "{what}");
+                assert_eq!(back.metadata_value("exr.data_window"), None, "{what}");
+                let worst =
+                    img.samples().iter().zip(back.samples()).map(|(a, b)| ((a - b) / a).abs()).fold(0.0, f32::max);
+                // Alpha is `pLinear` (exr's default for it): B44 quantises it more coarsely.
+                assert!(worst < 0.02, "{what}: max relative error {worst}");
+            }
+        }
+    }
+}
+
+/// A chunk that B44 cannot shrink is stored raw, as OpenEXR's own writer does, whatever the
+/// thread count: 257x129 RGB ends in a one-line chunk (B44: 65 blocks x 14 bytes x 3 channels
+/// = 2730 bytes, raw: 1542), which decodes exactly.
+#[test]
+fn b44_chunks_that_cannot_shrink_are_stored_raw() {
+    let img = smooth(257, 129, Channels::Rgb);
+    let half: Vec<f32> = img.samples().iter().map(|&v| f16::from_f32(v).to_f32()).collect();
+    for c in [ExrCompression::B44, ExrCompression::B44A] {
+        let bytes = ExrCodec.encode(&img, &settings(c, "half")).unwrap();
+        let sizes = chunk_sizes(&bytes);
+        assert_eq!(sizes.len(), 5, "{c}: 129 lines in 32-line chunks");
+        assert!(sizes[..4].iter().all(|&s| s < 257 * 32 * 6), "{c}: {sizes:?}");
+        assert_eq!(sizes[4], 257 * 6, "{c}: the last line is stored raw");
+        let back = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+        let last = 128 * 257 * 3;
+        assert_eq!(&back.samples()[last..], &half[last..], "{c}: the raw line decodes exactly");
+        for threads in [0, 1, 3] {
+            let again = encode_exr(
+                &img,
+                &ExrEncodeOptions { compression: c, pixel: ExrPixelType::Half },
+                &hdrcodec_core::ThreadPool::new(threads).unwrap(),
+            );
+            assert!(again.unwrap() == bytes, "{c}: {threads} threads write other bytes");
+        }
+    }
+}
