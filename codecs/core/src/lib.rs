@@ -14,6 +14,7 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+pub mod bytes;
 mod codec;
 pub mod color;
 mod error;
