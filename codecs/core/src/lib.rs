@@ -22,6 +22,7 @@ pub mod hdr10;
 mod image;
 mod limits;
 pub mod metrics;
+pub mod tiff;
 pub mod tonemap;
 pub mod transfer;
 
