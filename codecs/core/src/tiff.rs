@@ -51,6 +51,9 @@ pub const MAGIC_BIGTIFF: u16 = 43;
 /// The magic number of a JPEG XR file read as a 16-bit little-endian number: the bytes 0xBC,
 /// 0x01 after "II" (ITU-T T.832 Annex A, FIXED_FILE_HEADER_0XBC_BYTE and FILE_VERSION_ID 1).
 pub const MAGIC_JPEG_XR: u16 = 0x01BC;
+/// The same with version byte 0: HD Photo, JPEG XR's predecessor, which jxrlib also reads.
+/// Big-endian ("MM") is allowed for neither; their readers check [`Tiff::order`].
+pub const MAGIC_HD_PHOTO: u16 = 0x00BC;
 /// Length of the image file header.
 pub const HEADER_LEN: usize = 8;
 /// Most IFDs [`Tiff::ifd_chain`] follows before giving up with [`Error::LimitExceeded`].
@@ -902,6 +905,8 @@ mod tests {
         assert!(matches!(Tiff::parse(b"II+\0\x08\0\0\0", MAGIC_TIFF), Err(Error::Unsupported { .. })));
         assert!(matches!(Tiff::parse(b"MM*\0\x08\0\0\0", MAGIC_TIFF), Err(Error::Invalid { .. })));
         assert!(matches!(Tiff::parse(b"II*\0\x08\0\0\0", MAGIC_JPEG_XR), Err(Error::Invalid { .. })));
+        assert!(matches!(Tiff::parse(b"II\xbc\x00\x08\0\0\0", MAGIC_JPEG_XR), Err(Error::Invalid { .. })));
+        assert!(Tiff::parse(b"II\xbc\x00\x08\0\0\0", MAGIC_HD_PHOTO).is_ok());
         let t = Tiff::parse(b"II\xbc\x01\x08\0\0\0", MAGIC_JPEG_XR).unwrap();
         assert_eq!(t.first_ifd_offset(), 8);
         let t = Tiff::parse(b"MM\0*\0\0\0\x08", MAGIC_TIFF).unwrap();
