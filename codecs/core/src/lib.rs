@@ -19,6 +19,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod bytes;
 mod codec;
 pub mod color;
 pub mod cpu;
@@ -28,6 +29,7 @@ mod image;
 mod limits;
 pub mod metrics;
 pub mod threads;
+pub mod tiff;
 pub mod tonemap;
 pub mod transfer;
 
