@@ -5,7 +5,7 @@
 //! through tests/harness/logluv_libtiff.c (best of 15 full decodes of the same file to
 //! `SGILOGDATAFMT_FLOAT` XYZ, and best of 15 encodes from float XYZ; its times include opening
 //! the file from the page cache), next to a best-of-15 of ours measured the same way, and the
-//! ratio is printed. `cargo bench --bench logluv`.
+//! ratio is printed. `cargo bench -p hdrcodec-tests --bench logluv`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hdrcodec_core::{ColorPrimaries, Limits};

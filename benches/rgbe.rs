@@ -3,7 +3,7 @@
 //! roundings, the `image` crate). Throughput is in pixels, so criterion's "Melem/s" is MP/s.
 //!
 //! Images: `$HDRCODEC_CORPUS/hdr` or `../shared/corpus/hdr`.
-//! Run: `cargo bench --bench rgbe`.
+//! Run: `cargo bench -p hdrcodec-tests --bench rgbe`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use hdrcodec_core::Limits;

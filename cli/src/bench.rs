@@ -51,7 +51,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     add("logluv32", "logluv32".into(), EncodeSettings::default());
     add("logluv24", "logluv24".into(), EncodeSettings::default());
     // BC6H at its fast efforts: the thorough ones take minutes per megapixel and belong in
-    // `cargo bench --bench bc6h_encode`.
+    // `cargo bench -p hdrcodec-tests --bench bc6h_encode`.
     for effort in [0, 2] {
         add("bc6h", format!("bc6h:effort{effort}"), EncodeSettings::default().with_effort(effort));
     }
