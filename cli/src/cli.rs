@@ -350,6 +350,24 @@ pub fn corpus_write(dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// `hdrcodec corpus large`.
+pub fn corpus_large(file: &Path, width: u32, height: u32) -> Result<()> {
+    Limits::default().check_image(u64::from(width), u64::from(height), hdrcodec::core::Channels::Rgb)?;
+    let reg = hdrcodec::registry();
+    let codec = reg.for_output(file)?;
+    let mut settings = EncodeSettings::default();
+    if codec.name() == "exr" {
+        settings = settings.with_option("pixel", "half").with_option("compression", "zip");
+    }
+    let image = hdrcodec_cli::corpus::large_photo(width, height);
+    let (bytes, notes) = hdrcodec::encode_for(codec.as_ref(), &image, &settings)?;
+    hdrcodec::write_atomic(file, &bytes)?;
+    for n in notes {
+        note(&n);
+    }
+    Ok(())
+}
+
 /// `hdrcodec codecs`.
 pub fn codecs(json: bool) -> Result<()> {
     let reg = hdrcodec::registry();

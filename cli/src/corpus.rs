@@ -101,6 +101,51 @@ pub fn scenes() -> Vec<Scene> {
     SCENES.par_iter().map(|&(name, description, gen)| Scene { name, description, image: gen() }).collect()
 }
 
+/// A large photograph-like image for memory and speed measurements (not part of the scene set):
+/// a sky gradient over a darker ground, soft light sources of a few thousand nits, film-grain
+/// noise, every sample rounded to half precision (as a camera-raw or EXR-half source would be).
+/// Rows are generated in parallel from per-row seeds, so the result does not depend on threads.
+pub fn large_photo(width: u32, height: u32) -> HdrImage {
+    use rayon::prelude::*;
+    let (w, h) = (width as usize, height as usize);
+    let lights: Vec<(f64, f64, f64, f64)> = {
+        let mut rng = SplitMix64::new(0x1a_29e5);
+        (0..24)
+            .map(|_| (rng.next_f64(), rng.next_f64(), 0.002 + 0.02 * rng.next_f64(), 5.0 + 60.0 * rng.next_f64()))
+            .collect()
+    };
+    let mut samples = vec![0f32; w * h * 3];
+    samples.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+        let mut rng = SplitMix64::new(mix64(0x7a11_0000 ^ y as u64));
+        let v = y as f64 / h.max(1) as f64;
+        for (x, px) in row.chunks_exact_mut(3).enumerate() {
+            let u = x as f64 / w.max(1) as f64;
+            let base = if v < 0.55 {
+                let t = v / 0.55;
+                [2.0 + 6.0 * (1.0 - t), 3.0 + 7.0 * (1.0 - t), 6.0 + 9.0 * (1.0 - t)]
+            } else {
+                let t = (v - 0.55) / 0.45;
+                let g = 0.05 + 0.4 * (1.0 - t) * (0.6 + 0.4 * (u * 7.0).sin().abs());
+                [g * 1.1, g, g * 0.8]
+            };
+            let mut glow = 0.0;
+            for &(lx, ly, r, peak) in &lights {
+                let d2 = ((u - lx).powi(2) + (v - ly).powi(2)) / (r * r);
+                if d2 < 40.0 {
+                    glow += peak * (-d2).exp();
+                }
+            }
+            let grain = 1.0 + 0.04 * rng.gaussian();
+            for c in 0..3 {
+                let value = ((base[c] + glow * [1.0, 0.85, 0.6][c]) * grain).max(0.0) as f32;
+                px[c] = half::f16::from_f32(value).to_f32();
+            }
+        }
+    });
+    let color = ColorInfo { nits_per_unit: NITS_PER_UNIT, ..ColorInfo::default() };
+    HdrImage::new(width, height, Channels::Rgb, samples, color).expect("the buffer matches the size")
+}
+
 /// FNV-1a (64-bit) over the bit patterns of all samples, then width, height and channels:
 /// a fingerprint that changes if any sample changes by one ulp.
 pub fn sample_hash(image: &HdrImage) -> u64 {

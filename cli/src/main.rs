@@ -124,6 +124,18 @@ enum CorpusCommand {
         /// Output directory (created if missing).
         dir: PathBuf,
     },
+    /// Write one large photograph-like image (half-precision samples, a sky, a ground, light
+    /// sources, grain) for memory and speed measurements; the format follows FILE's extension.
+    Large {
+        /// Output file (e.g. big.exr: half float, ZIP).
+        file: PathBuf,
+        /// Width in pixels.
+        #[arg(long, default_value_t = 3712)]
+        width: u32,
+        /// Height in pixels.
+        #[arg(long, default_value_t = 3624)]
+        height: u32,
+    },
 }
 
 fn main() -> ExitCode {
@@ -153,6 +165,7 @@ fn run() -> ExitCode {
             quick: a.quick,
         }),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
+        Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),
         Command::Codecs { json } => cli::codecs(json),
     };
     match result {

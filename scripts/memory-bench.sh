@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# Peak resident memory of `hdrcodec info` and `hdrcodec convert` per format and direction, on one
+# large generated photograph (`hdrcodec corpus large`, 3712x3624 by default: the size of the
+# photograph the peak-memory issue was measured on), against the size of the decoded image.
+#
+#   scripts/memory-bench.sh [WIDTH HEIGHT]
+#
+# Prints a Markdown table: command, peak RSS (from /usr/bin/time -f %M), the peak as a multiple
+# of the decoded RGB f32 image, and the target of the peak-memory issue (decoded image + input
+# file + 64 MB). Measures; never fails on a missed target (the figures go to the README).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+width=${1:-3712}
+height=${2:-3624}
+cargo build --release --quiet -p hdrcodec-cli --bin hdrcodec
+bin=$PWD/target/release/hdrcodec
+dir=$(mktemp -d "${TMPDIR:-/tmp}/hdrcodec-mem.XXXXXX")
+trap 'rm -rf "$dir"' EXIT
+
+"$bin" corpus large "$dir/big.exr" --width "$width" --height "$height"
+# The inputs: every format of the family that holds the whole range of the image.
+"$bin" convert "$dir/big.exr" "$dir/big.pfm" 2>/dev/null
+"$bin" convert "$dir/big.exr" "$dir/big.hdr" 2>/dev/null
+"$bin" convert "$dir/big.exr" "$dir/big.tif" 2>/dev/null
+"$bin" convert "$dir/big.exr" "$dir/big.dds" --effort 0 2>/dev/null
+"$bin" convert "$dir/big.exr" "$dir/big.hdrc" --opt payload=raw-f16 --opt tile=512 2>/dev/null
+
+decoded=$((width * height * 3 * 4))
+mb() { awk -v b="$1" 'BEGIN { printf "%.0f", b / 1e6 }'; }
+printf '%s\n' "Image ${width}x${height}, decoded RGB f32 image $(mb $decoded) MB."
+printf '\n| command | input MB | peak MB | x decoded image | target MB | met |\n| --- | --- | --- | --- | --- | --- |\n'
+measure() {
+  local input=$1
+  shift
+  local in_bytes
+  in_bytes=$(stat -c %s "$input")
+  local kb
+  /usr/bin/time -f %M -o "$dir/peak" "$bin" "$@" >/dev/null 2>&1
+  kb=$(tail -n 1 "$dir/peak")
+  local peak=$((kb * 1024))
+  local target=$((decoded + in_bytes + 64 * 1000 * 1000))
+  local met=no
+  [ "$peak" -le "$target" ] && met=yes
+  printf '| `hdrcodec %s` | %s | %s | %s | %s | %s |\n' "$(echo "$*" | sed "s|$dir/||g")" "$(mb "$in_bytes")" \
+    "$(mb $peak)" "$(awk -v p=$peak -v d=$decoded 'BEGIN { printf "%.2f", p / d }')" "$(mb $target)" "$met"
+}
+for f in exr pfm hdr tif dds hdrc; do
+  measure "$dir/big.$f" info "$dir/big.$f"
+done
+for f in exr pfm hdr tif dds hdrc; do
+  measure "$dir/big.$f" convert "$dir/big.$f" "$dir/out.pfm"
+  rm -f "$dir/out.pfm"
+done
+for f in exr pfm dds; do
+  measure "$dir/big.$f" convert "$dir/big.$f" "$dir/out.hdr"
+  rm -f "$dir/out.hdr"
+done
+measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.exr" --opt pixel=half
+measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.tif"
+measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.dds" --effort 0
+measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.hdrc" --opt payload=raw-f16 --opt tile=512
