@@ -287,6 +287,10 @@ impl ImageCodec for LogLuvTiffCodec {
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Any
     }
+    /// The TIFF `STONITS` tag records `nits_per_unit`.
+    fn records_nits_per_unit(&self) -> bool {
+        true
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode(data, &options.limits, &DecodeOptions::default())
     }
