@@ -213,7 +213,7 @@ pub struct PreparedImage<'a> {
 ///   samples are stored without a label). The option is removed before the codec sees it.
 /// - Otherwise a format that records any primaries gets the image as it is; one that records a
 ///   fixed set gets it as it is when its primaries are in the set, else converted to BT.2020
-///   (or the set's first entry) with a note; one that records none keeps the samples as they are
+///   (or the set's first named entry) with a note; one that records none keeps the samples as they are
 ///   (no gamut conversion, no clipping) and a note says that they will read back unspecified.
 ///
 /// Samples whose primaries are unspecified (from a PFM or DDS file) are never converted:
@@ -256,23 +256,27 @@ pub fn prepare_colour<'a>(
         }
         (Some(p), _) => Some(p),
         (None, ColorSignalling::Only(set)) if !set.contains(&from) && from.is_specified() => {
-            let to = if set.contains(&ColorPrimaries::Bt2020) { ColorPrimaries::Bt2020 } else { set[0] };
-            notes.push(format!(
-                "{} cannot record {} primaries{}: the samples were converted to {}",
-                codec.name(),
-                from.name(),
-                recordable(&signalling),
-                to.name()
-            ));
-            Some(to)
+            let named = set.iter().copied().find(ColorPrimaries::is_specified);
+            match if set.contains(&ColorPrimaries::Bt2020) { Some(ColorPrimaries::Bt2020) } else { named } {
+                Some(to) => {
+                    notes.push(format!(
+                        "{} cannot record {} primaries{}: the samples were converted to {}",
+                        codec.name(),
+                        from.name(),
+                        recordable(&signalling),
+                        to.name()
+                    ));
+                    Some(to)
+                }
+                // A set that names no primaries only says "unspecified": as a format without any.
+                None => {
+                    notes.push(no_primaries_note(codec, &from));
+                    None
+                }
+            }
         }
         (None, ColorSignalling::None) if from.is_specified() => {
-            notes.push(format!(
-                "{} records no primaries: the {} samples are stored as they are and read back as unspecified \
-                 (--opt primaries=NAME converts them)",
-                codec.name(),
-                from.name()
-            ));
+            notes.push(no_primaries_note(codec, &from));
             None
         }
         (None, _) => None,
@@ -289,6 +293,16 @@ pub fn prepare_colour<'a>(
         _ => Cow::Borrowed(image),
     };
     Ok(PreparedImage { image, settings, notes })
+}
+
+/// The note for samples in `from` stored by a format that records no primaries.
+fn no_primaries_note(codec: &dyn ImageCodec, from: &ColorPrimaries) -> String {
+    format!(
+        "{} records no primaries: the {} samples are stored as they are and read back as unspecified \
+         (--opt primaries=NAME converts them)",
+        codec.name(),
+        from.name()
+    )
 }
 
 /// ", which can record X, Y and Z" for an error message.
@@ -462,5 +476,146 @@ mod tests {
         img.color.nits_per_unit = 80.0;
         let l = luminance(&img);
         assert!((l[0] - 80.0 * 0.2126).abs() < 0.01 && (l[1] - 160.0).abs() < 1e-3, "{l:?}");
+    }
+
+    /// A codec that only declares a colour signalling (for `prepare_colour`).
+    struct Signals(ColorSignalling);
+    impl ImageCodec for Signals {
+        fn name(&self) -> &'static str {
+            "signals"
+        }
+        fn id(&self) -> [u8; 4] {
+            *b"SIGN"
+        }
+        fn extensions(&self) -> &'static [&'static str] {
+            &[]
+        }
+        fn sniff(&self, _: &[u8]) -> bool {
+            false
+        }
+        fn color_signalling(&self) -> ColorSignalling {
+            self.0
+        }
+        fn decode_with(&self, _: &[u8], _: &DecodeOptions) -> Result<HdrImage> {
+            Err(Error::unsupported("signals"))
+        }
+        fn encode_to(&self, _: &HdrImage, _: &EncodeSettings, _: &mut dyn Write) -> Result<crate::core::EncodeReport> {
+            Ok(crate::core::EncodeReport::new())
+        }
+    }
+
+    const ONLY: ColorSignalling = ColorSignalling::Only(&[ColorPrimaries::Bt709, ColorPrimaries::Bt2020]);
+
+    fn image(primaries: ColorPrimaries) -> HdrImage {
+        let samples = vec![1.0, 0.5, 0.25, 0.02, 3.0, 0.0];
+        let color = crate::core::ColorInfo { primaries, ..Default::default() };
+        HdrImage::new(2, 1, crate::core::Channels::Rgb, samples, color).unwrap()
+    }
+
+    /// `prepare_colour` with `primaries=NAME` when `name` is given, plus an option the codec keeps.
+    fn prepare<'a>(s: ColorSignalling, img: &'a HdrImage, name: Option<&str>) -> Result<PreparedImage<'a>> {
+        let mut settings = EncodeSettings::default().with_option("keep", "1");
+        if let Some(n) = name {
+            settings = settings.with_option(PRIMARIES_OPTION, n);
+        }
+        prepare_colour(&Signals(s), img, &settings)
+    }
+
+    fn kept(p: &PreparedImage<'_>, img: &HdrImage) {
+        assert!(matches!(p.image, Cow::Borrowed(_)), "not converted");
+        assert_eq!(*p.image, *img);
+        assert_eq!(p.settings.options, [("keep".to_string(), "1".to_string())], "only primaries= is taken");
+    }
+
+    #[test]
+    fn prepare_colour_keeps_what_the_format_records() {
+        // Any: every primaries as they are, unspecified too (the codec's report speaks for it).
+        for primaries in [ColorPrimaries::Bt2020, ColorPrimaries::DciP3, ColorPrimaries::Unspecified] {
+            let img = image(primaries);
+            let p = prepare(ColorSignalling::Any, &img, None).unwrap();
+            kept(&p, &img);
+            assert!(p.notes.is_empty(), "{:?}", p.notes);
+        }
+        // Only, with the image's primaries in the set.
+        let img = image(ColorPrimaries::Bt2020);
+        let p = prepare(ONLY, &img, None).unwrap();
+        kept(&p, &img);
+        assert!(p.notes.is_empty());
+        // None: the samples as they are, and a note that they read back unspecified.
+        let p = prepare(ColorSignalling::None, &img, None).unwrap();
+        kept(&p, &img);
+        assert_eq!(
+            p.notes,
+            ["signals records no primaries: the BT.2020 samples are stored as they are and read back as \
+              unspecified (--opt primaries=NAME converts them)"]
+        );
+        // Unspecified samples into a format without primaries: nothing to say.
+        let img = image(ColorPrimaries::Unspecified);
+        let p = prepare(ColorSignalling::None, &img, None).unwrap();
+        kept(&p, &img);
+        assert!(p.notes.is_empty());
+    }
+
+    #[test]
+    fn prepare_colour_converts_what_a_fixed_set_cannot_say() {
+        // Only, without the image's primaries: converted to BT.2020 (in the set), with a note.
+        let img = image(ColorPrimaries::DciP3);
+        let p = prepare(ONLY, &img, None).unwrap();
+        assert_eq!(*p.image, crate::core::color::convert_primaries(&img, ColorPrimaries::Bt2020));
+        assert_eq!(
+            p.notes,
+            ["signals cannot record DCI-P3 primaries (it records BT.709, BT.2020): the samples were converted to BT.2020"]
+        );
+        // A set without BT.2020: its first named entry (an "unspecified" entry is not a target).
+        let adobe = ColorSignalling::Only(&[ColorPrimaries::Unspecified, ColorPrimaries::AdobeRgb]);
+        let p = prepare(adobe, &img, None).unwrap();
+        assert_eq!(p.image.color.primaries, ColorPrimaries::AdobeRgb);
+        assert_eq!(*p.image, crate::core::color::convert_primaries(&img, ColorPrimaries::AdobeRgb));
+        // A set that only says "unspecified" keeps the samples, as a format without primaries.
+        let p = prepare(ColorSignalling::Only(&[ColorPrimaries::Unspecified]), &img, None).unwrap();
+        kept(&p, &img);
+        assert!(p.notes[0].contains("records no primaries: the DCI-P3 samples are stored as they are"));
+        // Unspecified samples are never converted: a set that can say "unspecified" keeps them
+        // (KTX2); one that cannot keeps them too, and the codec's report says what it wrote.
+        let img = image(ColorPrimaries::Unspecified);
+        kept(&prepare(adobe, &img, None).unwrap(), &img);
+        let p = prepare(ONLY, &img, None).unwrap();
+        kept(&p, &img);
+        assert!(p.notes.is_empty());
+    }
+
+    #[test]
+    fn prepare_colour_with_primaries_named() {
+        // Explicit: converted, into a format that records any primaries or has them in its set.
+        let img = image(ColorPrimaries::Bt709);
+        for s in [ColorSignalling::Any, ONLY] {
+            let p = prepare(s, &img, Some("BT.2020")).unwrap();
+            assert_eq!(*p.image, crate::core::color::convert_primaries(&img, ColorPrimaries::Bt2020));
+            assert!(p.notes.is_empty(), "{:?}", p.notes);
+            assert_eq!(p.settings.options, [("keep".to_string(), "1".to_string())]);
+        }
+        // The primaries it already has: nothing to convert.
+        kept(&prepare(ColorSignalling::Any, &img, Some("srgb")).unwrap(), &img);
+        // Into a format without primaries: converted, stored unlabelled, said.
+        let p = prepare(ColorSignalling::None, &img, Some("p3")).unwrap();
+        assert_eq!(*p.image, crate::core::color::convert_primaries(&img, ColorPrimaries::DisplayP3));
+        assert_eq!(
+            p.notes,
+            ["signals records no primaries: the samples were converted to Display P3 and are stored without a label"]
+        );
+        // Unspecified input: labelled, not converted (the user says what the samples are).
+        let img = image(ColorPrimaries::Unspecified);
+        let p = prepare(ColorSignalling::Any, &img, Some("bt2020")).unwrap();
+        assert_eq!(p.image.samples(), img.samples());
+        assert_eq!(p.image.color.primaries, ColorPrimaries::Bt2020);
+        assert_eq!(p.notes, ["the input records no primaries: its samples are labelled BT.2020 as asked"]);
+        // An unknown name is an error naming the known ones.
+        let e = prepare(ColorSignalling::Any, &img, Some("bt999")).unwrap_err();
+        assert!(matches!(e, Error::Invalid { .. }), "{e}");
+        assert!(e.to_string().contains("primaries=bt999: unknown primaries (known: bt709, bt2020"), "{e}");
+        // A fixed set that cannot record the named primaries: an error, nothing converted.
+        let e = prepare(ONLY, &image(ColorPrimaries::Bt709), Some("dci-p3")).unwrap_err();
+        assert!(matches!(e, Error::Unsupported { .. }), "{e}");
+        assert!(e.to_string().contains("signals cannot record DCI-P3 primaries (it records BT.709, BT.2020)"), "{e}");
     }
 }

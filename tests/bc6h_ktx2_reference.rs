@@ -8,13 +8,16 @@
 //! the same image at the same effort (the DDS files are checked against imagecodecs elsewhere).
 //! (b) Files ktx-parse's own serializer writes from our blocks (with a DFD it was given here)
 //! read back in our reader with the same blocks and identical decoded pixels.
+//! (c) The colour primaries: files written from images in BT.709, BT.2020, Display P3 and with
+//! unspecified primaries carry the colorPrimaries value ktx-parse reads as 1, 4, 10 and 0, and
+//! ktx-parse-written files with those values decode to those primaries in our reader.
 //!
 //! Set up with scripts/setup-reference-tools.sh (`npm ci` in tests/ktx2).
 mod common;
 
 use common::{require, run_ok, temp_dir, tool, Rng};
 use hdrcodec::bc6h::{encode::EncodeOptions, encode_texture, read_dds, read_ktx2, Bc6hDdsCodec, Bc6hKtx2Codec};
-use hdrcodec::core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
+use hdrcodec::core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, HdrImage, ImageCodec, Limits};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -82,6 +85,16 @@ fn image(w: u32, h: u32, signed: bool, seed: u64) -> HdrImage {
     HdrImage::new(w, h, Channels::Rgb, samples, ColorInfo::default()).expect("test image")
 }
 
+/// The primaries the files are labelled with, in turn, and the DFD colorPrimaries each must
+/// carry (Khronos Data Format Specification 1.3, section 5.6, khr_df_primaries_e:
+/// KHR_DF_PRIMARIES_UNSPECIFIED 0, BT709 1, BT2020 4, DISPLAYP3 10).
+const PRIMARIES: [(ColorPrimaries, u32); 4] = [
+    (ColorPrimaries::Bt709, 1),
+    (ColorPrimaries::Bt2020, 4),
+    (ColorPrimaries::DisplayP3, 10),
+    (ColorPrimaries::Unspecified, 0),
+];
+
 /// (width, height, full mip chain, effort): 1x1, 5x3 and 13x7 (not multiples of 4), 64x64.
 const CASES: [(u32, u32, bool, u8); 6] =
     [(1, 1, false, 1), (5, 3, false, 3), (5, 3, true, 2), (13, 7, true, 4), (64, 64, false, 1), (64, 64, true, 3)];
@@ -97,9 +110,16 @@ fn full_levels(w: u32, h: u32) -> usize {
     n
 }
 
-/// Checks ktx-parse's header, level index and DFD facts for a BC6H file; returns the
-/// number of DFD/header fields compared.
-fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usize, signed: bool) -> usize {
+/// Checks ktx-parse's header, level index and DFD facts for a BC6H file whose DFD should say
+/// `primaries` (a khr_df_primaries_e value); returns the number of DFD/header fields compared.
+fn check_container(
+    facts: &HashMap<String, String>,
+    w: u32,
+    h: u32,
+    levels: usize,
+    signed: bool,
+    primaries: u32,
+) -> usize {
     let vk = if signed { VK_BC6H_SFLOAT } else { VK_BC6H_UFLOAT };
     // KTX 2.0 header fields ("typeSize", "pixelWidth/Height/Depth", "layerCount", "faceCount",
     // "supercompressionScheme"): typeSize 1 for block-compressed formats; a 2D texture has
@@ -119,8 +139,8 @@ fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usiz
     // Khronos Data Format Specification 1.3, chapter "Khronos Basic Data Format Descriptor
     // Block" (the DFD that KTX 2.0's "Data Format Descriptor" section embeds), field by field:
     // vendorId KHRONOS (0), descriptorType BASICFORMAT (0), versionNumber 2 (KDF 1.3);
-    // colorModel KHR_DF_MODEL_BC6H = 133 (its "BC6H" model section); colorPrimaries BT709 = 1;
-    // transferFunction LINEAR = 1 (BC6H holds linear floats); flags 0; texelBlockDimension
+    // colorModel KHR_DF_MODEL_BC6H = 133 (its "BC6H" model section); colorPrimaries as the
+    // image's (section 5.6, see PRIMARIES); transferFunction LINEAR = 1 (BC6H holds linear floats); flags 0; texelBlockDimension
     // stores each dimension - 1, so a 4x4x1x1 block is 3,3,0,0; bytesPlane0 = 16 (one 128-bit
     // block), planes 1-7 unused; one sample over bits 0..127: bitOffset 0, bitLength = bits - 1
     // = 127, channelType KHR_DF_CHANNEL_BC6H_COLOR (0) with the qualifier FLOAT (0x80), plus
@@ -134,7 +154,7 @@ fn check_container(facts: &HashMap<String, String>, w: u32, h: u32, levels: usiz
         ("dfd.descriptorType", "0".into()),
         ("dfd.versionNumber", "2".into()),
         ("dfd.colorModel", "133".into()),
-        ("dfd.colorPrimaries", "1".into()),
+        ("dfd.colorPrimaries", primaries.to_string()),
         ("dfd.transferFunction", "1".into()),
         ("dfd.flags", "0".into()),
         ("dfd.texelBlockDimension.0", "3".into()),
@@ -176,9 +196,13 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
     let tmp = temp_dir("bc6h_ktx2_reference");
     let limits = Limits::default();
     let (mut files, mut levels_checked, mut bytes_checked, mut fields, mut pixels) = (0, 0, 0usize, 0, 0usize);
+    let mut primaries_seen = Vec::new();
     for signed in [false, true] {
         for (case, &(w, h, mips, effort)) in CASES.iter().enumerate() {
-            let img = image(w, h, signed, 0x6b74_7832 + case as u64);
+            let mut img = image(w, h, signed, 0x6b74_7832 + case as u64);
+            // Every label on each signedness: the samples are the same whatever the label.
+            let (label, dfd_primaries) = PRIMARIES[(case + usize::from(signed)) % PRIMARIES.len()];
+            img.color.primaries = label;
             let flag = |b: bool| if b { "true" } else { "false" };
             let settings = EncodeSettings::default()
                 .with_effort(effort)
@@ -189,7 +213,7 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
             // The blocks the writer was given: the same encoder run directly.
             let options = EncodeOptions { signed, effort, ..Default::default() };
             let tex = encode_texture(w, h, img.samples(), &options, mips).expect("encode_texture");
-            assert_eq!(hdrcodec::bc6h::write_ktx2(&tex).unwrap(), ktx, "codec and write_ktx2 agree");
+            assert_eq!(hdrcodec::bc6h::write_ktx2(&tex, label).unwrap(), ktx, "codec and write_ktx2 agree");
 
             let n = if mips { full_levels(w, h) } else { 1 };
             assert_eq!(tex.levels.len(), n);
@@ -197,7 +221,11 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
             let ours = tmp.join(format!("ours_{name}.ktx2"));
             std::fs::write(&ours, &ktx).unwrap();
             let facts = parse(&node, &dir, &ours);
-            fields += check_container(&facts, w, h, n, signed);
+            fields += check_container(&facts, w, h, n, signed, dfd_primaries);
+            assert_eq!(Bc6hKtx2Codec.decode(&ktx, &limits).unwrap().color.primaries, label, "{name}: ours read back");
+            if !primaries_seen.contains(&dfd_primaries) {
+                primaries_seen.push(dfd_primaries);
+            }
             assert!(get(&facts, "keyValue.KTXwriter").starts_with("hdrcodec"), "KTXwriter key");
 
             // (a) every level as ktx-parse reads it = the blocks given = the DDS file's blocks.
@@ -225,6 +253,7 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
                 w.to_string(),
                 h.to_string(),
                 (signed as u8).to_string(),
+                dfd_primaries.to_string(),
             ];
             for (i, level) in tex.levels.iter().enumerate() {
                 let f = tmp.join(format!("{name}_level{i}.bin"));
@@ -236,7 +265,7 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
             let theirs = std::fs::read(&theirs_path).unwrap();
             // ktx-parse agrees that its file and ours hold the same container (its DFD was
             // filled in from the same specification sections).
-            check_container(&parse(&node, &dir, &theirs_path), w, h, n, signed);
+            check_container(&parse(&node, &dir, &theirs_path), w, h, n, signed, dfd_primaries);
             let back = read_ktx2(&theirs, &limits).expect("our reader on ktx-parse's file");
             assert_eq!(back, tex, "{name}: blocks read back from ktx-parse's file");
             let dds_tex = read_dds(&dds, &limits).unwrap();
@@ -251,14 +280,17 @@ fn our_ktx2_files_parse_in_ktx_parse_and_its_files_read_back_in_ours() {
                 pixels += a.len() / 3;
             }
             let via_codec = Bc6hKtx2Codec.decode(&theirs, &limits).expect("codec decode of ktx-parse's file");
+            assert_eq!(via_codec.color.primaries, label, "{name}: the primaries of ktx-parse's file");
             let via_dds = Bc6hDdsCodec.decode(&dds, &limits).unwrap();
             assert!(via_codec.samples().iter().zip(via_dds.samples()).all(|(x, y)| x.to_bits() == y.to_bits()));
         }
     }
     eprintln!(
         "ktx-parse 2.0.0: {files} of our KTX2 files, {levels_checked} levels ({bytes_checked} bytes) identical to \
-         the written and the DDS blocks, {fields} header/DFD/level fields as specified; {files} ktx-parse-written \
-         files read back with {pixels} identical decoded pixels"
+         the written and the DDS blocks, {fields} header/DFD/level fields as specified (colorPrimaries \
+         {primaries_seen:?}); {files} ktx-parse-written files read back with {pixels} identical decoded pixels"
     );
     assert_eq!(files, 2 * CASES.len());
+    primaries_seen.sort_unstable();
+    assert_eq!(primaries_seen, [0, 1, 4, 10], "every label was checked");
 }

@@ -2,7 +2,7 @@
 //! of that codec, and the tiled result equals what the codec gives for the whole image.
 
 use hdrcodec_container::{decode_image, encode_image, HdrcCodec, Reader};
-use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, HdrImage, ImageCodec, Limits};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, HdrImage, ImageCodec, Limits};
 use hdrcodec_pfm::PfmCodec;
 use hdrcodec_rgbe::RgbeCodec;
 use std::sync::Arc;
@@ -65,4 +65,117 @@ fn hdrc_codec_with_pfm_and_rgbe_payloads() {
         .decode(&RgbeCodec::new().encode(&rgb_only, &EncodeSettings::default()).unwrap(), &Limits::default())
         .unwrap();
     assert_eq!(back.with_channels(Channels::Rgb).samples(), expect.samples());
+}
+
+/// The registry's `.hdrc` codec with every payload codec of the family.
+fn hdrc() -> Arc<dyn ImageCodec> {
+    hdrcodec::registry().by_name("hdrc").unwrap()
+}
+
+#[test]
+fn tiles_come_back_in_the_header_s_colour() {
+    // A BT.2020 image with pure BT.2020 primaries (far outside BT.709) at 203 cd/m² per unit,
+    // through the container with payloads of every kind of colour signalling: LogLuv (decodes to
+    // BT.709 with its STONITS scale), RGBE (records the primaries, not the scale), PFM, BC6H and
+    // raw (record neither). Each decoded tile must come back in the header's primaries and units,
+    // as close to the source as the payload codec on its own gets (all of these code each pixel
+    // or 4x4 block on its own, so tiling changes nothing but float rounding).
+    let mut img = hdrcodec_cli::corpus::scene("bt2020-ramps").unwrap().image;
+    img.color.nits_per_unit = 203.0;
+    let codec = hdrc();
+    let reg = hdrcodec::registry();
+    let limits = Limits::default();
+    for payload in ["logluv32", "rgbe", "pfm", "raw-f32", "raw-f16", "bc6h"] {
+        let s = EncodeSettings::default().with_effort(0).with_option("payload", payload).with_option("tile", "128");
+        let (bytes, notes) = hdrcodec::encode_for(codec.as_ref(), &img, &s).unwrap();
+        assert!(notes.is_empty(), "{payload}: {notes:?}");
+        let back = codec.decode(&bytes, &limits).unwrap();
+        assert_eq!(back.color.primaries, ColorPrimaries::Bt2020, "{payload}");
+        assert_eq!(back.color.nits_per_unit, 203.0, "{payload}");
+        let (mean, p99) = hdrcodec_core::metrics::delta_e_itp(&img, &back).unwrap();
+        // The payload codec alone, on the whole image (the raw codecs have no file of their own:
+        // they are lossless or binary16 per sample, as the container's README says).
+        let alone = match reg.by_name(payload) {
+            Ok(c) if !payload.starts_with("raw") => {
+                let s = EncodeSettings::default().with_effort(0);
+                let (b, _) = hdrcodec::encode_for(c.as_ref(), &img, &s).unwrap();
+                let mut alone = c.decode(&b, &limits).unwrap();
+                // A format that records no scale reads back at the default 100 cd/m² per unit;
+                // its samples are in the writer's units (the container's header has them).
+                if !c.records_nits_per_unit() {
+                    alone.color.nits_per_unit = img.color.nits_per_unit;
+                }
+                hdrcodec_core::metrics::delta_e_itp(&img, &alone).unwrap()
+            }
+            _ => (0.0, 0.0),
+        };
+        eprintln!(
+            "hdrc payload={payload}: ΔE ITP mean {mean:.4} p99 {p99:.4} (the codec alone: {:.4} / {:.4})",
+            alone.0, alone.1
+        );
+        let slack = if payload == "raw-f16" { 0.5 } else { 1e-3 };
+        assert!(mean <= alone.0 + slack && p99 <= alone.1 + slack, "{payload}: ΔE ITP mean {mean} p99 {p99}");
+        // Same primaries and units on both sides: the samples themselves agree (not only the
+        // colours after the conversion the metric makes). The error of each sample relative to
+        // its pixel's largest channel (pure primaries have zero channels).
+        let worst = img
+            .rgb()
+            .zip(back.rgb())
+            .flat_map(|(a, b)| {
+                let peak = a.iter().fold(1e-2f32, |m, v| m.max(v.abs()));
+                (0..3).map(move |c| (a[c] - b[c]).abs() / peak)
+            })
+            .fold(0.0f32, f32::max);
+        eprintln!("  worst sample error relative to its pixel's largest channel: {worst:.2e}");
+        match payload {
+            "pfm" | "raw-f32" => assert_eq!(back.samples(), img.samples(), "{payload} is lossless"),
+            // BC6H at effort 0 errs more than that on single dark texels; ΔE above pins it.
+            "bc6h" => {}
+            _ => assert!(worst < 0.05, "{payload}: {worst}"),
+        }
+    }
+}
+
+#[test]
+fn payloads_say_nothing_about_colour_the_header_records() {
+    // Colour the payload cannot record (unspecified for Radiance and LogLuv, DCI-P3 for KTX2)
+    // is the header's business: no note, and the image comes back as it went in.
+    let codec = hdrc();
+    let limits = Limits::default();
+    let base = scene(Channels::Rgb);
+    for (primaries, payload) in [
+        (ColorPrimaries::Unspecified, "rgbe"),
+        (ColorPrimaries::Unspecified, "logluv32"),
+        (ColorPrimaries::Unspecified, "exr"),
+        (ColorPrimaries::DciP3, "bc6h-ktx2"),
+        (ColorPrimaries::Unspecified, "bc6h-ktx2"),
+        (ColorPrimaries::AcesAp1, "bc6h-ktx2"),
+    ] {
+        let mut img = base.clone();
+        img.color.primaries = primaries;
+        let s = EncodeSettings::default().with_effort(0).with_option("payload", payload).with_option("tile", "64");
+        let (bytes, notes) = hdrcodec::encode_for(codec.as_ref(), &img, &s).unwrap();
+        // (Notes about the range, such as BC6H's clipping above 65504, are not about colour.)
+        assert!(notes.iter().all(|n| !n.contains("primaries")), "{} in {payload}: {notes:?}", primaries.name());
+        let back = codec.decode(&bytes, &limits).unwrap();
+        assert_eq!(back.color.primaries, primaries, "{payload}");
+        // Read the unspecified samples as BT.709 on both sides for the metric.
+        let label = |mut i: HdrImage| {
+            i.color.primaries = i.color.primaries.or_bt709();
+            i
+        };
+        let (mean, p99) = hdrcodec_core::metrics::delta_e_itp(&label(img.clone()), &label(back)).unwrap();
+        // The payload codec alone on the whole image, as it is (a file it decodes unspecified
+        // is scored in the reference's primaries).
+        let alone = hdrcodec::registry().by_name(payload).unwrap();
+        let file = alone.encode(&img, &EncodeSettings::default().with_effort(0)).unwrap();
+        let alone = hdrcodec_core::metrics::delta_e_itp(&label(img.clone()), &alone.decode(&file, &limits).unwrap());
+        let (alone_mean, alone_p99) = alone.unwrap();
+        eprintln!(
+            "{} in payload={payload}: ΔE ITP mean {mean:.4} p99 {p99:.4} (the codec alone: {alone_mean:.4} / \
+             {alone_p99:.4})",
+            primaries.name()
+        );
+        assert!(mean <= alone_mean + 1e-3 && p99 <= alone_p99 + 1e-3, "{} in {payload}", primaries.name());
+    }
 }

@@ -160,6 +160,8 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
     let (codec, image) = reg.decode(file, &data, &Limits::default())?;
     let c = &image.color;
     let ch = c.primaries.chromaticities();
+    // A file without primaries (PFM, DDS): luminance needs some, BT.709 is assumed and said.
+    let assumed = (!c.primaries.is_specified()).then(|| c.primaries.or_bt709());
     let (min, max, mean, nonfinite) = luminance_stats(&image);
     // CTA-861.3 light levels of this one frame (MaxFALL of a single frame is its average).
     let measured_cll = hdrcodec::core::hdr10::max_cll_nits(&image);
@@ -185,7 +187,9 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             "channels": image.channels().count(),
             "layout": format!("{:?}", image.channels()).to_uppercase(),
             "primaries": c.primaries.name(),
-            "chromaticities": {"red": ch.red, "green": ch.green, "blue": ch.blue, "white": ch.white},
+            "chromaticities": assumed.is_none().then(|| json!({"red": ch.red, "green": ch.green, "blue": ch.blue, "white": ch.white})),
+            // The primaries the luminance figures took for a file that records none.
+            "primaries_assumed": assumed.map(|p| p.name()),
             "nits_per_unit": num(f64::from(c.nits_per_unit)),
             "hdr10": hdr10,
             "luminance_nits": {"min": num(min), "max": num(max), "mean": num(mean)},
@@ -198,16 +202,22 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
     println!("file:          {} ({} bytes, {})", file.display(), data.len(), codec.name());
     println!("dimensions:    {} x {}", image.width(), image.height());
     println!("channels:      {} ({:?})", image.channels().count(), image.channels());
-    println!(
-        "primaries:     {} (R {:?} G {:?} B {:?} W {:?})",
-        c.primaries.name(),
-        ch.red,
-        ch.green,
-        ch.blue,
-        ch.white
-    );
+    match assumed {
+        None => println!(
+            "primaries:     {} (R {:?} G {:?} B {:?} W {:?})",
+            c.primaries.name(),
+            ch.red,
+            ch.green,
+            ch.blue,
+            ch.white
+        ),
+        Some(_) => println!("primaries:     unspecified (the file records none)"),
+    }
     println!("nits per unit: {}", c.nits_per_unit);
     println!("luminance:     min {min:.4e}  max {max:.4e}  mean {mean:.4e} cd/m²");
+    if let Some(p) = assumed {
+        println!("               (luminance taken as {}: assumed, the file records no primaries)", p.name());
+    }
     println!("light level:   MaxCLL {measured_cll:.1}  MaxFALL {measured_fall:.1} cd/m² (measured)");
     if nonfinite > 0 {
         println!("non-finite samples: {nonfinite}");
@@ -243,6 +253,10 @@ pub fn compare(reference: &Path, test: &Path, json: bool) -> Result<()> {
     let (_, r) = reg.read(reference, &Limits::default())?;
     let (_, t) = reg.read(test, &Limits::default())?;
     let m = metrics::compare(&r, &t)?;
+    // What the metrics took for files that record no primaries (metrics module notes): a test
+    // file's are the reference's; an unspecified reference is read as BT.709.
+    let from_reference = !t.color.primaries.is_specified() && r.color.primaries.is_specified();
+    let assumed = (!r.color.primaries.is_specified()).then(|| r.color.primaries.or_bt709());
     let fields: [(&str, f64, &str); 7] = [
         ("pu21_psnr", m.pu21_psnr, "dB"),
         ("pu21_psnr_rgb", m.pu21_psnr_rgb, "dB"),
@@ -260,12 +274,20 @@ pub fn compare(reference: &Path, test: &Path, json: bool) -> Result<()> {
         for (k, v, _) in fields {
             obj.insert(k.into(), num(v));
         }
+        obj.insert("test_primaries_from_reference".into(), Value::Bool(from_reference));
+        obj.insert("primaries_assumed".into(), assumed.map_or(Value::Null, |p| Value::String(p.name().into())));
         return print_json(&Value::Object(obj));
     }
     if m.identical {
         println!("identical: the images are identical ({} x {})", r.width(), r.height());
     } else {
         println!("identical: no");
+    }
+    if from_reference {
+        println!("primaries:     the test file records none: taken as the reference's ({})", r.color.primaries.name());
+    }
+    if let Some(p) = assumed {
+        println!("primaries:     the reference records none: {} assumed", p.name());
     }
     for (k, v, unit) in fields {
         println!("{k:<14} {v:.6} {unit}");

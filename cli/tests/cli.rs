@@ -370,6 +370,16 @@ fn convert_to_a_format_without_primaries_keeps_the_samples() {
     );
     let v = json(&hdrcodec(&[&"info", &pfm, &"--json"]));
     assert_eq!(v["primaries"], "unspecified");
+    // Luminance needs primaries: BT.709 is assumed, and said; no chromaticities are made up.
+    assert_eq!(v["primaries_assumed"], "BT.709", "{v}");
+    assert!(v["chromaticities"].is_null(), "{v}");
+    assert!(v["luminance_nits"]["max"].as_f64().unwrap() > 0.0, "{v}");
+    let text = ok(&hdrcodec(&[&"info", &pfm]));
+    assert!(text.contains("primaries:     unspecified (the file records none)"), "{text}");
+    assert!(text.contains("luminance taken as BT.709: assumed, the file records no primaries"), "{text}");
+    let v = json(&hdrcodec(&[&"info", &src, &"--json"]));
+    assert!(v["primaries_assumed"].is_null(), "a file with primaries assumes none: {v}");
+    assert!(!ok(&hdrcodec(&[&"info", &src])).contains("assumed"));
     // The same samples as the source: compare takes the reference's primaries for a test file
     // that has none, so the figures score the format (lossless f32 here), not a conversion.
     let src_img = decode(&src);
@@ -377,6 +387,14 @@ fn convert_to_a_format_without_primaries_keeps_the_samples() {
     assert_eq!(pfm_img.samples(), src_img.samples());
     let v = json(&hdrcodec(&[&"compare", &src, &pfm, &"--json"]));
     assert_eq!(v["identical"], true, "{v}");
+    assert_eq!((v["test_primaries_from_reference"].as_bool(), v["primaries_assumed"].is_null()), (Some(true), true));
+    let text = ok(&hdrcodec(&[&"compare", &src, &pfm]));
+    assert!(text.contains("the test file records none: taken as the reference's (BT.2020)"), "{text}");
+    let v = json(&hdrcodec(&[&"compare", &pfm, &pfm, &"--json"]));
+    assert_eq!(
+        (v["test_primaries_from_reference"].as_bool(), &v["primaries_assumed"]),
+        (Some(false), &"BT.709".into())
+    );
     // Back to OpenEXR, labelled as what the user knows they are: the source exactly.
     let back = dir.join("back.exr");
     ok(&hdrcodec(&[&"convert", &pfm, &back, &"--opt", &"pixel=float", &"--opt", &"primaries=bt2020"]));

@@ -5,7 +5,10 @@ use crate::format::{DataHeader, Head, SIGNATURE};
 use crate::raw::{RawF16Codec, RawF32Codec};
 use crate::reader::{in_chunk, Reader};
 use crate::writer::Writer;
-use hdrcodec_core::{DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Result};
+use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
+use hdrcodec_core::{
+    ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Result,
+};
 use std::sync::Arc;
 
 /// The pixels of `image` inside the tile `t`, as an image of their own (same colour, no metadata).
@@ -16,6 +19,84 @@ fn crop(image: &HdrImage, t: &DataHeader) -> Result<HdrImage> {
         samples.extend_from_slice(&image.row(y)[t.x as usize * c..(t.x + t.width) as usize * c]);
     }
     HdrImage::new(t.width, t.height, image.channels(), samples, image.color.clone())
+}
+
+/// The same primaries, allowing for chromaticities rounded on the way through a payload's
+/// file (OpenEXR stores them as f32, COLR as f64).
+fn same_primaries(a: &ColorPrimaries, b: &ColorPrimaries) -> bool {
+    if a == b {
+        return true;
+    }
+    let (a, b) = (a.chromaticities(), b.chromaticities());
+    let pairs = [(a.red, b.red), (a.green, b.green), (a.blue, b.blue), (a.white, b.white)];
+    pairs.iter().all(|(p, q)| (p[0] - q[0]).abs() < 1e-6 && (p[1] - q[1]).abs() < 1e-6)
+}
+
+/// Brings a decoded tile into the colour of the file's header (COLR), the colour it was
+/// encoded from:
+/// - a tile whose decoded primaries are specified and differ from the header's (LogLuv decodes
+///   to BT.709) is converted into the header's primaries; a tile that decodes unspecified (raw,
+///   PFM, DDS payloads) is taken as the header's: it was written from them. A header that says
+///   unspecified keeps the samples as they are.
+/// - a tile whose payload records its scale ([`ImageCodec::records_nits_per_unit`]) and decodes
+///   with another `nits_per_unit` than the header's is rescaled into the header's units; the
+///   scale of a payload that records none is the header's.
+///
+/// Alpha is untouched. One 3x3 matrix per tile, nothing is clipped.
+fn to_header_colour(mut tile: HdrImage, header: &ColorInfo, records_scale: bool) -> HdrImage {
+    let from = tile.color.primaries;
+    let to = header.primaries;
+    let convert = from.is_specified() && to.is_specified() && !same_primaries(&from, &to);
+    let (tile_nits, header_nits) = (tile.color.nits_per_unit, header.nits_per_unit);
+    let rescale = records_scale && tile_nits != header_nits && tile_nits.is_finite() && tile_nits > 0.0;
+    if convert || rescale {
+        let m: Mat3 = if convert { rgb_to_rgb(&from, &to) } else { IDENTITY };
+        let k = if rescale { f64::from(tile_nits) / f64::from(header_nits) } else { 1.0 };
+        let m = mat_to_f32(&m.map(|row| row.map(|v| v * k)));
+        let n = tile.channels().count();
+        for px in tile.samples_mut().chunks_exact_mut(n) {
+            let [r, g, b] = hdrcodec_core::color::mat_apply_f32s(&m, [px[0], px[1], px[2]]);
+            px[..3].copy_from_slice(&[r, g, b]);
+        }
+    }
+    tile.color = header.clone();
+    tile
+}
+
+/// The tile as the payload codec is given it: in primaries the payload can record as they are,
+/// so that it neither converts nor notes anything about colour (the header's COLR says what the
+/// samples are; [`to_header_colour`] brings each decoded tile back to it):
+/// - a payload that records any primaries gets the tile as it is, or labelled BT.709 when the
+///   frame's primaries are unspecified (the payload must write something; the header keeps
+///   "unspecified" and decoding keeps the samples);
+/// - one that records a fixed set gets the tile as it is when its primaries are in the set,
+///   labelled unspecified when the set has that, else converted into BT.2020 (or the set's
+///   first entry), which decoding converts back;
+/// - one that records none gets the tile as it is.
+fn for_payload(tile: HdrImage, signalling: ColorSignalling) -> HdrImage {
+    let p = tile.color.primaries;
+    let relabel = |mut tile: HdrImage, to: ColorPrimaries| {
+        tile.color.primaries = to;
+        tile
+    };
+    match signalling {
+        ColorSignalling::Any if !p.is_specified() => relabel(tile, ColorPrimaries::Bt709),
+        ColorSignalling::Only(set) if !set.contains(&p) => {
+            if set.contains(&ColorPrimaries::Unspecified) {
+                relabel(tile, ColorPrimaries::Unspecified)
+            } else if let Some(&first) = set.first() {
+                let to = if set.contains(&ColorPrimaries::Bt2020) { ColorPrimaries::Bt2020 } else { first };
+                if p.is_specified() {
+                    convert_primaries(&tile, to)
+                } else {
+                    relabel(tile, to)
+                }
+            } else {
+                tile
+            }
+        }
+        _ => tile,
+    }
 }
 
 /// Encodes one still image: see [`encode_frames`].
@@ -40,6 +121,26 @@ pub fn encode_frames(
     settings: &EncodeSettings,
     tile_size: Option<u32>,
 ) -> Result<Vec<u8>> {
+    Ok(encode_frames_reporting(frames, payload_codec, settings, tile_size)?.0)
+}
+
+/// At most this many different notes of the payload codec are kept (tiles clipped by
+/// different amounts say different sentences); the rest are counted.
+const MAX_TILE_NOTES: usize = 4;
+
+/// [`encode_frames`], with what the payload codec reported for the tiles (each distinct note
+/// once).
+///
+/// Each tile goes to the payload codec in colour it can record ([`for_payload`]): a payload that
+/// records primaries (OpenEXR, Radiance, LogLuv's XYZ, KTX2's set) records them, one that records
+/// none stores the samples as they are, and the header's COLR says what they are either way
+/// ([`decode_frames`] brings every tile back to it).
+fn encode_frames_reporting(
+    frames: &[HdrImage],
+    payload_codec: &dyn ImageCodec,
+    settings: &EncodeSettings,
+    tile_size: Option<u32>,
+) -> Result<(Vec<u8>, Vec<String>)> {
     let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
     if let Some(f) = frames
         .iter()
@@ -65,10 +166,13 @@ pub fn encode_frames(
     }
     let tiles: Vec<(usize, DataHeader)> =
         frames.iter().enumerate().flat_map(|(i, _)| head.frame_tiles(i as u32).map(move |t| (i, t))).collect();
-    let payloads: Vec<Result<Vec<u8>>> = settings.pool.map(tiles.len(), |k| {
+    let signalling = payload_codec.color_signalling();
+    let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = settings.pool.map(tiles.len(), |k| {
         let (i, t) = &tiles[k];
-        let tile = crop(&frames[*i], t)?;
-        payload_codec.encode(&tile, settings)
+        let tile = for_payload(crop(&frames[*i], t)?, signalling);
+        let mut out = Vec::new();
+        let report = payload_codec.encode_to(&tile, settings, &mut out)?;
+        Ok((out, report.notes))
     });
     let mut w = Writer::new(Vec::new(), &head)?;
     w.write_color(&first.color)?;
@@ -78,10 +182,25 @@ pub fn encode_frames(
     if !first.metadata.is_empty() {
         w.write_meta(&first.metadata)?;
     }
+    let (mut notes, mut more) = (Vec::new(), Vec::new());
     for ((_, t), p) in tiles.iter().zip(payloads) {
-        w.write_data(t, &p?)?;
+        let (bytes, tile_notes) = p?;
+        w.write_data(t, &bytes)?;
+        for n in tile_notes {
+            if notes.contains(&n) || more.contains(&n) {
+                continue;
+            }
+            if notes.len() < MAX_TILE_NOTES {
+                notes.push(n);
+            } else {
+                more.push(n);
+            }
+        }
     }
-    w.finish()
+    if !more.is_empty() {
+        notes.push(format!("{} more notes of the {} payload on other tiles", more.len(), payload_codec.name()));
+    }
+    Ok((w.finish()?, notes))
 }
 
 /// Decodes a `.hdrc` file of one frame (use [`decode_frames`] for more). `resolve` gives the
@@ -104,7 +223,9 @@ pub fn decode_image<'c>(
 
 /// Decodes every frame of a `.hdrc` file. The tiles of each frame are decoded in parallel on
 /// `options.pool` and each must decode to exactly its rectangle's size. A tile that decodes with a different
-/// channel layout (a payload codec without alpha) is converted: alpha dropped or set to 1.
+/// channel layout (a payload codec without alpha) is converted: alpha dropped or set to 1. A
+/// tile that decodes in other primaries or units than the header's COLR is converted into them
+/// (a LogLuv payload decodes to BT.709); one that decodes unspecified is taken as the header's.
 pub fn decode_frames<'c>(
     data: &[u8],
     options: &DecodeOptions,
@@ -126,6 +247,7 @@ fn decode_reader<'c>(
     let limits = &options.limits;
     limits.check_alloc(frame_bytes.saturating_mul(u64::from(h.frames)), "the decoded frames")?;
     let color = r.color_info();
+    let records_scale = codec.records_nits_per_unit();
     let c = h.channels.count();
     let mut out = Vec::with_capacity(h.frames as usize);
     for f in 0..h.frames {
@@ -146,7 +268,7 @@ fn decode_reader<'c>(
             if (img.width(), img.height()) != (t.width, t.height) {
                 return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
             }
-            Ok(img.with_channels(h.channels))
+            Ok(to_header_colour(img.with_channels(h.channels), &color, records_scale))
         });
         let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
         // Allocated only once every tile has decoded to its rectangle.
@@ -224,6 +346,10 @@ impl ImageCodec for HdrcCodec {
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Any
     }
+    /// The COLR chunk records `nits_per_unit`.
+    fn records_nits_per_unit(&self) -> bool {
+        true
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_image(data, options, &|id| self.resolve(id))
     }
@@ -248,7 +374,167 @@ impl ImageCodec for HdrcCodec {
         let mut inner_settings = settings.clone();
         inner_settings.options = inner.into_iter().map(|(k, v)| (k["payload.".len()..].to_string(), v)).collect();
         let inner = inner_settings;
-        out.write_all(&encode_image(image, codec.as_ref(), &inner, tile)?)?;
-        Ok(hdrcodec_core::EncodeReport::new())
+        let (bytes, notes) = encode_frames_reporting(std::slice::from_ref(image), codec.as_ref(), &inner, tile)?;
+        out.write_all(&bytes)?;
+        let mut report = hdrcodec_core::EncodeReport::new();
+        for n in notes {
+            report.note(format!("{} payload: {n}", codec.name()));
+        }
+        Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::{Channels, Chromaticities, EncodeReport};
+
+    fn tile(primaries: ColorPrimaries, nits_per_unit: f32) -> HdrImage {
+        let samples = vec![1.0, 0.5, 0.25, 0.75, 2.0, 0.0, 4.0, 0.5];
+        let color = ColorInfo { primaries, nits_per_unit, hdr10: None };
+        HdrImage::new(2, 1, Channels::Rgba, samples, color).unwrap()
+    }
+
+    fn header(primaries: ColorPrimaries, nits_per_unit: f32) -> ColorInfo {
+        ColorInfo { primaries, nits_per_unit, hdr10: None }
+    }
+
+    #[test]
+    fn tiles_in_other_primaries_are_converted_to_the_header_s() {
+        // LogLuv decodes to BT.709: a BT.2020 header gets BT.2020 samples back.
+        let t = tile(ColorPrimaries::Bt709, 100.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Bt2020, 100.0), true);
+        let want = convert_primaries(&t, ColorPrimaries::Bt2020);
+        assert_eq!(out.color.primaries, ColorPrimaries::Bt2020);
+        for (a, b) in out.samples().iter().zip(want.samples()) {
+            assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+        }
+        assert_eq!((out.samples()[3], out.samples()[7]), (0.75, 0.5), "alpha untouched");
+    }
+
+    #[test]
+    fn unspecified_tiles_and_headers_keep_the_samples() {
+        // A raw, PFM or DDS tile was written from the header's primaries.
+        let t = tile(ColorPrimaries::Unspecified, 100.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Bt2020, 100.0), false);
+        assert_eq!((out.samples(), out.color.primaries), (t.samples(), ColorPrimaries::Bt2020));
+        // A header that says unspecified: a payload that had to write something (RGBE's BT.709)
+        // does not make the container guess.
+        let t = tile(ColorPrimaries::Bt709, 100.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Unspecified, 100.0), false);
+        assert_eq!((out.samples(), out.color.primaries), (t.samples(), ColorPrimaries::Unspecified));
+        // Custom chromaticities rounded to f32 by a payload's file (OpenEXR) are the same.
+        let ch = Chromaticities { red: [0.7, 0.29], green: [0.15, 0.8], blue: [0.13, 0.05], white: [0.3127, 0.329] };
+        let rounded = ch.red.map(|v| f64::from(v as f32));
+        let t = tile(ColorPrimaries::Custom(Chromaticities { red: rounded, ..ch }), 100.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Custom(ch), 100.0), true);
+        assert_eq!(out.samples(), t.samples());
+    }
+
+    #[test]
+    fn a_recorded_scale_is_brought_to_the_header_s_units() {
+        // The payload recorded 50 cd/m² per unit (a scale its encoder chose): 2.0 of its units
+        // is 1.0 of the header's 100.
+        let t = tile(ColorPrimaries::Bt709, 50.0);
+        let out = to_header_colour(t, &header(ColorPrimaries::Bt709, 100.0), true);
+        assert_eq!(out.samples(), [0.5, 0.25, 0.125, 0.75, 1.0, 0.0, 2.0, 0.5]);
+        assert_eq!(out.color.nits_per_unit, 100.0);
+        // A payload that records no scale decodes at the default 100: its samples are in the
+        // header's units already.
+        let t = tile(ColorPrimaries::Bt709, 100.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Bt709, 203.0), false);
+        assert_eq!((out.samples(), out.color.nits_per_unit), (t.samples(), 203.0));
+        // Both at once: one matrix.
+        let t = tile(ColorPrimaries::Bt709, 200.0);
+        let out = to_header_colour(t.clone(), &header(ColorPrimaries::Bt2020, 100.0), true);
+        let want = convert_primaries(&t, ColorPrimaries::Bt2020);
+        for (i, (a, b)) in out.samples().iter().zip(want.samples()).enumerate() {
+            let k = if i % 4 == 3 { 1.0 } else { 2.0 };
+            assert!((a - k * b).abs() < 1e-5, "{i}: {a} vs {k} x {b}");
+        }
+    }
+
+    #[test]
+    fn payloads_get_tiles_in_colour_they_record() {
+        let t = |p| tile(p, 100.0);
+        let only: ColorSignalling = ColorSignalling::Only(&[ColorPrimaries::Bt709, ColorPrimaries::Bt2020]);
+        let with_unspecified: ColorSignalling =
+            ColorSignalling::Only(&[ColorPrimaries::Unspecified, ColorPrimaries::Bt709, ColorPrimaries::Bt2020]);
+        let cases = [
+            (ColorSignalling::Any, ColorPrimaries::DciP3, ColorPrimaries::DciP3, false),
+            (ColorSignalling::Any, ColorPrimaries::Unspecified, ColorPrimaries::Bt709, false),
+            (ColorSignalling::None, ColorPrimaries::DciP3, ColorPrimaries::DciP3, false),
+            (only, ColorPrimaries::Bt709, ColorPrimaries::Bt709, false),
+            (only, ColorPrimaries::DciP3, ColorPrimaries::Bt2020, true),
+            (only, ColorPrimaries::Unspecified, ColorPrimaries::Bt2020, false),
+            (with_unspecified, ColorPrimaries::DciP3, ColorPrimaries::Unspecified, false),
+        ];
+        for (signalling, from, to, converted) in cases {
+            let out = for_payload(t(from), signalling);
+            assert_eq!(out.color.primaries, to, "{signalling:?} {}", from.name());
+            assert_eq!(out.samples() != t(from).samples(), converted, "{signalling:?} {}", from.name());
+        }
+    }
+
+    /// Raw f32 samples that says, for every tile, how many of its samples exceed 1 (as a codec
+    /// that clips would), and records no colour.
+    struct Noisy;
+    impl ImageCodec for Noisy {
+        fn name(&self) -> &'static str {
+            "noisy"
+        }
+        fn id(&self) -> [u8; 4] {
+            *b"NOIS"
+        }
+        fn extensions(&self) -> &'static [&'static str] {
+            &[]
+        }
+        fn sniff(&self, _: &[u8]) -> bool {
+            false
+        }
+        fn color_signalling(&self) -> ColorSignalling {
+            ColorSignalling::None
+        }
+        fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+            crate::RawF32Codec.decode_with(data, options)
+        }
+        fn encode_to(
+            &self,
+            image: &HdrImage,
+            settings: &EncodeSettings,
+            out: &mut dyn std::io::Write,
+        ) -> Result<EncodeReport> {
+            let mut report = crate::RawF32Codec.encode_to(image, settings, out)?;
+            let n = image.samples().iter().filter(|&&v| v > 1.0).count();
+            report.note(format!("{n} samples above 1"));
+            report.note("the same sentence from every tile");
+            Ok(report)
+        }
+    }
+
+    #[test]
+    fn payload_notes_are_reported_once_each() {
+        // 8 tiles of 2x1 pixels (6 samples), tile k with min(k, 6) samples above 1.
+        let samples: Vec<f32> = (0..16 * 3).map(|i| if i % 6 < i / 6 { 2.0 } else { 0.5 }).collect();
+        let img = HdrImage::new(16, 1, Channels::Rgb, samples, ColorInfo::default()).unwrap();
+        let (_, notes) =
+            encode_frames_reporting(std::slice::from_ref(&img), &Noisy, &EncodeSettings::default(), Some(2)).unwrap();
+        let want = [
+            "0 samples above 1",
+            "the same sentence from every tile",
+            "1 samples above 1",
+            "2 samples above 1",
+            "4 more notes of the noisy payload on other tiles",
+        ];
+        assert_eq!(notes, want);
+        let codec = HdrcCodec::new(vec![Arc::new(Noisy)]);
+        let mut out = Vec::new();
+        let s = EncodeSettings::default().with_option("payload", "noisy");
+        let report = codec.encode_to(&img, &s, &mut out).unwrap();
+        assert_eq!(
+            report.notes,
+            ["noisy payload: 27 samples above 1", "noisy payload: the same sentence from every tile"]
+        );
+        assert_eq!(codec.decode(&out, &Default::default()).unwrap(), img);
     }
 }

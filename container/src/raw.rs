@@ -14,7 +14,7 @@
 //! Colour information is not stored: inside `.hdrc` it lives in COLR/HDRM.
 
 use half::f16;
-use hdrcodec_core::{Channels, ColorInfo, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
 
 const HEADER_LEN: usize = 13;
 
@@ -100,7 +100,9 @@ fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
         return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() as u64 - need, S::NAME)));
     }
     let samples = body.chunks_exact(S::BYTES).map(S::get).collect();
-    HdrImage::new(width, height, channels, samples, ColorInfo::default())
+    // No colour is stored: the samples are the writer's, in primaries the container's COLR says.
+    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
+    HdrImage::new(width, height, channels, samples, color)
 }
 
 macro_rules! raw_codec {
@@ -166,6 +168,7 @@ mod tests {
         assert_eq!(&b[13..17], &[0x00, 0x00, 0x80, 0x3F]);
         let back = RawF32Codec.decode(&b, &Limits::default()).unwrap();
         assert!(back.samples().iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(back.color.primaries, ColorPrimaries::Unspecified, "raw samples record no colour");
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! identically.
 #![no_main]
 
+use hdrcodec_bc6h::ktx2::read_ktx2_primaries;
 use hdrcodec_bc6h::{read_dds, read_ktx2, write_dds, write_ktx2, Bc6hDdsCodec, Bc6hKtx2Codec};
 use hdrcodec_core::{ImageCodec, Limits};
 use libfuzzer_sys::fuzz_target;
@@ -16,7 +17,10 @@ fuzz_target!(|data: &[u8]| {
         assert_eq!(again, tex);
     }
     if let Ok(tex) = read_ktx2(data, &limits) {
-        let again = read_ktx2(&write_ktx2(&tex).expect("a parsed texture writes"), &limits).expect("reads back");
+        let primaries = read_ktx2_primaries(data);
+        let written = write_ktx2(&tex, primaries).expect("a parsed texture writes, with the primaries it read");
+        let again = read_ktx2(&written, &limits).expect("reads back");
         assert_eq!(again, tex);
+        assert_eq!(read_ktx2_primaries(&written), primaries);
     }
 });

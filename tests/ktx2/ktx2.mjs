@@ -5,15 +5,15 @@
 //   node ktx2.mjs flat FILE.ktx2
 //       the same facts as `path=value` lines (e.g. `dfd.samples.0.bitLength=127`), which the
 //       Rust test reads without a JSON parser.
-//   node ktx2.mjs write OUT.ktx2 VKFORMAT WIDTH HEIGHT SIGNED(0|1) LEVEL0.bin [LEVEL1.bin ...]
+//   node ktx2.mjs write OUT.ktx2 VKFORMAT WIDTH HEIGHT SIGNED(0|1) PRIMARIES LEVEL0.bin [LEVEL1.bin ...]
 //       writes a KTX2 file with ktx-parse's own serializer and a BC6H data format descriptor
-//       filled in here, from raw block data files (level 0 first).
+//       filled in here (colorPrimaries = PRIMARIES, a khr_df_primaries_e value), from raw block
+//       data files (level 0 first).
 import { createHash } from 'node:crypto';
 import { readFileSync, writeFileSync } from 'node:fs';
 import { read, write } from 'ktx-parse';
 
-// Khronos Data Format Specification 1.3: KHR_DF_MODEL_BC6H = 133, primaries BT709 = 1,
-// transfer LINEAR = 1, sample qualifiers FLOAT = 0x80 and SIGNED = 0x40 (in channelType).
+// Khronos Data Format Specification 1.3: KHR_DF_MODEL_BC6H = 133, transfer LINEAR = 1, sample qualifiers FLOAT = 0x80 and SIGNED = 0x40 (in channelType).
 const MODEL_BC6H = 133;
 const FLOAT = 0x80;
 const SIGNED = 0x40;
@@ -64,7 +64,7 @@ function describe(path) {
   };
 }
 
-function build(out, vkFormat, width, height, signed, levelFiles) {
+function build(out, vkFormat, width, height, signed, primaries, levelFiles) {
   const c = {
     vkFormat,
     typeSize: 1,
@@ -85,7 +85,7 @@ function build(out, vkFormat, width, height, signed, levelFiles) {
         descriptorType: 0,
         versionNumber: 2,
         colorModel: MODEL_BC6H,
-        colorPrimaries: 1,
+        colorPrimaries: primaries,
         transferFunction: 1,
         flags: 0,
         texelBlockDimension: [3, 3, 0, 0],
@@ -123,10 +123,10 @@ if (cmd === 'read' && args.length === 1) {
   process.stdout.write(JSON.stringify(describe(args[0])) + '\n');
 } else if (cmd === 'flat' && args.length === 1) {
   process.stdout.write(flatten(describe(args[0]), '', []).join('\n') + '\n');
-} else if (cmd === 'write' && args.length >= 6) {
-  const [out, vk, w, h, signed, ...levels] = args;
-  build(out, Number(vk), Number(w), Number(h), signed === '1', levels);
+} else if (cmd === 'write' && args.length >= 7) {
+  const [out, vk, w, h, signed, primaries, ...levels] = args;
+  build(out, Number(vk), Number(w), Number(h), signed === '1', Number(primaries), levels);
 } else {
-  process.stderr.write('usage: ktx2.mjs read FILE | write OUT VKFORMAT W H SIGNED LEVEL0.bin [...]\n');
+  process.stderr.write('usage: ktx2.mjs read FILE | write OUT VKFORMAT W H SIGNED PRIMARIES LEVEL0.bin [...]\n');
   process.exit(2);
 }

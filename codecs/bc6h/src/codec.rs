@@ -3,7 +3,7 @@
 use crate::dds::{is_bc6h_dds, read_dds, write_dds};
 use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
-use crate::ktx2::{is_bc6h_ktx2, read_ktx2, write_ktx2};
+use crate::ktx2::{is_bc6h_ktx2, khr_df_primaries, read_ktx2, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES};
 use crate::texture::{full_mip_count, level_size, Bc6hTexture};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, Result,
@@ -105,14 +105,14 @@ fn clip_note(image: &HdrImage, signed: bool) -> Option<String> {
     counts.describe(if signed { "BC6H SF16" } else { "BC6H UF16" }, lo, MAX, below_as, "65504", "0")
 }
 
-/// Level 0 of `tex` as an image, block rows decoded on `options.pool`.
-fn to_image(tex: &Bc6hTexture, options: &DecodeOptions) -> Result<HdrImage> {
+/// Level 0 of `tex` as an image in `primaries`, block rows decoded on `options.pool`.
+fn to_image(tex: &Bc6hTexture, primaries: ColorPrimaries, options: &DecodeOptions) -> Result<HdrImage> {
     let (w, h) = (tex.width, tex.height);
     let _charge = options.limits.charge_image(u64::from(w), u64::from(h), Channels::Rgb)?;
     let mut samples = vec![0f32; w as usize * h as usize * 3];
     let level0 = tex.levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
     decode_surface_into(w, h, level0, tex.signed, &options.pool, &mut samples)?;
-    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
+    let color = ColorInfo { primaries, ..ColorInfo::default() };
     HdrImage::new(w, h, Channels::Rgb, samples, color)
 }
 
@@ -138,7 +138,7 @@ impl ImageCodec for Bc6hDdsCodec {
         hdrcodec_core::ColorSignalling::None
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        to_image(&read_dds(data, &options.limits)?, options)
+        to_image(&read_dds(data, &options.limits)?, ColorPrimaries::Unspecified, options)
     }
     fn encode_to(
         &self,
@@ -169,22 +169,38 @@ impl ImageCodec for Bc6hKtx2Codec {
     fn sniff(&self, head: &[u8]) -> bool {
         is_bc6h_ktx2(head)
     }
-    /// KTX2 files written before the colour work say nothing of their primaries (BT.709 is
-    /// what readers assume); until the DFD's colour primaries are written, none are recorded.
+    /// The data format descriptor names a fixed set of primaries ([`KTX2_PRIMARIES`]),
+    /// "unspecified" (colorPrimaries 0) among them.
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
-        hdrcodec_core::ColorSignalling::None
+        hdrcodec_core::ColorSignalling::Only(&KTX2_PRIMARIES)
     }
+    /// The image carries the primaries the DFD names; 0 or a value without a named space of
+    /// ours gives [`ColorPrimaries::Unspecified`].
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        to_image(&read_ktx2(data, &options.limits)?, options)
+        to_image(&read_ktx2(data, &options.limits)?, read_ktx2_primaries(data), options)
     }
+    /// Records the image's primaries in the DFD. Primaries it cannot name (the facade converts
+    /// before calling, but a direct caller or the container may not) are stored as they are
+    /// with colorPrimaries 0 (unspecified), and the report says so.
     fn encode_to(
         &self,
         image: &HdrImage,
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        let (texture, report) = encode_with(image, settings, self.name())?;
-        out.write_all(&write_ktx2(&texture)?)?;
+        let (texture, mut report) = encode_with(image, settings, self.name())?;
+        let primaries = match khr_df_primaries(&image.color.primaries) {
+            Some(_) => image.color.primaries,
+            None => {
+                report.note(format!(
+                    "KTX2 cannot record {} primaries: the samples are stored as they are and the file says \
+                     unspecified (--opt primaries=NAME converts them)",
+                    image.color.primaries.name()
+                ));
+                ColorPrimaries::Unspecified
+            }
+        };
+        out.write_all(&write_ktx2(&texture, primaries)?)?;
         Ok(report)
     }
 }
@@ -240,5 +256,37 @@ mod tests {
         assert!(matches!(Bc6hDdsCodec.encode(&img, &s), Err(Error::Invalid { .. })));
         let s = EncodeSettings::default().with_option("signed", "maybe");
         assert!(Bc6hKtx2Codec.encode(&img, &s).is_err());
+    }
+
+    #[test]
+    fn ktx2_keeps_the_primaries_it_can_name() {
+        let limits = hdrcodec_core::Limits::default();
+        let mut img = HdrImage::new(4, 4, Channels::Rgb, vec![0.5; 48], ColorInfo::default()).unwrap();
+        for p in KTX2_PRIMARIES {
+            img.color.primaries = p;
+            let mut out = Vec::new();
+            let report = Bc6hKtx2Codec.encode_to(&img, &EncodeSettings::default(), &mut out).unwrap();
+            assert!(report.notes.is_empty(), "{}: {:?}", p.name(), report.notes);
+            let back = Bc6hKtx2Codec.decode(&out, &limits).unwrap();
+            assert_eq!(back.color.primaries, p);
+            assert_eq!(
+                back.samples(),
+                Bc6hDdsCodec
+                    .decode(&Bc6hDdsCodec.encode(&img, &EncodeSettings::default()).unwrap(), &limits)
+                    .unwrap()
+                    .samples()
+            );
+        }
+        // DCI-P3 has no colorPrimaries value: stored as it is, read back unspecified, noted.
+        img.color.primaries = ColorPrimaries::DciP3;
+        let mut out = Vec::new();
+        let report = Bc6hKtx2Codec.encode_to(&img, &EncodeSettings::default(), &mut out).unwrap();
+        assert!(report.notes.len() == 1 && report.notes[0].contains("DCI-P3"), "{:?}", report.notes);
+        let back = Bc6hKtx2Codec.decode(&out, &limits).unwrap();
+        assert_eq!(back.color.primaries, ColorPrimaries::Unspecified);
+        assert!(back.samples().iter().all(|&v| (v - 0.5).abs() < 0.01));
+        // DDS records nothing.
+        let dds = Bc6hDdsCodec.encode(&img, &EncodeSettings::default()).unwrap();
+        assert_eq!(Bc6hDdsCodec.decode(&dds, &limits).unwrap().color.primaries, ColorPrimaries::Unspecified);
     }
 }

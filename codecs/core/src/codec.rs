@@ -21,6 +21,15 @@ pub trait ImageCodec: Send + Sync {
     /// What colour signalling the format's files carry. Tools convert an image once, before
     /// encoding, only into what the format can say (see [`ColorSignalling`]).
     fn color_signalling(&self) -> ColorSignalling;
+    /// True when the format's files record the scale of their samples
+    /// ([`ColorInfo::nits_per_unit`]: OpenEXR's `whiteLuminance`, TIFF's `STONITS`, the
+    /// container's COLR), so that a decoded image's `nits_per_unit` is the one its file states,
+    /// which may differ from the encoded image's when the encoder chose a scale for its range.
+    /// False (the provided answer): decoding gives the family's default (100) whatever the
+    /// writer had, and a caller that knows the scale (the `.hdrc` header) keeps its own.
+    fn records_nits_per_unit(&self) -> bool {
+        false
+    }
     /// Size, channels and colour of an encoded image, read from its header without decoding
     /// the pixels (for `info` and for planning the memory of a batch). Never panics.
     ///

@@ -529,6 +529,36 @@ mod tests {
     }
 
     #[test]
+    fn an_unspecified_test_image_is_scored_in_the_reference_s_primaries() {
+        // Pure BT.2020 green and red, as a PFM or DDS of these samples reads back: the same
+        // samples, primaries unspecified. Scored as what they are, the reference's colours.
+        let bt2020 = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 100.0, hdr10: None };
+        let pixels = [[0.0, 5.0, 0.0], [2.0, 0.0, 0.0], [0.3, 0.3, 0.3]];
+        let reference = from_pixels(&pixels, bt2020.clone());
+        let unspecified = ColorInfo { primaries: ColorPrimaries::Unspecified, ..bt2020.clone() };
+        let test = from_pixels(&pixels, unspecified);
+        assert_eq!(test_primaries(&reference, &test), ColorPrimaries::Bt2020);
+        let c = compare(&reference, &test).unwrap();
+        assert!(c.identical, "{c:?}");
+        assert_eq!((c.de_itp_mean, c.de_itp_p99, c.max_rel_err), (0.0, 0.0, 0.0));
+        assert_eq!((c.pu21_psnr, c.psnr), (f64::INFINITY, f64::INFINITY));
+        // Read as BT.709 instead (what a tool that guessed would do) they are other colours.
+        let guessed = compare(&reference, &from_pixels(&pixels, ColorInfo::default())).unwrap();
+        assert!(!guessed.identical && guessed.de_itp_mean > 10.0, "{guessed:?}");
+        // One code step off in the test image: the same figure as a BT.2020-labelled test.
+        let mut off = pixels;
+        off[0][1] = 5.01;
+        let as_unspecified = compare(&reference, &from_pixels(&off, test.color.clone())).unwrap();
+        let as_bt2020 = compare(&reference, &from_pixels(&off, bt2020)).unwrap();
+        assert_eq!(as_unspecified, as_bt2020);
+        // An unspecified reference is taken as BT.709 (and so is an unspecified test against it).
+        let unspecified_ref = from_pixels(&pixels, test.color.clone());
+        let c = compare(&unspecified_ref, &from_pixels(&pixels, ColorInfo::default())).unwrap();
+        assert_eq!((c.de_itp_mean, c.psnr), (0.0, f64::INFINITY));
+        assert!(compare(&unspecified_ref, &test).unwrap().identical);
+    }
+
+    #[test]
     fn log_rmse_psnr_and_relative_error_by_hand() {
         // RMSLE: one of three samples goes 1 → 3, log2(4/2) = 1, so √(1/3).
         let reference = from_pixels(&[[1.0, 1.0, 1.0]], ColorInfo::default());

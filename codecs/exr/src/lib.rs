@@ -240,6 +240,10 @@ impl ImageCodec for ExrCodec {
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Any
     }
+    /// `whiteLuminance` records `nits_per_unit` (written when it is not 100, the default).
+    fn records_nits_per_unit(&self) -> bool {
+        true
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_exr_with(data, options)
     }

@@ -287,6 +287,10 @@ impl ImageCodec for LogLuvTiffCodec {
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Any
     }
+    /// The TIFF `STONITS` tag records `nits_per_unit`.
+    fn records_nits_per_unit(&self) -> bool {
+        true
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode(data, &options.limits, &DecodeOptions::default())
     }
@@ -299,7 +303,15 @@ impl ImageCodec for LogLuvTiffCodec {
         settings.check_options(self.name(), &["rows_per_strip"])?;
         let rows_per_strip = settings.parse_option::<u32>("rows_per_strip")?.unwrap_or(0);
         out.write_all(&encode(image, &EncodeOptions { encoding: self.encoding, rows_per_strip })?)?;
-        Ok(hdrcodec_core::EncodeReport::new())
+        let mut report = hdrcodec_core::EncodeReport::new();
+        if !image.color.primaries.is_specified() {
+            // LogLuv stores CIE XYZ: the samples must be read in some primaries to get there.
+            report.note(
+                "the input records no primaries: LogLuv converted it to CIE XYZ as if it were BT.709 \
+                 (--opt primaries=NAME labels them)",
+            );
+        }
+        Ok(report)
     }
 }
 
@@ -340,5 +352,20 @@ mod tests {
         }
         let bad = EncodeSettings::default().with_option("dither", "1");
         assert!(LogLuvTiffCodec::new(Encoding::LogL16).encode(&img, &bad).is_err());
+    }
+
+    #[test]
+    fn unspecified_primaries_are_read_as_bt709_and_said() {
+        let samples = vec![1.0, 0.5, 0.25, 4.0, 2.0, 0.1];
+        let mut img = HdrImage::new(2, 1, Channels::Rgb, samples, ColorInfo::default()).unwrap();
+        let codec = LogLuvTiffCodec::new(Encoding::LogLuv32);
+        let mut as709 = Vec::new();
+        assert!(codec.encode_to(&img, &EncodeSettings::default(), &mut as709).unwrap().notes.is_empty());
+        img.color.primaries = ColorPrimaries::Unspecified;
+        let mut out = Vec::new();
+        let report = codec.encode_to(&img, &EncodeSettings::default(), &mut out).unwrap();
+        assert_eq!(out, as709, "the same XYZ as BT.709 samples");
+        assert_eq!(report.notes.len(), 1);
+        assert!(report.notes[0].contains("records no primaries") && report.notes[0].contains("as if it were BT.709"));
     }
 }
