@@ -331,10 +331,17 @@ pub fn encode_for(
     Ok((bytes, notes))
 }
 
-/// Writes `bytes` to `path` so that `path` either gets the whole content or is left untouched:
-/// the data goes to a temporary file in the same directory, is flushed to disk (fsync) and
-/// renamed over `path` only on success; on any error the temporary file is removed.
+/// Writes `bytes` to `path` so that `path` either gets the whole content or is left untouched
+/// (see [`write_atomic_with`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |w| Ok(w.write_all(bytes)?))
+}
+
+/// Lets `write` stream the content of `path` so that `path` either gets the whole content or is
+/// left untouched: the data goes (buffered) to a temporary file in the same directory, is flushed
+/// to disk (fsync) and renamed over `path` only when `write` succeeds; on any error the temporary
+/// file is removed. Nothing of the content is held in memory beyond the write buffer.
+pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<T>) -> Result<T> {
     let name = path
         .file_name()
         .and_then(|n| n.to_str())
@@ -347,16 +354,38 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let io =
         |e: std::io::Error, what: &Path| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", what.display())));
     let result = (|| {
-        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| io(e, path))?;
-        f.write_all(bytes).map_err(|e| io(e, path))?;
+        let f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| io(e, path))?;
+        let mut buffered = std::io::BufWriter::with_capacity(1 << 20, f);
+        let value = write(&mut buffered).map_err(|e| match e {
+            Error::Io(e) => io(e, path),
+            e => e,
+        })?;
+        let f = buffered.into_inner().map_err(|e| io(e.into_error(), path))?;
         f.sync_all().map_err(|e| io(e, path))?;
         drop(f);
-        std::fs::rename(&tmp, path).map_err(|e| io(e, path))
+        std::fs::rename(&tmp, path).map_err(|e| io(e, path))?;
+        Ok(value)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// Encodes `image` for `codec` straight into the file at `path` ([`prepare_colour`], then the
+/// codec streaming into [`write_atomic_with`]): the encoded bytes are never held whole beside the
+/// image. Returns the notes of the colour preparation and of the codec.
+pub fn encode_file(
+    codec: &dyn ImageCodec,
+    image: &HdrImage,
+    settings: &EncodeSettings,
+    path: &Path,
+) -> Result<Vec<String>> {
+    let prepared = prepare_colour(codec, image, settings)?;
+    let report = write_atomic_with(path, |w| codec.encode_to(&prepared.image, &prepared.settings, w))?;
+    let mut notes = prepared.notes;
+    notes.extend(report.notes);
+    Ok(notes)
 }
 
 /// The absolute luminance of every pixel of `image`, in cd/m² (alpha is ignored).

@@ -128,8 +128,8 @@ pub fn convert(
     let options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
     let (_, image) = reg.decode_with(input, &data, &options)?;
     drop(data);
-    let (bytes, notes) = hdrcodec::encode_for(out_codec.as_ref(), &image, &settings)?;
-    hdrcodec::write_atomic(output, &bytes)?;
+    // Streamed into the output file: the encoded bytes are never held whole beside the image.
+    let notes = hdrcodec::encode_file(out_codec.as_ref(), &image, &settings, output)?;
     for n in notes {
         note(&n);
     }

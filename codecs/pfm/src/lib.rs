@@ -146,22 +146,31 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
 
 /// Encodes `image` as a little-endian `PF` file (alpha, if any, is dropped).
 pub fn encode_pfm(image: &HdrImage) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(image.pixel_count() * 12 + 32);
+    write_pfm(image, &mut out)?;
+    Ok(out)
+}
+
+/// [`encode_pfm`] streamed into `out` one row at a time: nothing of the image's size is held
+/// besides the image (one row of bytes).
+pub fn write_pfm(image: &HdrImage, out: &mut dyn std::io::Write) -> Result<()> {
     let (w, h) = (image.width() as usize, image.height() as usize);
     if w == 0 || h == 0 {
         return Err(Error::invalid(format!("cannot write an empty {w}x{h} image")));
     }
-    let header = format!("PF\n{w} {h}\n-1\n");
-    let mut out = Vec::with_capacity(header.len() + w * h * 12);
-    out.extend_from_slice(header.as_bytes());
+    out.write_all(format!("PF\n{w} {h}\n-1\n").as_bytes())?;
     let n = image.channels().count();
+    let mut row_bytes = Vec::with_capacity(w * 12);
     for y in (0..h).rev() {
+        row_bytes.clear();
         for px in image.row(y as u32).chunks_exact(n) {
             for v in &px[..3] {
-                out.extend_from_slice(&v.to_le_bytes());
+                row_bytes.extend_from_slice(&v.to_le_bytes());
             }
         }
+        out.write_all(&row_bytes)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 impl ImageCodec for PfmCodec {
@@ -192,7 +201,7 @@ impl ImageCodec for PfmCodec {
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
         settings.check_options("pfm", &[])?;
-        out.write_all(&encode_pfm(image)?)?;
+        write_pfm(image, out)?;
         Ok(hdrcodec_core::EncodeReport::new())
     }
 }
