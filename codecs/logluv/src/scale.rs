@@ -242,11 +242,7 @@ impl Clipped {
         }
         if self.bright > 0 {
             let top = pixel_top(encoding) * s;
-            let mut p = format!("{} brighter became {} cd/m²", self.bright, num(top));
-            if fixed {
-                p.push_str(" (--opt stonits=auto moves the range to the image's highlights)");
-            }
-            parts.push(p);
+            parts.push(format!("{} brighter became {} cd/m²", self.bright, num(top)));
         }
         if self.negative > 0 {
             parts.push(match encoding {
@@ -267,8 +263,15 @@ impl Clipped {
             num(hi * s),
             parts.join(", ")
         );
-        if encoding == Encoding::LogLuv24 && self.dark > 0 {
-            out.push_str(" (logluv32 holds 38 decades)");
+        let mut hints = Vec::new();
+        if fixed && self.bright > 0 {
+            hints.push("--opt stonits=auto moves the range to the image's highlights");
+        }
+        if encoding == Encoding::LogLuv24 && (self.dark > 0 || (fixed && self.bright > 0)) {
+            hints.push("logluv32 holds 38 decades");
+        }
+        if !hints.is_empty() {
+            let _ = write!(out, " ({})", hints.join("; "));
         }
         Some(out)
     }
