@@ -230,8 +230,33 @@ pub fn raster_to_image(raster: &LogLuvRaster, opts: &DecodeOptions) -> Result<Hd
 /// absolute luminance (samples in file units, `nits_per_unit` = STONITS).
 pub fn image_to_raster(image: &HdrImage, encoding: Encoding, stonits: Stonits) -> Result<(LogLuvRaster, EncodeReport)> {
     let m = rgb_to_xyz(&image.color.primaries)?;
-    let choice = scale::choose(image, &m, encoding, stonits)?;
-    let s = choice.scale;
+    // LogLuv24's 4.8 decades clip most HDR images at their own scale: choose first (one pass
+    // over the luminance). LogL16 and LogLuv32 (38.5 decades) rarely need another scale: encode
+    // at the image's own and choose only if that clipped, which gives the same choice.
+    let lazy = stonits == Stonits::Auto && encoding != Encoding::LogLuv24;
+    let mut choice = if lazy { scale::keep(image) } else { scale::choose(image, &m, encoding, stonits)? };
+    let (mut words, mut clipped) = encode_words(image, &m, encoding, choice.scale);
+    if lazy && clipped.out_of_range() {
+        let moved = scale::choose(image, &m, encoding, stonits)?;
+        if moved.moved_for.is_some() {
+            choice = moved;
+            (words, clipped) = encode_words(image, &m, encoding, choice.scale);
+        }
+    }
+    let mut report = EncodeReport::new();
+    if let Some(note) = scale::moved_note(encoding, &choice, image.color.nits_per_unit) {
+        report.note(note);
+    }
+    if let Some(note) = clipped.note(encoding, &choice, matches!(stonits, Stonits::Fixed(_))) {
+        report.note(note);
+    }
+    let raster =
+        LogLuvRaster { width: image.width(), height: image.height(), encoding, words, stonits: Some(choice.stonits) };
+    Ok((raster, report))
+}
+
+/// The words of `image` (RGB → XYZ matrix `m`) with file luminance `Y · s`, and what clipped.
+fn encode_words(image: &HdrImage, m: &Mat3, encoding: Encoding, s: f64) -> (Vec<u32>, Clipped) {
     let mut clipped = Clipped::default();
     // `* s` is exact when s = 1: a file at the image's own scale is the same as ever.
     let xyz = |[r, g, b]: [f32; 3]| -> [f32; 3] {
@@ -263,16 +288,7 @@ pub fn image_to_raster(image: &HdrImage, encoding: Encoding, stonits: Stonits) -
             })
             .collect(),
     };
-    let mut report = EncodeReport::new();
-    if let Some(note) = scale::moved_note(encoding, &choice, image.color.nits_per_unit) {
-        report.note(note);
-    }
-    if let Some(note) = clipped.note(encoding, &choice, matches!(stonits, Stonits::Fixed(_))) {
-        report.note(note);
-    }
-    let raster =
-        LogLuvRaster { width: image.width(), height: image.height(), encoding, words, stonits: Some(choice.stonits) };
-    Ok((raster, report))
+    (words, clipped)
 }
 
 /// Encodes an image as a LogLuv TIFF (the notes of [`encode_with_report`] are dropped).

@@ -144,10 +144,16 @@ pub(crate) struct Choice {
     pub moved_for: Option<f64>,
 }
 
+/// STONITS = the image's `nits_per_unit`, scale 1.
+pub(crate) fn keep(image: &HdrImage) -> Choice {
+    Choice { stonits: f64::from(image.color.nits_per_unit), scale: 1.0, moved_for: None }
+}
+
 /// Chooses STONITS for `image` (RGB → XYZ matrix `m`) in `encoding`.
 pub(crate) fn choose(image: &HdrImage, m: &Mat3, encoding: Encoding, stonits: Stonits) -> Result<Choice> {
     let nits = f64::from(image.color.nits_per_unit);
     let nits_ok = nits.is_finite() && nits > 0.0;
+    let keep = keep(image);
     match stonits {
         Stonits::Fixed(v) => {
             check_stonits(v)?;
@@ -157,7 +163,6 @@ pub(crate) fn choose(image: &HdrImage, m: &Mat3, encoding: Encoding, stonits: St
             Ok(Choice { stonits: v, scale: nits / v, moved_for: None })
         }
         Stonits::Auto => {
-            let keep = Choice { stonits: nits, scale: 1.0, moved_for: None };
             if !nits_ok {
                 return Ok(keep);
             }
@@ -210,6 +215,23 @@ impl Clipped {
     /// Counts one pixel of file luminance `y` (as the encoder saw it) encoded as `word`.
     #[inline]
     pub(crate) fn tally(&mut self, encoding: Encoding, y: f64, word: u32) {
+        // Fast path, nearly every pixel: a luminance code strictly inside the range (and, for
+        // LogLuv32, no sign bit) is a positive finite luminance that fits (LogL16: of either
+        // sign). NaN and negatives (where there is no sign) give code 0.
+        let (code, top_code) = match encoding {
+            Encoding::LogL16 => (word & 0x7fff, 0x7fff),
+            Encoding::LogLuv32 => (word >> 16, 0x7fff),
+            Encoding::LogLuv24 => (word >> 14 & 0x3ff, 0x3ff),
+        };
+        if code != 0 && code < top_code {
+            return;
+        }
+        self.tally_edge(encoding, y, word);
+    }
+
+    /// [`tally`](Self::tally) for a pixel at either end of the code range.
+    #[cold]
+    fn tally_edge(&mut self, encoding: Encoding, y: f64, word: u32) {
         if y.is_nan() {
             self.nan += 1;
         } else if y < 0.0 && !encoding.keeps_sign() {
@@ -222,6 +244,12 @@ impl Clipped {
                 self.dark += 1;
             }
         }
+    }
+
+    /// True when the range, rather than the sign or NaN, clipped something: another STONITS
+    /// may help.
+    pub(crate) fn out_of_range(&self) -> bool {
+        self.dark > 0 || self.bright > 0
     }
 
     /// True when nothing was clipped.
