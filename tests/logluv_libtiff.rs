@@ -6,12 +6,15 @@
 //! - our pixel encoders give libtiff's words (SGILOGENCODE_NODITHER) over a dense sweep of
 //!   luminances 1e-20 .. 1e19 and chromaticities inside and outside the gamut;
 //! - the luminance step and range of each encoding, against the published figures;
+//! - a LogLuv24 file of the generated "sun-sky" scene, whose STONITS our encoder chose so that
+//!   the sun is not clipped, gives in libtiff (Y in file units times the STONITS libtiff reads)
+//!   exactly our decoded absolute luminance, and the sun's;
 //! - truncated and corrupted corpus files give errors, never panics.
 
 mod common;
 
-use hdrcodec_core::{ColorPrimaries, Limits};
-use hdrcodec_logluv::{decode, read_tiff, DecodeOptions, Encoding, LogLuvRaster};
+use hdrcodec_core::{ColorPrimaries, EncodeSettings, ImageCodec, Limits};
+use hdrcodec_logluv::{decode, read_tiff, DecodeOptions, Encoding, LogLuvRaster, LogLuvTiffCodec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -310,6 +313,63 @@ fn luminance_steps_and_ranges_match_the_published_figures() {
     let (step24, orders24) = report("LogLuv24", &l10);
     assert!((step24 - 0.011).abs() < 0.0005, "{step24}");
     assert!((orders24 - 4.8).abs() < 0.05, "{orders24}");
+}
+
+/// libtiff's reading of the STONITS tag of a file.
+fn libtiff_stonits(bin: &Path, tif: &Path) -> Option<f64> {
+    let out = run(bin, &[&"stonits", &tif]);
+    let t = out.trim();
+    (t != "none").then(|| t.parse().unwrap_or_else(|_| panic!("harness printed {t:?}")))
+}
+
+#[test]
+fn an_auto_scaled_logluv24_file_gives_libtiff_our_absolute_luminance() {
+    let Some(bin) = harness() else { return };
+    let dir = common::temp_dir("logluv_stonits");
+    let scene = hdrcodec_cli::corpus::scene("sun-sky").expect("the generated corpus has sun-sky");
+    let img = scene.image;
+    let codec = LogLuvTiffCodec::new(Encoding::LogLuv24);
+    let mut file = Vec::new();
+    let report = codec.encode_to(&img, &EncodeSettings::default(), &mut file).unwrap();
+    let path = dir.join("sun-sky.tif");
+    std::fs::write(&path, &file).unwrap();
+    let stonits = libtiff_stonits(&bin, &path).expect("STONITS written");
+    println!("sun-sky as LogLuv24: libtiff reads STONITS {stonits}; our notes: {:?}", report.notes);
+    // The scale was moved away from the image's 100 cd/m² per unit, and said so.
+    assert!(stonits > 1000.0, "{stonits}");
+    assert!(report.notes.iter().any(|n| n.contains("stonits=auto")), "{:?}", report.notes);
+    let ours = codec.decode(&file, &Limits::default()).unwrap();
+    assert_eq!(f64::from(ours.color.nits_per_unit), stonits);
+    // libtiff's FLOAT decode is XYZ in file units; times its STONITS, cd/m².
+    let theirs = libtiff_floats(&bin, &path, &dir);
+    let xyz =
+        decode(&file, &Limits::default(), &DecodeOptions { primaries: ColorPrimaries::Xyz, ..Default::default() })
+            .unwrap();
+    let ours_xyz: Vec<f32> = xyz.rgb().flatten().collect();
+    assert_eq!(bit_mismatches(&ours_xyz, &theirs).0, 0);
+    let their_nits: Vec<f64> = theirs.chunks_exact(3).map(|p| f64::from(p[1]) * stonits).collect();
+    let our_nits = hdrcodec::luminance(&ours);
+    let source_nits = hdrcodec::luminance(&img);
+    let (mut worst_vs_libtiff, mut worst_vs_source, mut bright) = (0.0f64, 0.0f64, 0);
+    for ((t, o), s) in their_nits.iter().zip(&our_nits).zip(&source_nits) {
+        // Ours goes through BT.709 and back to Y: equal to a few f32 ulps.
+        worst_vs_libtiff = worst_vs_libtiff.max((o - t).abs() / t.max(1e-30));
+        if *s > 1e4 {
+            bright += 1;
+            worst_vs_source = worst_vs_source.max((t / s - 1.0).abs());
+        }
+    }
+    println!(
+        "{bright} pixels above 1e4 cd/m² (peak {:.4e}): libtiff's luminance within {:.3} % of the source; \
+         ours within {:.1e} of libtiff's",
+        source_nits.iter().copied().fold(0.0, f64::max),
+        100.0 * worst_vs_source,
+        worst_vs_libtiff
+    );
+    assert!(bright > 50, "{bright}");
+    assert!(worst_vs_libtiff < 1e-5, "{worst_vs_libtiff}");
+    // LogLuv24 codes luminance in 1/64-stop steps: within half a step, 0.55 %.
+    assert!(worst_vs_source < 0.0055, "{worst_vs_source}");
 }
 
 /// Prefix lengths for the truncation sweep of a file of `len` bytes: every length up to 2048,

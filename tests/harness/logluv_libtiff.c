@@ -5,6 +5,8 @@
  *
  *   decode IN.tif OUT.raw         pixels as libtiff's SGILOGDATAFMT_FLOAT: float32 LE, Y per
  *                                 pixel (LogL) or X,Y,Z (LogLuv); prints "W H CHANNELS"
+ *   stonits IN.tif                the STONITS tag as libtiff reads it (TIFFTAG_STONITS, a double),
+ *                                 printed with 17 significant digits; "none" without the tag
  *   words IN.tif OUT.raw          the encoded words as uint32 LE (SGILOGDATAFMT_RAW for LogLuv,
  *                                 SGILOGDATAFMT_16BIT for LogL, zero-extended); prints "W H"
  *   encode KIND W H IN.raw OUT.tif [big]
@@ -131,6 +133,18 @@ int main(int argc, char **argv)
         unsigned char *buf = read_all(argv[2], SGILOGDATAFMT_FLOAT, &w, &h, &c, &line);
         write_file(argv[3], buf, (size_t)w * h * c * sizeof(float));
         printf("%u %u %d\n", w, h, c);
+        return 0;
+    }
+    if (argc >= 3 && strcmp(argv[1], "stonits") == 0) {
+        TIFF *tif = TIFFOpen(argv[2], "r");
+        if (!tif)
+            die("cannot open", argv[2]);
+        double stonits = 0;
+        if (TIFFGetField(tif, TIFFTAG_STONITS, &stonits))
+            printf("%.17g\n", stonits);
+        else
+            printf("none\n");
+        TIFFClose(tif);
         return 0;
     }
     if (argc >= 4 && strcmp(argv[1], "words") == 0) {

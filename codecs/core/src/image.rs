@@ -220,6 +220,7 @@ impl RangeCount {
         if self.is_empty() {
             return None;
         }
+        let (lo, hi) = (bound(lo), bound(hi));
         let mut parts = Vec::new();
         if self.below > 0 {
             parts.push(format!("{} below {lo} became {below_as}", self.below));
@@ -231,6 +232,16 @@ impl RangeCount {
             parts.push(format!("{} NaN became {nan_as}", self.nan));
         }
         Some(format!("{format} holds values from {lo} to {hi}: of the samples, {}", parts.join(", ")))
+    }
+}
+
+/// A range bound as a note prints it: plain (`65504`, `0.5`), or in exponent form when very
+/// large or small (`1.6947657e38`, where plain `{}` would print 39 digits).
+fn bound(v: f32) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
     }
 }
 
@@ -268,6 +279,8 @@ mod tests {
             HdrImage::zeroed(1, 1, Channels::Rgb).count_outside(0.0, 1.0, true).describe("x", 0.0, 1.0, "", "", ""),
             None
         );
+        let huge = RangeCount { below: 0, above: 1, nan: 0 }.describe("x", 1e-30, 1.7e38, "", "y", "").unwrap();
+        assert_eq!(huge, "x holds values from 1e-30 to 1.7e38: of the samples, 1 above 1.7e38 became y");
     }
 
     #[test]

@@ -260,8 +260,38 @@ impl ImageCodec for ExrCodec {
             // Without a chromaticities attribute OpenEXR means BT.709; it cannot say "unknown".
             report.note("the input records no primaries: OpenEXR stores them as BT.709, its default (--opt primaries=NAME labels them)");
         }
+        if options.pixel == ExrPixelType::Half {
+            if let Some(note) = half_overflow_note(image) {
+                report.note(note);
+            }
+        }
         Ok(report)
     }
+}
+
+/// The largest finite half float.
+const HALF_MAX: f32 = 65504.0;
+
+/// How many finite samples (alpha included) lie beyond ±65504, the largest half float, as a
+/// sentence for the encode report, if any. Rounding to nearest makes those from ±65520 on
+/// ±infinity and those between ±65504 (IEEE 754 binary16). Infinities and NaN are stored as
+/// they are, so they are not counted.
+fn half_overflow_note(image: &HdrImage) -> Option<String> {
+    let mut counts = image.count_outside(-HALF_MAX, HALF_MAX, true);
+    let infinite = image.count_outside(f32::MIN, f32::MAX, true);
+    counts.below -= infinite.below;
+    counts.above -= infinite.above;
+    counts.nan = 0;
+    counts
+        .describe(
+            "OpenEXR half",
+            -HALF_MAX,
+            HALF_MAX,
+            "-infinity (-65504 above -65520)",
+            "+infinity (65504 below 65520)",
+            "NaN",
+        )
+        .map(|s| format!("{s}; --opt pixel=float keeps them"))
 }
 
 #[cfg(test)]

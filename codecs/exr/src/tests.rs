@@ -355,3 +355,32 @@ fn b44_chunks_that_cannot_shrink_are_stored_raw() {
         }
     }
 }
+
+#[test]
+fn half_reports_what_overflows_and_float_does_not() {
+    let s = vec![1.0, 7e4, -1e5, 65504.0, 65510.0, f32::INFINITY, f32::NAN, -65504.0, 3e38, 0.5, 1e6, 0.25];
+    let img = HdrImage::new(3, 1, Channels::Rgba, s, ColorInfo::default()).unwrap();
+    let mut file = Vec::new();
+    let report = ExrCodec.encode_to(&img, &settings(ExrCompression::Zip16, "half"), &mut file).unwrap();
+    // 7e4, 65510, 3e38 and 1e6 (alpha) above; -1e5 below. The infinity and the NaN stay as they are.
+    assert_eq!(
+        report.notes,
+        ["OpenEXR half holds values from -65504 to 65504: of the samples, 1 below -65504 became -infinity \
+          (-65504 above -65520), 4 above 65504 became +infinity (65504 below 65520); --opt pixel=float keeps them"]
+    );
+    // What the note says is what a reader gets back.
+    let back = ExrCodec.decode(&file, &Limits::default()).unwrap();
+    let b = back.samples();
+    assert_eq!(
+        [b[1], b[2], b[4], b[8], b[10]],
+        [f32::INFINITY, f32::NEG_INFINITY, 65504.0, f32::INFINITY, f32::INFINITY]
+    );
+    assert!(b[5].is_infinite() && b[6].is_nan() && b[3] == 65504.0 && b[7] == -65504.0);
+    // Float holds everything: no note.
+    let report = ExrCodec.encode_to(&img, &settings(ExrCompression::Zip16, "float"), &mut Vec::new()).unwrap();
+    assert!(report.notes.is_empty(), "{:?}", report.notes);
+    // Nothing beyond the range: no note either.
+    let report =
+        ExrCodec.encode_to(&picture(5, 3, Channels::Rgb), &settings(ExrCompression::Piz, "half"), &mut Vec::new());
+    assert!(report.unwrap().notes.is_empty());
+}

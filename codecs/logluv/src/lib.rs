@@ -6,8 +6,12 @@
 //! - [`uvgrid`]: the u'v' cell index of LogLuv24.
 //! - [`LogLuvRaster`]: a decoded-but-not-converted image (one encoded word per pixel), read
 //!   from and written to TIFF with [`read_tiff`] and [`LogLuvRaster::to_tiff`].
-//! - [`decode`] / [`encode`]: [`HdrImage`] ↔ TIFF through XYZ, in any RGB primaries; the TIFF
-//!   STONITS tag is the image's `nits_per_unit`.
+//! - [`decode`] / [`encode`]: [`HdrImage`] ↔ TIFF through XYZ, in any RGB primaries. The TIFF
+//!   STONITS tag (cd/m² of file luminance 1) is chosen by [`Stonits`]: the image's
+//!   `nits_per_unit` unless the encoding would clip the image at that scale, else the scale that
+//!   puts the brightest pixel at the top of the code range; decoding gives `nits_per_unit` =
+//!   STONITS, so the absolute luminance survives either way. [`encode_with_report`] says what
+//!   was chosen and what was clipped.
 //! - [`LogLuvTiffCodec`]: the [`ImageCodec`] for each encoding ("logluv32", "logluv24", "logl16").
 //!
 //! ```
@@ -22,12 +26,16 @@
 
 pub mod pixel;
 mod rle;
+mod scale;
 pub mod tiff;
 pub mod uvgrid;
 
 use hdrcodec_core::color::{mat_inverse, mat_to_f32, Mat3};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result,
+};
 use pixel::Tables;
+pub use scale::{Clipped, Stonits};
 
 /// The three LogLuv pixel encodings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -153,11 +161,14 @@ pub struct EncodeOptions {
     pub encoding: Encoding,
     /// Rows per TIFF strip; 0 chooses about 64 KiB of pixels per strip.
     pub rows_per_strip: u32,
+    /// How STONITS, the scale of the file's luminance, is chosen (default
+    /// [`Stonits::Auto`]: the image's `nits_per_unit` unless that clips, see [`Stonits`]).
+    pub stonits: Stonits,
 }
 
 impl Default for EncodeOptions {
     fn default() -> Self {
-        EncodeOptions { encoding: Encoding::LogLuv32, rows_per_strip: 0 }
+        EncodeOptions { encoding: Encoding::LogLuv32, rows_per_strip: 0, stonits: Stonits::Auto }
     }
 }
 
@@ -212,46 +223,90 @@ pub fn raster_to_image(raster: &LogLuvRaster, opts: &DecodeOptions) -> Result<Hd
     HdrImage::new(raster.width, raster.height, Channels::Rgb, samples, color)
 }
 
-/// Converts an image (any primaries; alpha is dropped) to encoded words via CIE XYZ; the
-/// image's `nits_per_unit` becomes STONITS.
-pub fn image_to_raster(image: &HdrImage, encoding: Encoding) -> Result<LogLuvRaster> {
+/// Converts an image (any primaries; alpha is dropped) to encoded words via CIE XYZ, with
+/// STONITS chosen as `stonits` says, and reports the chosen scale (when [`Stonits::Auto`] moved
+/// it away from the image's `nits_per_unit`) and the pixels whose luminance the encoding could
+/// not hold. The file's luminance is `Y · nits_per_unit / STONITS`, so decoding gives the same
+/// absolute luminance (samples in file units, `nits_per_unit` = STONITS).
+pub fn image_to_raster(image: &HdrImage, encoding: Encoding, stonits: Stonits) -> Result<(LogLuvRaster, EncodeReport)> {
     let m = rgb_to_xyz(&image.color.primaries)?;
+    // LogLuv24's 4.8 decades clip most HDR images at their own scale: choose first (one pass
+    // over the luminance). LogL16 and LogLuv32 (38.5 decades) rarely need another scale: encode
+    // at the image's own and choose only if that clipped, which gives the same choice.
+    let lazy = stonits == Stonits::Auto && encoding != Encoding::LogLuv24;
+    let mut choice = if lazy { scale::keep(image) } else { scale::choose(image, &m, encoding, stonits)? };
+    let (mut words, mut clipped) = encode_words(image, &m, encoding, choice.scale);
+    if lazy && clipped.out_of_range() {
+        let moved = scale::choose(image, &m, encoding, stonits)?;
+        if moved.moved_for.is_some() {
+            choice = moved;
+            (words, clipped) = encode_words(image, &m, encoding, choice.scale);
+        }
+    }
+    let mut report = EncodeReport::new();
+    if let Some(note) = scale::moved_note(encoding, &choice, image.color.nits_per_unit) {
+        report.note(note);
+    }
+    if let Some(note) = clipped.note(encoding, &choice, matches!(stonits, Stonits::Fixed(_))) {
+        report.note(note);
+    }
+    let raster =
+        LogLuvRaster { width: image.width(), height: image.height(), encoding, words, stonits: Some(choice.stonits) };
+    Ok((raster, report))
+}
+
+/// The words of `image` (RGB → XYZ matrix `m`) with file luminance `Y · s`, and what clipped.
+fn encode_words(image: &HdrImage, m: &Mat3, encoding: Encoding, s: f64) -> (Vec<u32>, Clipped) {
+    let mut clipped = Clipped::default();
+    // `* s` is exact when s = 1: a file at the image's own scale is the same as ever.
     let xyz = |[r, g, b]: [f32; 3]| -> [f32; 3] {
         let [r, g, b] = [r, g, b].map(f64::from);
-        std::array::from_fn(|i| (m[i][0] * r + m[i][1] * g + m[i][2] * b) as f32)
+        std::array::from_fn(|i| ((m[i][0] * r + m[i][1] * g + m[i][2] * b) * s) as f32)
     };
     let words = match encoding {
         Encoding::LogL16 => image
             .rgb()
             .map(|p| {
                 let [r, g, b] = p.map(f64::from);
-                u32::from(pixel::logl16_from_y(m[1][0] * r + m[1][1] * g + m[1][2] * b))
+                let y = (m[1][0] * r + m[1][1] * g + m[1][2] * b) * s;
+                let w = u32::from(pixel::logl16_from_y(y));
+                clipped.tally(encoding, y, w);
+                w
             })
             .collect(),
-        Encoding::LogLuv24 => image.rgb().map(|p| pixel::logluv24_from_xyz(xyz(p))).collect(),
-        Encoding::LogLuv32 => image.rgb().map(|p| pixel::logluv32_from_xyz(xyz(p))).collect(),
+        Encoding::LogLuv24 | Encoding::LogLuv32 => image
+            .rgb()
+            .map(|p| {
+                let v = xyz(p);
+                let w = if encoding == Encoding::LogLuv24 {
+                    pixel::logluv24_from_xyz(v)
+                } else {
+                    pixel::logluv32_from_xyz(v)
+                };
+                clipped.tally(encoding, f64::from(v[1]), w);
+                w
+            })
+            .collect(),
     };
-    Ok(LogLuvRaster {
-        width: image.width(),
-        height: image.height(),
-        encoding,
-        words,
-        stonits: Some(f64::from(image.color.nits_per_unit)),
-    })
+    (words, clipped)
 }
 
-/// Encodes an image as a LogLuv TIFF.
+/// Encodes an image as a LogLuv TIFF (the notes of [`encode_with_report`] are dropped).
 pub fn encode(image: &HdrImage, opts: &EncodeOptions) -> Result<Vec<u8>> {
-    let raster = image_to_raster(image, opts.encoding)?;
-    if opts.rows_per_strip == 0 {
-        raster.to_tiff()
-    } else {
-        tiff::write(&raster, opts.rows_per_strip)
-    }
+    Ok(encode_with_report(image, opts)?.0)
+}
+
+/// Encodes an image as a LogLuv TIFF, with the report of [`image_to_raster`]: the STONITS
+/// chosen and what was clipped.
+pub fn encode_with_report(image: &HdrImage, opts: &EncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
+    let (raster, report) = image_to_raster(image, opts.encoding, opts.stonits)?;
+    let file = if opts.rows_per_strip == 0 { raster.to_tiff()? } else { tiff::write(&raster, opts.rows_per_strip)? };
+    Ok((file, report))
 }
 
 /// The [`ImageCodec`] of one LogLuv encoding. Each instance decodes any LogLuv TIFF; it
-/// encodes with its own encoding. Option: `rows_per_strip=N`.
+/// encodes with its own encoding. Options: `rows_per_strip=N`, `stonits=auto|N` (see
+/// [`Stonits`]; auto by default).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LogLuvTiffCodec {
     /// The encoding this codec writes.
@@ -299,11 +354,13 @@ impl ImageCodec for LogLuvTiffCodec {
         image: &HdrImage,
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
-    ) -> Result<hdrcodec_core::EncodeReport> {
-        settings.check_options(self.name(), &["rows_per_strip"])?;
+    ) -> Result<EncodeReport> {
+        settings.check_options(self.name(), &["rows_per_strip", "stonits"])?;
         let rows_per_strip = settings.parse_option::<u32>("rows_per_strip")?.unwrap_or(0);
-        out.write_all(&encode(image, &EncodeOptions { encoding: self.encoding, rows_per_strip })?)?;
-        let mut report = hdrcodec_core::EncodeReport::new();
+        let stonits = settings.option("stonits").map(str::parse).transpose()?.unwrap_or_default();
+        let (file, mut report) =
+            encode_with_report(image, &EncodeOptions { encoding: self.encoding, rows_per_strip, stonits })?;
+        out.write_all(&file)?;
         if !image.color.primaries.is_specified() {
             // LogLuv stores CIE XYZ: the samples must be read in some primaries to get there.
             report.note(
@@ -331,27 +388,203 @@ mod tests {
         }
     }
 
+    /// Absolute luminance (cd/m²) of every pixel of a BT.709 image.
+    fn nits(img: &HdrImage) -> Vec<f64> {
+        let k = f64::from(img.color.nits_per_unit);
+        img.rgb().map(|[r, g, b]| k * (0.2126 * f64::from(r) + 0.7152 * f64::from(g) + 0.0722 * f64::from(b))).collect()
+    }
+
+    fn grey(width: u32, height: u32, nits_per_unit: f32, f: impl Fn(u32, u32) -> f32) -> HdrImage {
+        let f = &f;
+        let samples = (0..height).flat_map(|y| (0..width).flat_map(move |x| [f(x, y); 3])).collect::<Vec<f32>>();
+        let color = ColorInfo { nits_per_unit, ..Default::default() };
+        HdrImage::new(width, height, Channels::Rgb, samples, color).unwrap()
+    }
+
+    fn encode_report(img: &HdrImage, enc: Encoding, settings: &EncodeSettings) -> (HdrImage, Vec<String>) {
+        let codec = LogLuvTiffCodec::new(enc);
+        let mut file = Vec::new();
+        let report = codec.encode_to(img, settings, &mut file).unwrap();
+        assert!(codec.sniff(&file));
+        (codec.decode(&file, &Limits::default()).unwrap(), report.notes)
+    }
+
     #[test]
     fn image_round_trip_in_every_encoding() {
         let samples: Vec<f32> = (0..48).map(|i| 0.01 * 1.3f32.powi(i)).collect();
         let color = ColorInfo { nits_per_unit: 179.0, ..Default::default() };
         let img = HdrImage::new(4, 4, Channels::Rgb, samples, color).unwrap();
-        for (enc, tol) in [(Encoding::LogLuv32, 0.01), (Encoding::LogLuv24, 0.05)] {
-            let codec = LogLuvTiffCodec::new(enc);
-            let file = codec.encode(&img, &EncodeSettings::default()).unwrap();
-            assert!(codec.sniff(&file));
-            let back = codec.decode(&file, &Limits::default()).unwrap();
-            assert_eq!(back.color.nits_per_unit, 179.0);
-            // Luminance survives within the encoding's precision (LogLuv24's range is 2^-12..2^4).
-            for (a, b) in img.rgb().zip(back.rgb()) {
-                let y = |p: [f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-                if (0.001..15.0).contains(&y(a)) {
-                    assert!((y(b) / y(a) - 1.0).abs() < tol, "{enc:?} {a:?} → {b:?}");
+        let want = nits(&img);
+        for (enc, tol) in [(Encoding::LogLuv32, 0.01), (Encoding::LogL16, 0.01), (Encoding::LogLuv24, 0.05)] {
+            let (back, notes) = encode_report(&img, enc, &EncodeSettings::default());
+            // Luminance 1.8 .. 4.1e5 cd/m²: LogLuv32 / LogL16 keep STONITS = nits_per_unit;
+            // LogLuv24 (4.8 decades from 0.043 cd/m² at that scale) moves its range up, so the
+            // highlights survive and the darkest pixels are now below it.
+            if enc == Encoding::LogLuv24 {
+                assert!(back.color.nits_per_unit > 179.0, "{}", back.color.nits_per_unit);
+                assert_eq!(notes.len(), 2, "{notes:?}");
+            } else {
+                assert_eq!(back.color.nits_per_unit, 179.0);
+                assert!(notes.is_empty(), "{notes:?}");
+            }
+            let lo = enc.luminance_range().0 * f64::from(back.color.nits_per_unit);
+            for (a, b) in want.iter().zip(nits(&back)) {
+                if *a > lo * 1.1 {
+                    assert!((b / a - 1.0).abs() < tol, "{enc:?} {a} → {b}");
                 }
             }
         }
         let bad = EncodeSettings::default().with_option("dither", "1");
         assert!(LogLuvTiffCodec::new(Encoding::LogL16).encode(&img, &bad).is_err());
+        let bad = EncodeSettings::default().with_option("stonits", "-3");
+        assert!(LogLuvTiffCodec::new(Encoding::LogLuv24).encode(&img, &bad).is_err());
+    }
+
+    /// A 96x48 sun-and-sky scene like the generated corpus' "sun-sky" (nits_per_unit 100): a sky
+    /// gradient of 500-2000 cd/m², a sun disk of about 1e5 cd/m² (radius 6) with a glow, ground of
+    /// 20-80 cd/m², and a strip of deep shadow of 0.01-0.05 cd/m² along the bottom (4 rows).
+    fn sun_sky() -> (HdrImage, usize) {
+        let (w, h) = (96u32, 48u32);
+        let img = grey(w, h, 100.0, |x, y| {
+            let nits = if y >= h - 4 {
+                0.01 + 0.04 * (x as f32 / w as f32)
+            } else if y >= 36 {
+                20.0 + 60.0 * (((x * 7 + y * 13) % 17) as f32 / 16.0)
+            } else {
+                let d = ((x as f32 - 60.0).powi(2) + (y as f32 - 12.0).powi(2)).sqrt();
+                let sky = 2000.0 - 1500.0 * y as f32 / 36.0 + 5000.0 * (-d / 4.0).exp();
+                if d < 6.0 {
+                    1e5 * (1.0 - 0.3 * d / 6.0)
+                } else {
+                    sky
+                }
+            };
+            nits / 100.0
+        });
+        (img, (4 * w) as usize)
+    }
+
+    #[test]
+    fn logluv24_keeps_the_highlights_of_a_sun_and_clips_the_dark_end() {
+        let (img, shadow) = sun_sky();
+        let want = nits(&img);
+        // At the image's own scale (STONITS 100) LogLuv24 codes 0.025 .. 1600 cd/m²: the sun
+        // and the glow clip.
+        let (fixed, notes) =
+            encode_report(&img, Encoding::LogLuv24, &EncodeSettings::default().with_option("stonits", "100"));
+        assert_eq!(fixed.color.nits_per_unit, 100.0);
+        let brighter = want.iter().filter(|&&v| v >= 1600.0).count();
+        assert!(brighter > 100, "{brighter}");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains(&format!("{brighter} brighter became 1591 cd/m²")), "{notes:?}");
+        let worst = |back: &HdrImage, from: f64| {
+            want.iter()
+                .zip(nits(back))
+                .filter(|(a, _)| **a >= from)
+                .map(|(a, b)| (b / a - 1.0).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(worst(&fixed, 5e4) > 0.95, "the sun was clipped to 1.6e3 cd/m²");
+
+        // Auto: the sun's peak (1e5 cd/m²) goes just below the top of the range, the shadow strip
+        // below 1e5 / 10^4.8 ≈ 1.6 cd/m² becomes black, and both are said.
+        let (back, notes) = encode_report(&img, Encoding::LogLuv24, &EncodeSettings::default());
+        let stonits = f64::from(back.color.nits_per_unit);
+        assert!((stonits / (100.0 * 1000.0 / (15.742 * (1.0 - 2f64.powi(-20)))) - 1.0).abs() < 1e-7, "{stonits}");
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(notes[0].contains("STONITS 6352") && notes[0].contains("100000 cd/m²"), "{notes:?}");
+        assert!(notes[1].contains(&format!("{shadow} darker became black")), "{notes:?}");
+        assert!(!notes[1].contains("brighter"), "{notes:?}");
+        // Every pixel above the shadow keeps its luminance within LogLuv24's half step (0.55 %).
+        assert!(worst(&back, 1e4) < 0.006, "{}", worst(&back, 1e4));
+        assert!(worst(&back, 10.0) < 0.006, "{}", worst(&back, 10.0));
+        let dark = nits(&back).iter().zip(&want).filter(|(b, a)| **a < 1.0 && **b == 0.0).count();
+        assert_eq!(dark, shadow);
+
+        // LogLuv32 holds it all at the image's own scale: the same file as before, no note.
+        let (back32, notes) = encode_report(&img, Encoding::LogLuv32, &EncodeSettings::default());
+        assert!(notes.is_empty(), "{notes:?}");
+        assert_eq!(back32.color.nits_per_unit, 100.0);
+    }
+
+    #[test]
+    fn auto_keeps_the_images_scale_when_nothing_clips() {
+        // 0.05 .. 1500 cd/m² at 100 cd/m² per unit fits LogLuv24 as it is: same bytes as with
+        // STONITS forced to nits_per_unit (the file earlier versions wrote), no notes.
+        let img = grey(32, 8, 100.0, |x, y| 5e-4 * 1.4f32.powi((x + 32 * y) as i32 % 30));
+        for enc in [Encoding::LogLuv24, Encoding::LogLuv32, Encoding::LogL16] {
+            let auto = encode_with_report(&img, &EncodeOptions { encoding: enc, ..Default::default() }).unwrap();
+            let fixed = EncodeOptions { encoding: enc, stonits: Stonits::Fixed(100.0), ..Default::default() };
+            assert_eq!(auto.0, encode(&img, &fixed).unwrap(), "{enc:?}");
+            assert!(auto.1.notes.is_empty(), "{enc:?} {:?}", auto.1.notes);
+            assert_eq!(read_tiff(&auto.0, &Limits::default()).unwrap().stonits, Some(100.0));
+        }
+        // An all-black image keeps the scale too.
+        let black = grey(4, 4, 179.0, |_, _| 0.0);
+        let (back, notes) = encode_report(&black, Encoding::LogLuv24, &EncodeSettings::default());
+        assert_eq!((back.color.nits_per_unit, notes.len()), (179.0, 0));
+    }
+
+    #[test]
+    fn a_forced_stonits_is_written_and_decodes_to_the_same_luminance() {
+        let img = grey(8, 2, 100.0, |x, y| 0.5 * 2f32.powi((x + 8 * y) as i32 % 5));
+        let want = nits(&img);
+        for enc in [Encoding::LogLuv24, Encoding::LogLuv32, Encoding::LogL16] {
+            let settings = EncodeSettings::default().with_option("stonits", "179");
+            let (back, notes) = encode_report(&img, enc, &settings);
+            assert!(notes.is_empty(), "{notes:?}");
+            assert_eq!(back.color.nits_per_unit, 179.0);
+            for (a, b) in want.iter().zip(nits(&back)) {
+                assert!((b / a - 1.0).abs() < 0.006, "{enc:?} {a} → {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn logl16_and_logluv32_scale_only_at_their_extremes() {
+        // 1e30 units (1e32 cd/m²) is past the 1.8e19 top of LogL16: auto moves the range up.
+        let bright = grey(4, 1, 100.0, |x, _| [1e30, 3e29, 1e20, 1.0][x as usize]);
+        // 1e-25 units is below the 5.4e-20 bottom: auto moves the range down.
+        let dim = grey(4, 1, 100.0, |x, _| [1e-25, 3e-26, 1e-27, 0.0][x as usize]);
+        for enc in [Encoding::LogL16, Encoding::LogLuv32] {
+            for img in [&bright, &dim] {
+                let (back, notes) = encode_report(img, enc, &EncodeSettings::default());
+                assert_ne!(back.color.nits_per_unit, 100.0);
+                assert_eq!(notes.len(), 1, "{enc:?} {notes:?}");
+                assert!(notes[0].contains("stonits=auto"), "{notes:?}");
+                for (a, b) in nits(img).iter().zip(nits(&back)) {
+                    assert!((b / a - 1.0).abs() < 0.002 || (*a == 0.0 && b == 0.0), "{enc:?} {a:e} → {b:e}");
+                }
+                // Forced to the image's scale, the same pixels clip and the note says how many.
+                let forced = EncodeSettings::default().with_option("stonits", "100");
+                let (_, notes) = encode_report(img, enc, &forced);
+                let n = if std::ptr::eq(img, &bright) { "3 brighter" } else { "3 darker became black" };
+                assert!(notes.len() == 1 && notes[0].contains(n), "{enc:?} {notes:?}");
+            }
+        }
+        // A STONITS outside f32 is never chosen: the decoder's nits_per_unit stays finite.
+        let huge = grey(1, 1, 1e30, |_, _| 3e38);
+        let (back, _) = encode_report(&huge, Encoding::LogL16, &EncodeSettings::default());
+        assert!(back.color.nits_per_unit.is_finite());
+    }
+
+    #[test]
+    fn negative_and_nan_luminance_are_reported() {
+        let img = grey(5, 1, 100.0, |x, _| [1.0, -2.0, f32::NAN, -0.5, f32::INFINITY][x as usize]);
+        let (_, notes) = encode_report(&img, Encoding::LogLuv24, &EncodeSettings::default());
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].contains("1 brighter became")
+                && notes[0].contains("2 of negative luminance became black")
+                && notes[0].contains("1 NaN became black"),
+            "{notes:?}"
+        );
+        let (_, notes) = encode_report(&img, Encoding::LogLuv32, &EncodeSettings::default());
+        assert!(notes[0].contains("2 of negative luminance keep their sign but decode as black"), "{notes:?}");
+        // LogL16 returns negative luminance: only the NaN and the infinity are noted.
+        let (back, notes) = encode_report(&img, Encoding::LogL16, &EncodeSettings::default());
+        assert!(!notes[0].contains("negative") && notes[0].contains("1 NaN"), "{notes:?}");
+        assert!(back.pixel(1, 0)[0] < -1.9);
     }
 
     #[test]

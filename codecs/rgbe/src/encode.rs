@@ -90,6 +90,41 @@ pub fn encode_pixel(rgb: [f32; 3], rounding: Rounding) -> [u8; 4] {
     }
 }
 
+/// The largest value an RGBE component holds: mantissa 255 at exponent byte 255,
+/// 255 · 2^(127 - 8) ≈ 1.69e38 (with the truncating decode).
+pub const RGBE_MAX: f32 = 255.0 * (1u128 << 119) as f32;
+
+/// What the encoder cannot hold, as a sentence for the encode report, if anything: negative
+/// samples and NaN become 0 (RGBE has no sign), values above [`RGBE_MAX`] (+∞ included)
+/// saturate to it. Counted on the stored components: R, G, B, or X, Y, Z for XYZE (converted as
+/// [`encode`] converts them). Alpha is not stored, so it is not counted.
+pub(crate) fn range_note(image: &HdrImage, format: PixelFormat) -> Option<String> {
+    let counts = match format {
+        PixelFormat::Rgbe => image.count_outside(0.0, RGBE_MAX, false),
+        PixelFormat::Xyze => {
+            let m = hdrcodec_core::color::mat_to_f32(&image.color.primaries.rgb_to_xyz());
+            let mut c = hdrcodec_core::RangeCount::default();
+            for p in image.rgb() {
+                for v in hdrcodec_core::color::mat_apply_f32s(&m, p) {
+                    if v < 0.0 {
+                        c.below += 1;
+                    } else if v > RGBE_MAX {
+                        c.above += 1;
+                    } else if v.is_nan() {
+                        c.nan += 1;
+                    }
+                }
+            }
+            c
+        }
+    };
+    let (name, neg) = match format {
+        PixelFormat::Rgbe => ("Radiance RGBE", "0 (RGBE has no sign)"),
+        PixelFormat::Xyze => ("Radiance XYZE", "0 (XYZE has no sign)"),
+    };
+    counts.describe(name, 0.0, RGBE_MAX, neg, &format!("{RGBE_MAX:e}"), "0")
+}
+
 /// Writes one scanline of RGBE pixels given as four planes (`stride` bytes apart), flat
 /// (interleaved pixels).
 ///
@@ -357,6 +392,14 @@ fn encode8_avx2<const NEAREST: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rgbe_max_is_the_saturated_pixel() {
+        // Mantissa 255 at exponent byte 255, decoded by truncation: 255 · 2^(255 - 136).
+        assert_eq!(encode_pixel([RGBE_MAX, 0.0, 0.0], Rounding::Truncate), [255, 0, 0, 255]);
+        assert_eq!(encode_pixel([f32::MAX, 0.0, 0.0], Rounding::Nearest), [255, 0, 0, 255]);
+        assert_eq!(f64::from(RGBE_MAX), 255.0 * 2f64.powi(119));
+    }
 
     #[test]
     fn saturates_and_zeroes() {

@@ -36,7 +36,7 @@ pub(crate) fn test_rng(seed: u64) -> impl FnMut() -> u64 {
 }
 
 pub use decode::decode_pixel;
-pub use encode::encode_pixel;
+pub use encode::{encode_pixel, RGBE_MAX};
 pub use header::{Axis, Header, PixelFormat};
 
 use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
@@ -218,12 +218,63 @@ impl ImageCodec for RgbeCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        out.write_all(&encode::encode(image, &RgbeEncodeOptions::from_settings(settings)?)?)?;
+        let options = RgbeEncodeOptions::from_settings(settings)?;
+        out.write_all(&encode::encode(image, &options)?)?;
         let mut report = hdrcodec_core::EncodeReport::new();
         if !image.color.primaries.is_specified() {
             // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
             report.note("the input records no primaries: Radiance stores them as its standard (BT.709) primaries (--opt primaries=NAME labels them)");
         }
+        if let Some(note) = encode::range_note(image, options.format) {
+            report.note(note);
+        }
         Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries};
+
+    fn notes(img: &HdrImage, settings: &EncodeSettings) -> (Vec<String>, HdrImage) {
+        let mut file = Vec::new();
+        let report = RgbeCodec::new().encode_to(img, settings, &mut file).unwrap();
+        (report.notes, RgbeCodec::new().decode(&file, &Limits::default()).unwrap())
+    }
+
+    #[test]
+    fn negatives_nan_and_overflow_are_reported() {
+        let s = vec![1.0, -0.5, 2.0, f32::NAN, 0.25, 3e38, f32::INFINITY, -1.0, 0.0, 4.0, 8.0, 0.5];
+        let img = HdrImage::new(4, 1, Channels::Rgb, s, ColorInfo::default()).unwrap();
+        let (n, back) = notes(&img, &EncodeSettings::default());
+        assert_eq!(
+            n,
+            ["Radiance RGBE holds values from 0 to 1.6947657e38: of the samples, 2 below 0 became 0 (RGBE has no \
+              sign), 2 above 1.6947657e38 became 1.6947657e38, 1 NaN became 0"]
+        );
+        // What the note says is what a reader gets back.
+        let b = back.samples();
+        assert_eq!([b[1], b[3], b[7]], [0.0; 3]);
+        assert_eq!([b[5], b[6]], [RGBE_MAX; 2]);
+        // Values it holds: no note. Alpha is dropped, not counted.
+        let ok = HdrImage::new(1, 1, Channels::Rgba, vec![1.0, 2.0, 3.0, -1.0], ColorInfo::default()).unwrap();
+        assert!(notes(&ok, &EncodeSettings::default()).0.is_empty());
+    }
+
+    #[test]
+    fn xyze_counts_the_stored_xyz() {
+        // A saturated BT.2020 green has negative BT.709 components but positive XYZ: nothing to
+        // report in XYZE; a negative XYZ (an imaginary colour) is.
+        let color = ColorInfo { primaries: ColorPrimaries::Bt2020, ..ColorInfo::default() };
+        let img = HdrImage::new(2, 1, Channels::Rgb, vec![0.0, 1.0, 0.0, -1.0, 0.0, 0.0], color).unwrap();
+        let xyze = EncodeSettings::default().with_option("format", "xyze");
+        let (n, _) = notes(&img, &xyze);
+        assert_eq!(n.len(), 1, "{n:?}");
+        // X and Y of the negative red (Z is 0, give or take the matrix's last bit).
+        assert!(n[0].starts_with("Radiance XYZE holds values from 0 to 1.6947657e38: of the samples, "), "{n:?}");
+        assert!(n[0].contains(" below 0 became 0 (XYZE has no sign)") && !n[0].contains("above"), "{n:?}");
+        let green = HdrImage::new(1, 1, Channels::Rgb, vec![0.0, 1.0, 0.0], img.color.clone()).unwrap();
+        assert!(notes(&green, &xyze).0.is_empty());
     }
 }
