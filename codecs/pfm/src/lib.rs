@@ -25,7 +25,9 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
+};
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
 #[derive(Clone, Copy, Debug, Default)]
@@ -105,17 +107,45 @@ fn parse_header(data: &[u8]) -> Result<Header> {
     Ok(Header { grey, width, height, little_endian: scale < 0.0, scale: scale.abs(), data_start: pos + 1 })
 }
 
+/// The colour of every decoded PFM image: PFM records none, so the samples are whatever the
+/// writer had.
+fn pfm_color() -> ColorInfo {
+    ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() }
+}
+
+/// Checks that the pixels the header declares are all present; returns their byte count.
+fn pixel_bytes(h: &Header, data: &[u8]) -> Result<u64> {
+    let per_pixel = if h.grey { 1 } else { 3 };
+    let need = (u64::from(h.width) * u64::from(h.height)).saturating_mul(per_pixel * 4);
+    let avail = (data.len() - h.data_start) as u64;
+    if avail < need {
+        return Err(Error::truncated(format!("the PFM pixels ({need} bytes needed, {avail} present)")));
+    }
+    Ok(need)
+}
+
+/// Reads the header of a PFM file: size, channels (always RGB: grey is returned as R = G = B),
+/// colour (unspecified primaries) and the stored format ("RGB f32 little-endian"). Checks the
+/// size against the limits' dimensions and that the file holds every pixel, allocating nothing.
+pub fn probe_pfm(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let h = parse_header(data)?;
+    limits.check_dimensions(u64::from(h.width), u64::from(h.height))?;
+    pixel_bytes(&h, data)?;
+    let format = format!(
+        "{} f32 {}-endian",
+        if h.grey { "grey" } else { "RGB" },
+        if h.little_endian { "little" } else { "big" }
+    );
+    Ok(ImageInfo::new(h.width, h.height, Channels::Rgb, pfm_color()).with_format(format))
+}
+
 /// Decodes a PFM file held in memory.
 pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     let h = parse_header(data)?;
     let (w, ht) = (h.width as usize, h.height as usize);
     limits.check_image(w as u64, ht as u64, Channels::Rgb)?;
     let per_pixel = if h.grey { 1 } else { 3 };
-    let need = (w as u64) * (ht as u64) * per_pixel * 4;
-    let avail = (data.len() - h.data_start) as u64;
-    if avail < need {
-        return Err(Error::truncated(format!("the PFM pixels ({need} bytes needed, {avail} present)")));
-    }
+    let need = pixel_bytes(&h, data)?;
     let pixels = &data[h.data_start..h.data_start + need as usize];
     let read = |b: &[u8]| {
         let b = [b[0], b[1], b[2], b[3]];
@@ -135,9 +165,7 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
             samples.extend(row.chunks_exact(4).map(read));
         }
     }
-    // PFM records no colour: the samples are whatever the writer had.
-    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
-    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, color)?;
+    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, pfm_color())?;
     if h.scale != 1.0 {
         image.set_metadata("pfm.scale", h.scale.to_string());
     }
@@ -189,6 +217,10 @@ impl ImageCodec for PfmCodec {
     /// PFM records no colour at all: samples are stored as they are.
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::None
+    }
+    /// The header only (see [`probe_pfm`]).
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        probe_pfm(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_pfm(data, &options.limits)

@@ -103,3 +103,24 @@ fn codec_identity() {
     assert_eq!((PfmCodec.name(), PfmCodec.id(), PfmCodec.extensions()), ("pfm", *b"PFM ", &["pfm"][..]));
     assert!(PfmCodec.sniff(b"PF\n") && PfmCodec.sniff(b"Pf\n") && !PfmCodec.sniff(b"PFM") && !PfmCodec.sniff(b"P6\n"));
 }
+
+#[test]
+fn probe_reads_the_header_as_decode_would() {
+    for (magic, scale, big) in [("Pf", "1.0", true), ("PF", "-2.5", false)] {
+        let n = if magic == "Pf" { 6 } else { 18 };
+        let floats: Vec<f32> = (0..n).map(|i| i as f32).collect();
+        let data = file(magic, 3, 2, scale, &floats, big);
+        let info = PfmCodec.probe(&data, &Limits::default()).unwrap();
+        let img = PfmCodec.decode(&data, &Limits::default()).unwrap();
+        assert_eq!((info.width, info.height, info.channels, &info.color), (3, 2, img.channels(), &img.color));
+        let want = if big { "grey f32 big-endian" } else { "RGB f32 little-endian" };
+        assert_eq!(info.format, want);
+        // The header alone does not hold the pixels: a short file is reported, not allocated.
+        assert!(matches!(PfmCodec.probe(&data[..data.len() - 1], &Limits::default()), Err(Error::Truncated { .. })));
+    }
+    // Probing allocates nothing of the image's size: the byte limit does not apply.
+    let big = file("PF", 300, 300, "-1", &vec![0.0; 300 * 300 * 3], false);
+    let tiny = Limits::default().with_max_alloc_bytes(1 << 10);
+    assert!(PfmCodec.decode(&big, &tiny).is_err());
+    assert_eq!(PfmCodec.probe(&big, &tiny).unwrap().width, 300);
+}

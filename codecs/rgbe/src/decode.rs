@@ -3,7 +3,7 @@
 
 use crate::header::{self, Axis, Header, PixelFormat};
 use crate::{MantissaDecode, RgbeDecodeOptions};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result};
 
 /// New-style RLE is used only for scanlines of 8 to 0x7fff pixels (Radiance's MINELEN and
 /// MAXELEN); shorter or longer ones are always old-style or flat.
@@ -443,6 +443,45 @@ fn placement(major: Axis, minor: Axis, width: usize, i: usize) -> (isize, isize)
     }
 }
 
+/// Every scanline takes at least 4 bytes whatever its encoding: refuses lying dimensions
+/// before anything of the image's size is allocated.
+fn check_scanline_room(hdr: &Header, data: &[u8]) -> Result<()> {
+    let (nscan, n) = (hdr.major.len as usize, hdr.minor.len as usize);
+    let available = data.len() - hdr.data_start;
+    if available / 4 < nscan {
+        return Err(Error::truncated(format!(
+            "the pixel data ({available} bytes cannot hold {nscan} scanlines of {n} pixels)"
+        )));
+    }
+    Ok(())
+}
+
+/// The primaries of the decoded image: `PRIMARIES`, else Radiance's standard (BT.709).
+fn primaries(hdr: &Header) -> ColorPrimaries {
+    match hdr.primaries {
+        Some(ch) => ColorPrimaries::from_chromaticities(ch),
+        None => ColorPrimaries::Bt709,
+    }
+}
+
+/// Reads the header and resolution string only: see [`crate::probe`].
+pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let hdr = header::parse(data)?;
+    limits.check_dimensions(u64::from(hdr.width()), u64::from(hdr.height()))?;
+    check_scanline_room(&hdr, data)?;
+    // The first scanline says how the pixels are stored (files use one encoding throughout).
+    let n = hdr.minor.len as usize;
+    let rle = (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&n)
+        && data.get(hdr.data_start..hdr.data_start + 4).is_some_and(|h| h[0] == 2 && h[1] == 2 && h[2] & 0x80 == 0);
+    let name = match hdr.format {
+        PixelFormat::Rgbe => "RGBE",
+        PixelFormat::Xyze => "XYZE",
+    };
+    let format = format!("{name}, {}", if rle { "run-length scanlines" } else { "flat scanlines" });
+    let color = ColorInfo { primaries: primaries(&hdr), ..ColorInfo::default() };
+    Ok(ImageInfo::new(hdr.width(), hdr.height(), Channels::Rgb, color).with_format(format))
+}
+
 /// Decodes a whole file.
 pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<HdrImage> {
     let hdr = header::parse(data)?;
@@ -450,14 +489,7 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
     limits.check_image(width as u64, height as u64, Channels::Rgb)?;
     let nscan = hdr.major.len as usize;
     let n = hdr.minor.len as usize;
-    // Every scanline takes at least 4 bytes whatever its encoding: refuse lying dimensions
-    // before allocating the image.
-    let available = data.len() - hdr.data_start;
-    if available / 4 < nscan {
-        return Err(Error::truncated(format!(
-            "the pixel data ({available} bytes cannot hold {nscan} scanlines of {n} pixels)"
-        )));
-    }
+    check_scanline_room(&hdr, data)?;
     limits.check_alloc((n as u64 + SLACK as u64) * 4 + n as u64 * 12, "the RGBE scanline buffers")?;
     let mut planes = vec![0u8; (n + SLACK) * 4];
     let table = exponent_table();
@@ -492,10 +524,7 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &RgbeDecodeOptions) -> Result<
 
 /// Colour conversion, exposure and metadata.
 fn finish(hdr: Header, width: u32, height: u32, mut samples: Vec<f32>, opts: &RgbeDecodeOptions) -> Result<HdrImage> {
-    let primaries = match hdr.primaries {
-        Some(ch) => ColorPrimaries::from_chromaticities(ch),
-        None => ColorPrimaries::Bt709,
-    };
+    let primaries = primaries(&hdr);
     if hdr.format == PixelFormat::Xyze {
         // The header parser accepted only valid PRIMARIES, so this is a true inverse.
         crate::apply_matrix(&primaries.xyz_to_rgb(), &mut samples, 3);

@@ -39,7 +39,7 @@ pub use decode::decode_pixel;
 pub use encode::{encode_pixel, RGBE_MAX};
 pub use header::{Axis, Header, PixelFormat};
 
-use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result};
 
 /// How a mantissa byte becomes a float.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -147,6 +147,14 @@ pub fn decode(data: &[u8], limits: &Limits, options: &RgbeDecodeOptions) -> Resu
     decode::decode(data, limits, options)
 }
 
+/// Size, channels (RGB), colour and pixel format of a Radiance picture, from its header and
+/// resolution string (and the first bytes of the first scanline, which say whether the
+/// scanlines are run-length coded). Checks the size against the limits' dimensions and that the
+/// file can hold that many scanlines; allocates nothing of the image's size.
+pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    decode::probe(data, limits)
+}
+
 /// Reads only the header and resolution string.
 pub fn read_header(data: &[u8]) -> Result<Header> {
     header::parse(data)
@@ -208,6 +216,10 @@ impl ImageCodec for RgbeCodec {
     /// The `PRIMARIES` header line records any chromaticities (XYZE files are CIE XYZ).
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Any
+    }
+    /// The header only (see [`probe`]).
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        decode::probe(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode::decode(data, &options.limits, &self.decode)

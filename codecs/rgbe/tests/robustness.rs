@@ -264,3 +264,29 @@ fn codec_trait_and_options() {
         assert!(e.to_string().contains(bad.0), "{e}");
     }
 }
+
+#[test]
+fn probe_reads_the_header_as_decode_would() {
+    let mut img = sample_image(20, 3);
+    img.color.primaries = ColorPrimaries::Bt2020;
+    for (format, rle, want) in [
+        (PixelFormat::Rgbe, true, "RGBE, run-length scanlines"),
+        (PixelFormat::Rgbe, false, "RGBE, flat scanlines"),
+        (PixelFormat::Xyze, true, "XYZE, run-length scanlines"),
+    ] {
+        let bytes = encode(&img, &RgbeEncodeOptions { format, rle, ..Default::default() }).unwrap();
+        let info = RgbeCodec::new().probe(&bytes, &Limits::default()).unwrap();
+        let back = dec(&bytes).unwrap();
+        assert_eq!((info.width, info.height, info.channels, &info.color), (20, 3, back.channels(), &back.color));
+        assert_eq!((info.format.as_str(), info.frames), (want, 1));
+        // Probing needs only the header: the byte limit does not apply to it.
+        let tiny = Limits::default().with_max_alloc_bytes(64);
+        assert!(RgbeCodec::new().decode(&bytes, &tiny).is_err());
+        assert!(hdrcodec_rgbe::probe(&bytes, &tiny).is_ok());
+    }
+    // A header that promises more scanlines than the file can hold.
+    let short = file("#?RADIANCE\n\n-Y 100 +X 8\n", &[0; 40]);
+    assert!(matches!(hdrcodec_rgbe::probe(&short, &Limits::default()), Err(Error::Truncated { .. })));
+    let huge = file("#?RADIANCE\n\n-Y 4000000000 +X 4000000000\n", &[0; 4]);
+    assert!(matches!(hdrcodec_rgbe::probe(&huge, &Limits::default()), Err(Error::LimitExceeded { .. })));
+}
