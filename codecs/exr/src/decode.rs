@@ -15,7 +15,8 @@ use exr::meta::attribute::SampleType;
 use exr::meta::header::Header;
 use exr::meta::MetaData;
 use hdrcodec_core::{
-    Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, Limits, Result, ThreadPool,
+    Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result,
+    ThreadPool,
 };
 use rayon::prelude::*;
 use std::io::Cursor;
@@ -31,6 +32,15 @@ const BATCH: usize = 32;
 /// turned into [`Error::Invalid`].
 pub fn decode_exr(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     decode_exr_with(data, &DecodeOptions::new(limits.clone()))
+}
+
+/// Size, channels, colour and stored format ("half, PIZ", "float, ZIP, tiles 64x64") of an
+/// OpenEXR file, read from its headers without decoding a pixel: exactly what [`decode_exr`]
+/// would return for them. Checks the size against the limits' dimensions (not the byte limit:
+/// nothing of the image's size is allocated) and that the offset tables fit the file. Never
+/// panics.
+pub fn probe_exr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    guarded("reading the OpenEXR header", || probe_inner(data, limits))
 }
 
 /// [`decode_exr`] with the caller's threads: chunks decompress in parallel on `options.pool`.
@@ -80,28 +90,77 @@ struct Selection {
     channels: Channels,
 }
 
-fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool) -> Result<HdrImage> {
+/// Reads the magic number and the headers (the `exr` crate validates them), nothing else.
+fn read_meta(data: &[u8]) -> Result<exr::block::reader::Reader<Cursor<&[u8]>>> {
     if data.len() < 4 {
         return Err(Error::truncated("the OpenEXR magic number"));
     }
     if data[..4] != MAGIC {
         return Err(Error::invalid("not an OpenEXR file (the magic number 76 2f 31 01 is missing)"));
     }
-    let reader = exr::block::read(Cursor::new(data), false).map_err(map_err)?;
-    let meta = reader.meta_data().clone();
+    exr::block::read(Cursor::new(data), false).map_err(map_err)
+}
+
+/// The first part's header, refused if deep, with the channels the decoder returns.
+fn first_part(meta: &MetaData) -> Result<(&Header, Selection)> {
     let header = meta.headers.first().ok_or_else(|| Error::invalid("OpenEXR file without a header"))?;
     if header.deep {
         return Err(Error::unsupported("deep OpenEXR data (samples per pixel vary); only flat images are read"));
     }
-    let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
-    let selection = select_channels(header)?;
-    limits.check_image(w, h, selection.channels)?;
-    // The offset tables of every part are read before any chunk: 8 bytes each in the file, so
-    // a table longer than the file is a truncation, found before `exr` allocates it.
+    Ok((header, select_channels(header)?))
+}
+
+/// The offset tables of every part are read before any chunk: 8 bytes each in the file, so a
+/// table longer than the file is a truncation, found before `exr` allocates it.
+fn check_offset_tables(meta: &MetaData, data: &[u8]) -> Result<()> {
     let offsets: u64 = meta.headers.iter().map(|h| h.chunk_count as u64).sum::<u64>().saturating_mul(8);
     if offsets > data.len() as u64 {
         return Err(Error::truncated(format!("the OpenEXR offset tables ({offsets} bytes declared)")));
     }
+    Ok(())
+}
+
+/// Size, channels, colour and stored format of an OpenEXR file, from its headers only: see
+/// [`crate::probe_exr`].
+fn probe_inner(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let reader = read_meta(data)?;
+    let meta = reader.meta_data();
+    let (header, selection) = first_part(meta)?;
+    let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+    limits.check_dimensions(w, h)?;
+    check_offset_tables(meta, data)?;
+    let mut types: Vec<&str> = selection.sources.iter().map(|s| type_name(s.sample_type)).collect();
+    types.dedup();
+    let mut format = format!("{}, {}", types.join("+"), compression_label(header.compression));
+    if let exr::meta::BlockDescription::Tiles(t) = header.blocks {
+        format += &format!(", tiles {}x{}", t.tile_size.x(), t.tile_size.y());
+    }
+    Ok(ImageInfo::new(w as u32, h as u32, selection.channels, color_info(meta)).with_format(format))
+}
+
+/// The name OpenEXR's tools print for a compression ("PIZ", "ZIP", "none").
+fn compression_label(c: exr::compression::Compression) -> String {
+    match c {
+        exr::compression::Compression::Uncompressed => "uncompressed".to_string(),
+        c => compression_name(c).to_ascii_uppercase(),
+    }
+}
+
+fn type_name(t: SampleType) -> &'static str {
+    match t {
+        SampleType::F16 => "half",
+        SampleType::F32 => "float",
+        SampleType::U32 => "uint",
+    }
+}
+
+fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool) -> Result<HdrImage> {
+    let reader = read_meta(data)?;
+    let meta = reader.meta_data().clone();
+    let (header, selection) = first_part(&meta)?;
+    let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+    limits.check_image(w, h, selection.channels)?;
+    check_offset_tables(&meta, data)?;
     // A block never exceeds the data window, whatever tile size the header declares.
     let block = header.max_block_pixel_size();
     let block_pixels = (block.width() as u64).min(w) * (block.height() as u64).min(h);
@@ -325,16 +384,7 @@ fn color_info(meta: &MetaData) -> ColorInfo {
 /// Records what `hdrcodec info` shows and what the pixels alone do not say.
 fn set_metadata(image: &mut HdrImage, header: &Header) {
     image.set_metadata("exr.compression", compression_name(header.compression));
-    let types: Vec<&str> = header
-        .channels
-        .list
-        .iter()
-        .map(|c| match c.sample_type {
-            SampleType::F16 => "half",
-            SampleType::F32 => "float",
-            SampleType::U32 => "uint",
-        })
-        .collect();
+    let types: Vec<&str> = header.channels.list.iter().map(|c| type_name(c.sample_type)).collect();
     let mut dedup = types.clone();
     dedup.dedup();
     image.set_metadata("exr.pixel", if dedup.len() == 1 { dedup[0].to_string() } else { types.join(",") });

@@ -10,6 +10,8 @@
 //!   attribute sets [`ColorInfo::primaries`](hdrcodec_core::ColorInfo) (absent: BT.709) and
 //!   `whiteLuminance` sets `nits_per_unit`. Every compression `exr` decodes is read: none, RLE,
 //!   ZIPS, ZIP, PIZ, PXR24, B44, B44A, DWAA, DWAB (not HTJ2K).
+//! - Probing ([`probe_exr`], [`ImageCodec::probe`]): the same size, channels and colour from
+//!   the headers alone, with the stored format ("half, PIZ").
 //! - Writing: one scan-line part, `R, G, B(, A)`, half or float, any [`ExrCompression`];
 //!   `chromaticities` is written when the primaries are not BT.709, `whiteLuminance` when
 //!   `nits_per_unit` is not 100.
@@ -31,7 +33,7 @@ mod encode;
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
 
-pub use decode::{decode_exr, decode_exr_with};
+pub use decode::{decode_exr, decode_exr_with, probe_exr};
 pub use encode::encode_exr;
 
 use exr::compression::Compression;
@@ -243,6 +245,10 @@ impl ImageCodec for ExrCodec {
     /// `whiteLuminance` records `nits_per_unit` (written when it is not 100, the default).
     fn records_nits_per_unit(&self) -> bool {
         true
+    }
+    /// The headers only (see [`probe_exr`]).
+    fn probe(&self, data: &[u8], limits: &hdrcodec_core::Limits) -> Result<hdrcodec_core::ImageInfo> {
+        probe_exr(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_exr_with(data, options)

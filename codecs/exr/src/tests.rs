@@ -384,3 +384,42 @@ fn half_reports_what_overflows_and_float_does_not() {
         ExrCodec.encode_to(&picture(5, 3, Channels::Rgb), &settings(ExrCompression::Piz, "half"), &mut Vec::new());
     assert!(report.unwrap().notes.is_empty());
 }
+
+#[test]
+fn probe_reads_the_headers_as_decode_would() {
+    let plane = |k: f32| (0..6).map(|i| i as f32 + k).collect::<Vec<f32>>();
+    let mut colour = picture(5, 3, Channels::Rgba);
+    colour.color.primaries = ColorPrimaries::Bt2020;
+    colour.color.nits_per_unit = 203.0;
+    let files = [
+        (ExrCodec.encode(&colour, &settings(ExrCompression::Piz, "half")).unwrap(), "half, PIZ"),
+        (ExrCodec.encode(&colour, &settings(ExrCompression::None, "float")).unwrap(), "float, uncompressed"),
+        // The `exr` crate's "fast lossless" writes RLE tiles.
+        (exr_file((3, 2), (0, 0), vec![("Y", plane(0.0))]), "float, RLE, tiles 64x64"),
+        (
+            exr_file((3, 2), (5, -1), vec![("R", plane(0.1)), ("G", plane(0.2)), ("B", plane(0.3))]),
+            "float, RLE, tiles 64x64",
+        ),
+    ];
+    for (bytes, format) in files {
+        let info = probe_exr(&bytes, &Limits::default()).unwrap();
+        let img = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+        assert_eq!(
+            (info.width, info.height, info.channels, &info.color),
+            (img.width(), img.height(), img.channels(), &img.color)
+        );
+        assert_eq!((info.format.as_str(), info.frames), (format, 1));
+    }
+    // The headers only: the byte limit, which decoding needs, does not apply.
+    let bytes = ExrCodec.encode(&picture(64, 64, Channels::Rgb), &EncodeSettings::default()).unwrap();
+    let tiny = Limits::default().with_max_alloc_bytes(1 << 10);
+    assert!(matches!(ExrCodec.decode(&bytes, &tiny), Err(Error::LimitExceeded { .. })));
+    assert_eq!(ExrCodec.probe(&bytes, &tiny).unwrap().width, 64);
+    // A truncated file is an error or, once the headers are whole, the same answer.
+    let whole = probe_exr(&bytes, &Limits::default()).unwrap();
+    for n in 0..bytes.len() {
+        if let Ok(info) = probe_exr(&bytes[..n], &Limits::default()) {
+            assert_eq!(info, whole, "{n}");
+        }
+    }
+}
