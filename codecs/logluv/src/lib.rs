@@ -12,6 +12,7 @@
 //!   puts the brightest pixel at the top of the code range; decoding gives `nits_per_unit` =
 //!   STONITS, so the absolute luminance survives either way. [`encode_with_report`] says what
 //!   was chosen and what was clipped.
+//! - [`probe`]: size and colour from the TIFF header and first IFD alone ([`tiff::read_info`]).
 //! - [`LogLuvTiffCodec`]: the [`ImageCodec`] for each encoding ("logluv32", "logluv24", "logl16").
 //!
 //! ```
@@ -32,7 +33,8 @@ pub mod uvgrid;
 
 use hdrcodec_core::color::{mat_inverse, mat_to_f32, Mat3};
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result,
+    Channels, ColorInfo, ColorPrimaries, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
+    Result,
 };
 use pixel::Tables;
 pub use scale::{Clipped, Stonits};
@@ -55,6 +57,15 @@ impl Encoding {
             Encoding::LogL16 => "logl16",
             Encoding::LogLuv24 => "logluv24",
             Encoding::LogLuv32 => "logluv32",
+        }
+    }
+
+    /// The encoding's name as Larson's paper writes it: "LogL16", "LogLuv24" or "LogLuv32".
+    pub fn label(self) -> &'static str {
+        match self {
+            Encoding::LogL16 => "LogL16",
+            Encoding::LogLuv24 => "LogLuv24",
+            Encoding::LogLuv32 => "LogLuv32",
         }
     }
 
@@ -184,6 +195,30 @@ fn rgb_to_xyz(p: &ColorPrimaries) -> Result<Mat3> {
     }
 }
 
+/// The colour of an image decoded with `opts` from a file with this STONITS value.
+fn decoded_color(stonits: Option<f64>, opts: &DecodeOptions) -> ColorInfo {
+    ColorInfo {
+        primaries: opts.primaries,
+        nits_per_unit: stonits.map_or(opts.default_nits_per_unit, |s| s as f32),
+        hdr10: None,
+    }
+}
+
+/// Size, channels (RGB), colour and encoding of a LogLuv TIFF as [`decode`] with `opts` would
+/// return them, from the TIFF header and first IFD only ([`tiff::read_info`]): checks the size
+/// against the limits' dimensions, allocates nothing of the image's size.
+pub fn probe(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<ImageInfo> {
+    let info = tiff::read_info(data)?;
+    limits.check_dimensions(u64::from(info.width), u64::from(info.height))?;
+    let compression = if info.encoding == Encoding::LogLuv24 { "SGILOG24" } else { "SGILOG" };
+    let mut format = format!("{}, {compression}", info.encoding.label());
+    if let Some(s) = info.stonits {
+        // As `nits_per_unit` holds it (f32): 179, 19280.361.
+        format += &format!(", STONITS {}", s as f32);
+    }
+    Ok(ImageInfo::new(info.width, info.height, Channels::Rgb, decoded_color(info.stonits, opts)).with_format(format))
+}
+
 /// Decodes a LogLuv TIFF to an RGB image in `opts.primaries`.
 pub fn decode(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<HdrImage> {
     raster_to_image(&read_tiff(data, limits)?, opts)
@@ -215,12 +250,7 @@ pub fn raster_to_image(raster: &LogLuvRaster, opts: &DecodeOptions) -> Result<Hd
             }
         }
     }
-    let color = ColorInfo {
-        primaries: opts.primaries,
-        nits_per_unit: raster.stonits.map_or(opts.default_nits_per_unit, |s| s as f32),
-        hdr10: None,
-    };
-    HdrImage::new(raster.width, raster.height, Channels::Rgb, samples, color)
+    HdrImage::new(raster.width, raster.height, Channels::Rgb, samples, decoded_color(raster.stonits, opts))
 }
 
 /// Converts an image (any primaries; alpha is dropped) to encoded words via CIE XYZ, with
@@ -346,6 +376,10 @@ impl ImageCodec for LogLuvTiffCodec {
     fn records_nits_per_unit(&self) -> bool {
         true
     }
+    /// The TIFF header and first IFD only (see [`probe`]).
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        probe(data, limits, &DecodeOptions::default())
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode(data, &options.limits, &DecodeOptions::default())
     }
@@ -433,6 +467,24 @@ mod tests {
                     assert!((b / a - 1.0).abs() < tol, "{enc:?} {a} → {b}");
                 }
             }
+        }
+        // The probe reads the same size and colour from the IFD alone.
+        for enc in [Encoding::LogL16, Encoding::LogLuv24, Encoding::LogLuv32] {
+            let codec = LogLuvTiffCodec::new(enc);
+            let file = codec.encode(&img, &EncodeSettings::default()).unwrap();
+            let info = codec.probe(&file, &Limits::default()).unwrap();
+            let back = codec.decode(&file, &Limits::default()).unwrap();
+            assert_eq!((info.width, info.height, info.channels, &info.color), (4, 4, back.channels(), &back.color));
+            // STONITS is the image's 179 unless the encoding chose another scale (stonits=auto).
+            let label = format!(
+                "{}, {}, STONITS {}",
+                enc.label(),
+                if enc == Encoding::LogLuv24 { "SGILOG24" } else { "SGILOG" },
+                back.color.nits_per_unit
+            );
+            assert_eq!(info.format, label);
+            let tiny = Limits::default().with_max_alloc_bytes(16);
+            assert!(codec.decode(&file, &tiny).is_err() && codec.probe(&file, &tiny).is_ok());
         }
         let bad = EncodeSettings::default().with_option("dither", "1");
         assert!(LogLuvTiffCodec::new(Encoding::LogL16).encode(&img, &bad).is_err());

@@ -122,14 +122,6 @@ impl Encoding {
             y
         }
     }
-
-    fn label(self) -> &'static str {
-        match self {
-            Encoding::LogL16 => "LogL16",
-            Encoding::LogLuv24 => "LogLuv24",
-            Encoding::LogLuv32 => "LogLuv32",
-        }
-    }
 }
 
 /// The scale the encoder uses.

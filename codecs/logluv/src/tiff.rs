@@ -68,8 +68,27 @@ fn is_needed(tag: u16) -> bool {
     )
 }
 
-/// Reads the first image of a LogLuv TIFF as its encoded words.
-pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
+/// What the first IFD of a LogLuv TIFF says of its image, checked as [`read`] checks it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TiffInfo {
+    /// ImageWidth.
+    pub width: u32,
+    /// ImageLength.
+    pub height: u32,
+    /// The pixel encoding (from PhotometricInterpretation and Compression).
+    pub encoding: Encoding,
+    /// The STONITS value, if the tag is present.
+    pub stonits: Option<f64>,
+}
+
+/// Reads the TIFF header and the tags of the first IFD that describe the image (no strip
+/// offsets, no pixels): allocates only the IFD's entry list.
+pub fn read_info(data: &[u8]) -> Result<TiffInfo> {
+    Ok(read_header(data)?.2)
+}
+
+/// The IFD and what it says of the image (the part of [`read`] before the strips).
+fn read_header(data: &[u8]) -> Result<(Tiff<'_>, Vec<Entry>, TiffInfo)> {
     let (r, entries) = read_ifd(data)?;
     let find = |t: u16| entries.iter().find(|e| e.tag == t);
     let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
@@ -106,6 +125,23 @@ pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
             encoding.name()
         )));
     }
+    let stonits = match find(TAG_STONITS) {
+        // FLOAT or DOUBLE (libtiff writes DOUBLE); an integer is accepted too.
+        Some(e) if e.count >= 1 && matches!(e.typ, 11 | 12) => Some(e.first_f64(&r)?),
+        Some(e) if e.count >= 1 && matches!(e.typ, 3 | 4) => Some(f64::from(e.first_u32(&r)?)),
+        Some(e) if e.count >= 1 => {
+            return Err(Error::invalid(format!("the STONITS tag has type {}, expected DOUBLE", e.typ)))
+        }
+        _ => None,
+    };
+    Ok((r, entries, TiffInfo { width, height, encoding, stonits }))
+}
+
+/// Reads the first image of a LogLuv TIFF as its encoded words.
+pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
+    let (r, entries, TiffInfo { width, height, encoding, stonits }) = read_header(data)?;
+    let find = |t: u16| entries.iter().find(|e| e.tag == t);
+    let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
     limits.check_image(u64::from(width), u64::from(height), hdrcodec_core::Channels::Rgb)?;
     let pixels = u64::from(width) * u64::from(height);
     limits.check_alloc(pixels * 4, "the LogLuv pixel words")?;
@@ -122,15 +158,6 @@ pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
             counts.len()
         )));
     }
-    let stonits = match find(TAG_STONITS) {
-        // FLOAT or DOUBLE (libtiff writes DOUBLE); an integer is accepted too.
-        Some(e) if e.count >= 1 && matches!(e.typ, 11 | 12) => Some(e.first_f64(&r)?),
-        Some(e) if e.count >= 1 && matches!(e.typ, 3 | 4) => Some(f64::from(e.first_u32(&r)?)),
-        Some(e) if e.count >= 1 => {
-            return Err(Error::invalid(format!("the STONITS tag has type {}, expected DOUBLE", e.typ)))
-        }
-        _ => None,
-    };
 
     let file = r.reader();
     let w = width as usize;
