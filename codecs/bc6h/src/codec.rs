@@ -1,12 +1,15 @@
 //! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
 //! optional mip chains.
-use crate::dds::{is_bc6h_dds, read_dds, write_dds};
+use crate::dds::{is_bc6h_dds, read_dds, read_dds_header, write_dds};
 use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
-use crate::ktx2::{is_bc6h_ktx2, khr_df_primaries, read_ktx2, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES};
-use crate::texture::{full_mip_count, level_size, Bc6hTexture};
+use crate::ktx2::{
+    is_bc6h_ktx2, khr_df_primaries, read_ktx2, read_ktx2_header, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES,
+};
+use crate::texture::{full_mip_count, level_size, Bc6hTexture, TextureHeader};
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, Result,
+    Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, ImageInfo,
+    Limits, Result,
 };
 
 /// The options both codecs understand.
@@ -112,8 +115,18 @@ fn to_image(tex: &Bc6hTexture, primaries: ColorPrimaries, options: &DecodeOption
     let mut samples = vec![0f32; w as usize * h as usize * 3];
     let level0 = tex.levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
     decode_surface_into(w, h, level0, tex.signed, &options.pool, &mut samples)?;
-    let color = ColorInfo { primaries, ..ColorInfo::default() };
-    HdrImage::new(w, h, Channels::Rgb, samples, color)
+    HdrImage::new(w, h, Channels::Rgb, samples, texture_color(primaries))
+}
+
+/// The colour of a decoded texture: the primaries its file records (DDS: none), at the
+/// family's default scale.
+fn texture_color(primaries: ColorPrimaries) -> ColorInfo {
+    ColorInfo { primaries, ..ColorInfo::default() }
+}
+
+/// What [`ImageCodec::probe`] returns for a texture with this header: level 0, RGB.
+fn texture_info(header: &TextureHeader, primaries: ColorPrimaries) -> ImageInfo {
+    ImageInfo::new(header.width, header.height, Channels::Rgb, texture_color(primaries)).with_format(header.format())
 }
 
 /// BC6H in a DDS file (DX10 header, DXGI 95/96). Decoding returns mip level 0.
@@ -136,6 +149,10 @@ impl ImageCodec for Bc6hDdsCodec {
     /// DDS records no colour: samples are stored as they are.
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::None
+    }
+    /// The header only: level 0's size, "BC6H UF16, 3 mip levels".
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        Ok(texture_info(&read_dds_header(data, limits)?, ColorPrimaries::Unspecified))
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         to_image(&read_dds(data, &options.limits)?, ColorPrimaries::Unspecified, options)
@@ -173,6 +190,10 @@ impl ImageCodec for Bc6hKtx2Codec {
     /// "unspecified" (colorPrimaries 0) among them.
     fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
         hdrcodec_core::ColorSignalling::Only(&KTX2_PRIMARIES)
+    }
+    /// The header and the DFD's primaries only: level 0's size, "BC6H UF16, 3 mip levels".
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        Ok(texture_info(&read_ktx2_header(data, limits)?, read_ktx2_primaries(data)))
     }
     /// The image carries the primaries the DFD names; 0 or a value without a named space of
     /// ours gives [`ColorPrimaries::Unspecified`].
@@ -247,6 +268,31 @@ mod tests {
         assert!(!report.notes[0].contains("below"), "{report:?}");
         let fine = HdrImage::zeroed(4, 4, Channels::Rgb);
         assert!(Bc6hDdsCodec.encode_to(&fine, &EncodeSettings::default(), &mut Vec::new()).unwrap().notes.is_empty());
+    }
+
+    #[test]
+    fn probe_reads_the_header_as_decode_would() {
+        let mut img = HdrImage::zeroed(9, 5, Channels::Rgba);
+        // KTX2 records BT.2020 in its DFD and the probe reads it there; DDS records nothing.
+        img.color.primaries = ColorPrimaries::Bt2020;
+        let mips = EncodeSettings::default().with_option("mips", "true");
+        let signed = EncodeSettings::default().with_option("signed", "true");
+        let codecs: [&dyn ImageCodec; 2] = [&Bc6hDdsCodec, &Bc6hKtx2Codec];
+        for codec in codecs {
+            for (s, want) in [(&mips, "BC6H UF16, 4 mip levels"), (&signed, "BC6H SF16, 1 mip level")] {
+                let file = codec.encode(&img, s).unwrap();
+                let info = codec.probe(&file, &Limits::default()).unwrap();
+                let back = codec.decode(&file, &Limits::default()).unwrap();
+                let got = (info.width, info.height, info.channels, &info.color);
+                assert_eq!(got, (9, 5, back.channels(), &back.color));
+                let want_primaries =
+                    if codec.name() == "bc6h" { ColorPrimaries::Unspecified } else { ColorPrimaries::Bt2020 };
+                assert_eq!(info.color.primaries, want_primaries);
+                assert_eq!((info.format.as_str(), info.frames), (want, 1));
+                let tiny = Limits::default().with_max_alloc_bytes(64);
+                assert!(codec.decode(&file, &tiny).is_err() && codec.probe(&file, &tiny).is_ok());
+            }
+        }
     }
 
     #[test]

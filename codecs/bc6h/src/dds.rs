@@ -4,7 +4,7 @@
 //! `DXGI_FORMAT_BC6H_UF16` (95) and `DXGI_FORMAT_BC6H_SF16` (96). The parser checks every size
 //! against the data and the caller's [`Limits`] before allocating and never panics.
 use crate::decode::surface_bytes;
-use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture};
+use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture, TextureHeader};
 use hdrcodec_core::{Error, Limits, Result};
 
 /// `DXGI_FORMAT_BC6H_UF16`.
@@ -35,8 +35,9 @@ pub fn is_bc6h_dds(head: &[u8]) -> bool {
         && matches!(u32_at(head, 128), Ok(DXGI_BC6H_UF16 | DXGI_BC6H_SF16))
 }
 
-/// Reads a BC6H DDS file (DX10 header, 2D texture, first array element, all mip levels).
-pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
+/// Reads the header of a BC6H DDS file (DX10 header, 2D texture) and checks it as [`read_dds`]
+/// does, without reading the blocks.
+pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
     if !data.starts_with(DDS_MAGIC) {
         return Err(if data.len() < 4 { Error::truncated("the DDS magic") } else { Error::invalid("not a DDS file") });
     }
@@ -79,6 +80,12 @@ pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
     }
     // DDSD_MIPMAPCOUNT is often missing from writers' flags; a count of 0 means one level.
     let levels = check_dims(width, height, mips as u64, limits)?;
+    Ok(TextureHeader { width, height, signed, levels })
+}
+
+/// Reads a BC6H DDS file (DX10 header, 2D texture, first array element, all mip levels).
+pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
+    let TextureHeader { width, height, signed, levels } = read_dds_header(data, limits)?;
     let mut pos = DDS_DATA_OFFSET;
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {

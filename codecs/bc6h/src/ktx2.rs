@@ -8,7 +8,7 @@
 //! The colour primaries live in the data format descriptor ([`KTX2_PRIMARIES`] lists those it
 //! can name): [`write_ktx2`] records them and [`read_ktx2_primaries`] reads them back.
 use crate::decode::surface_bytes;
-use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture};
+use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture, TextureHeader};
 use hdrcodec_core::{ColorPrimaries, Error, Limits, Result};
 
 /// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
@@ -98,8 +98,9 @@ pub fn is_bc6h_ktx2(head: &[u8]) -> bool {
     head.starts_with(&KTX2_IDENTIFIER) && matches!(u32_at(head, 12), Ok(VK_BC6H_UFLOAT | VK_BC6H_SFLOAT))
 }
 
-/// Reads a BC6H KTX2 file (2D, one layer, one face, no supercompression, all mip levels).
-pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
+/// Reads the header of a BC6H KTX2 file (2D, one layer, one face, no supercompression) and
+/// checks it as [`read_ktx2`] does, without reading the level index or the blocks.
+pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
     if !data.starts_with(&KTX2_IDENTIFIER) {
         return Err(if data.len() < 12 {
             Error::truncated("the KTX2 identifier")
@@ -133,6 +134,12 @@ pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
         return Err(Error::unsupported(format!("KTX2 supercompression scheme {supercompression}")));
     }
     let levels = check_dims(width, height, level_count as u64, limits)?;
+    Ok(TextureHeader { width, height, signed, levels })
+}
+
+/// Reads a BC6H KTX2 file (2D, one layer, one face, no supercompression, all mip levels).
+pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
+    let TextureHeader { width, height, signed, levels } = read_ktx2_header(data, limits)?;
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {
         let entry = KTX2_LEVEL_INDEX + 24 * i;

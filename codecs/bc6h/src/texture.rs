@@ -16,6 +16,29 @@ pub struct Bc6hTexture {
     pub levels: Vec<Vec<u8>>,
 }
 
+/// What a DDS or KTX2 header says of its BC6H texture, checked (size against the limits'
+/// dimensions, mip count against the size) but without reading any block data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextureHeader {
+    /// Width of level 0 in texels.
+    pub width: u32,
+    /// Height of level 0 in texels.
+    pub height: u32,
+    /// BC6H_SF16 (signed) rather than BC6H_UF16.
+    pub signed: bool,
+    /// Mip levels in the file (at least 1).
+    pub levels: usize,
+}
+
+impl TextureHeader {
+    /// The stored format in a few words: "BC6H UF16, 1 mip level", "BC6H SF16, 10 mip levels".
+    pub fn format(&self) -> String {
+        let kind = if self.signed { "SF16" } else { "UF16" };
+        let s = if self.levels == 1 { "" } else { "s" };
+        format!("BC6H {kind}, {} mip level{s}", self.levels)
+    }
+}
+
 /// Width and height of mip `level` of a `width` x `height` texture (halved, at least 1).
 pub fn level_size(width: u32, height: u32, level: usize) -> (u32, u32) {
     let s = level.min(31) as u32;
