@@ -67,6 +67,11 @@ pub(crate) fn check_signature(data: &[u8]) -> Result<()> {
 /// chunk of at least 32 bytes per tile, which also bounds every tile count.
 pub(crate) fn check_head(h: &Head, limits: &Limits, room: u64) -> Result<()> {
     check_image(limits, h.width, h.height, h.channels)?;
+    check_room(h, room)
+}
+
+/// That the `room` bytes after HEAD can hold a DATA chunk of at least 32 bytes per tile.
+pub(crate) fn check_room(h: &Head, room: u64) -> Result<()> {
     if h.total_tiles() > room / (CHUNK_OVERHEAD + DATA_HEADER_LEN) as u64 {
         return Err(Error::invalid(format!(
             "{} frames x {} tiles need more DATA chunks than the {room} bytes that follow can hold (truncated file?)",

@@ -3,11 +3,12 @@
 
 use crate::format::{DataHeader, Head, SIGNATURE};
 use crate::raw::{RawF16Codec, RawF32Codec};
-use crate::reader::{in_chunk, Reader};
+use crate::reader::{in_chunk, HeadInfo, Reader};
 use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
 use hdrcodec_core::{
-    ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Result,
+    ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo,
+    Limits, Result,
 };
 use std::sync::Arc;
 
@@ -234,15 +235,18 @@ pub fn decode_frames<'c>(
     decode_reader(&Reader::new(data, &options.limits)?, options, resolve)
 }
 
+/// The error for a payload codec id that no codec given to the decoder has.
+fn unknown_payload(id: [u8; 4]) -> Error {
+    Error::unsupported(format!("the payload codec '{}' of this .hdrc file", crate::format::type_name(id)))
+}
+
 fn decode_reader<'c>(
     r: &Reader<'_>,
     options: &DecodeOptions,
     resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
 ) -> Result<Vec<HdrImage>> {
     let h = *r.head();
-    let codec = resolve(h.codec).ok_or_else(|| {
-        Error::unsupported(format!("the payload codec '{}' of this .hdrc file", crate::format::type_name(h.codec)))
-    })?;
+    let codec = resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
     let frame_bytes = (u64::from(h.width) * u64::from(h.height)).saturating_mul(h.channels.count() as u64 * 4);
     let limits = &options.limits;
     limits.check_alloc(frame_bytes.saturating_mul(u64::from(h.frames)), "the decoded frames")?;
@@ -349,6 +353,20 @@ impl ImageCodec for HdrcCodec {
     /// The COLR chunk records `nits_per_unit`.
     fn records_nits_per_unit(&self) -> bool {
         true
+    }
+    /// HEAD, COLR and HDRM only ([`crate::probe`]): the size, channels, colour and frame
+    /// count of every frame, and the payload codec and tiling as the format ("rgbe payload,
+    /// 15 tiles of 64x64"). Fails, as decoding would, if the payload codec is unknown.
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        let HeadInfo { head: h, color } = crate::reader::probe(data, limits)?;
+        let codec = self.resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
+        let tiles = if h.tiles_per_frame() == 1 {
+            "untiled".to_string()
+        } else {
+            format!("{} tiles of {}x{}", h.tiles_per_frame(), h.tile_width, h.tile_height)
+        };
+        let format = format!("{} payload, {tiles}", codec.name());
+        Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_image(data, options, &|id| self.resolve(id))

@@ -14,7 +14,9 @@
 //! Colour information is not stored: inside `.hdrc` it lives in COLR/HDRM.
 
 use half::f16;
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
+};
 
 const HEADER_LEN: usize = 13;
 
@@ -32,6 +34,8 @@ pub struct RawF16Codec;
 trait Sample {
     const ID: [u8; 4];
     const NAME: &'static str;
+    /// The stored format for [`ImageCodec::probe`].
+    const FORMAT: &'static str;
     const BYTES: usize;
     fn put(v: f32, out: &mut Vec<u8>);
     fn get(b: &[u8]) -> f32;
@@ -40,6 +44,7 @@ trait Sample {
 impl Sample for RawF32Codec {
     const ID: [u8; 4] = *b"RF32";
     const NAME: &'static str = "raw-f32";
+    const FORMAT: &'static str = "raw f32 little-endian";
     const BYTES: usize = 4;
     fn put(v: f32, out: &mut Vec<u8>) {
         out.extend_from_slice(&v.to_le_bytes());
@@ -52,6 +57,7 @@ impl Sample for RawF32Codec {
 impl Sample for RawF16Codec {
     const ID: [u8; 4] = *b"RF16";
     const NAME: &'static str = "raw-f16";
+    const FORMAT: &'static str = "raw binary16 little-endian";
     const BYTES: usize = 2;
     fn put(v: f32, out: &mut Vec<u8>) {
         out.extend_from_slice(&f16::from_f32(v).to_le_bytes());
@@ -74,7 +80,9 @@ fn encode<S: Sample>(image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<
     Ok(out)
 }
 
-fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+/// Parses the header, checks the size against the limits' dimensions and the payload's length
+/// against it; returns width, height, channels and the samples' bytes.
+fn header<'a, S: Sample>(data: &'a [u8], limits: &Limits) -> Result<(u32, u32, Channels, &'a [u8])> {
     if data.len() < HEADER_LEN {
         return Err(Error::truncated(format!("the {}-byte {} header", HEADER_LEN, S::NAME)));
     }
@@ -85,7 +93,7 @@ fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     let height = u32::from_le_bytes([data[8], data[9], data[10], data[11]]);
     let channels = Channels::from_count(usize::from(data[12]))
         .ok_or_else(|| Error::invalid(format!("{} header: {} channels (expected 3 or 4)", S::NAME, data[12])))?;
-    crate::format::check_image(limits, width, height, channels)?;
+    limits.check_dimensions(u64::from(width), u64::from(height))?;
     let body = &data[HEADER_LEN..];
     // Checked in u64 before any allocation: with `Limits::none()` the product may not fit.
     let need = (u64::from(width) * u64::from(height)).saturating_mul((channels.count() * S::BYTES) as u64);
@@ -99,10 +107,25 @@ fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     if body.len() as u64 > need {
         return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() as u64 - need, S::NAME)));
     }
+    Ok((width, height, channels, body))
+}
+
+/// No colour is stored: the samples are the writer's, in primaries the container's COLR says.
+fn raw_color() -> ColorInfo {
+    ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() }
+}
+
+/// Size and channels from the header; the colour is [`raw_color`] as decoding gives it.
+fn probe<S: Sample>(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let (width, height, channels, _) = header::<S>(data, limits)?;
+    Ok(ImageInfo::new(width, height, channels, raw_color()).with_format(S::FORMAT))
+}
+
+fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    let (width, height, channels, body) = header::<S>(data, limits)?;
+    crate::format::check_image(limits, width, height, channels)?;
     let samples = body.chunks_exact(S::BYTES).map(S::get).collect();
-    // No colour is stored: the samples are the writer's, in primaries the container's COLR says.
-    let color = ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() };
-    HdrImage::new(width, height, channels, samples, color)
+    HdrImage::new(width, height, channels, samples, raw_color())
 }
 
 macro_rules! raw_codec {
@@ -123,6 +146,10 @@ macro_rules! raw_codec {
             /// Raw samples carry no colour of their own: the container's COLR chunk does.
             fn color_signalling(&self) -> hdrcodec_core::ColorSignalling {
                 hdrcodec_core::ColorSignalling::None
+            }
+            /// The 13-byte header (and the payload's length).
+            fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+                probe::<$t>(data, limits)
             }
             fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
                 decode::<$t>(data, &options.limits)

@@ -46,25 +46,118 @@ pub(crate) fn in_chunk(ctx: &str, e: Error) -> Error {
     }
 }
 
+/// Chunks seen per type (a map: a file may hold many distinct ancillary types).
 #[derive(Default)]
 struct Counts {
-    per_type: Vec<([u8; 4], usize)>,
+    per_type: std::collections::HashMap<[u8; 4], usize>,
 }
 
 impl Counts {
     /// The 0-based number of this chunk among the chunks of its type.
     fn next(&mut self, t: [u8; 4]) -> usize {
-        match self.per_type.iter_mut().find(|(k, _)| *k == t) {
-            Some((_, n)) => {
-                *n += 1;
-                *n - 1
+        let n = self.per_type.entry(t).or_insert(0);
+        *n += 1;
+        *n - 1
+    }
+}
+
+/// One chunk of a file, its CRC checked.
+struct Chunk<'a> {
+    ty: [u8; 4],
+    payload: &'a [u8],
+    /// Offset of the chunk (its length field).
+    offset: u64,
+    /// "DATA chunk #3 at offset 1234", for messages.
+    ctx: String,
+}
+
+/// Reads the chunk at `*pos` and moves `*pos` past it: checks its length against the bytes
+/// that remain, its CRC (of a DATA chunk only if `check_data_crc`) and its type's letters.
+fn next_chunk<'a>(data: &'a [u8], pos: &mut usize, counts: &mut Counts, check_data_crc: bool) -> Result<Chunk<'a>> {
+    let at = *pos;
+    let left = data.len() - at;
+    if left < 8 {
+        return Err(Error::truncated(format!("the chunk header at offset {at} (the file ends before the END chunk)")));
+    }
+    let len = u32::from_be_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]]);
+    let ty = [data[at + 4], data[at + 5], data[at + 6], data[at + 7]];
+    let ctx = format!("{} chunk #{} at offset {at}", type_name(ty), counts.next(ty));
+    if len > MAX_CHUNK_LEN {
+        return Err(Error::invalid(format!("{ctx}: length {len} exceeds the {MAX_CHUNK_LEN}-byte maximum")));
+    }
+    let len = len as usize;
+    if left < len + CHUNK_OVERHEAD {
+        return Err(Error::truncated(format!("{ctx} (the chunk needs {} bytes, {left} remain)", len + CHUNK_OVERHEAD)));
+    }
+    let body = &data[at + 4..at + 8 + len];
+    let stored = u32::from_be_bytes(data[at + 8 + len..at + 12 + len].try_into().expect("4 bytes"));
+    // Fuzzing builds skip the CRC so that mutations reach the parsers behind it.
+    if (check_data_crc || ty != format::DATA) && crc32c(body) != stored && !cfg!(fuzzing) {
+        return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
+    }
+    if !ty.iter().all(|b| b.is_ascii_alphabetic() || *b == b' ') || !ty[0].is_ascii_alphabetic() {
+        return Err(Error::invalid(format!("{ctx}: the chunk type is not ASCII letters")));
+    }
+    *pos += len + CHUNK_OVERHEAD;
+    Ok(Chunk { ty, payload: &body[4..], offset: at as u64, ctx })
+}
+
+/// Parses the first chunk of a file, which must be HEAD.
+fn first_head(ty: [u8; 4], payload: &[u8], ctx: &str) -> Result<Head> {
+    if ty != format::HEAD {
+        return Err(Error::invalid(format!("{ctx}: the first chunk must be HEAD")));
+    }
+    Head::parse(payload).map_err(|e| in_chunk(ctx, e))
+}
+
+/// What [`probe`] reads: HEAD, and the colour COLR and HDRM give the decoded frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadInfo {
+    /// The HEAD chunk.
+    pub head: Head,
+    /// COLR (or the default: BT.709, 100 nits per unit) with HDRM merged in, as
+    /// [`Reader::color_info`] gives it.
+    pub color: ColorInfo,
+}
+
+/// Reads HEAD, COLR and HDRM of a `.hdrc` file without touching a tile: walks the chunk
+/// headers to END, checking every length and the CRC of every chunk but DATA, and the HEAD's
+/// dimensions against the limits (not the byte limit: nothing of the image's size is
+/// allocated, and nothing that grows with the number of tiles either). A file that probes
+/// can still fail [`Reader::new`] on a damaged tile or a wrong tile grid.
+pub fn probe(data: &[u8], limits: &Limits) -> Result<HeadInfo> {
+    format::check_signature(data)?;
+    let mut pos = SIGNATURE.len();
+    let mut counts = Counts::default();
+    let Chunk { ty, payload, ctx, .. } = next_chunk(data, &mut pos, &mut counts, false)?;
+    let head = first_head(ty, payload, &ctx)?;
+    let checked = limits
+        .check_dimensions(u64::from(head.width), u64::from(head.height))
+        .and_then(|()| format::check_room(&head, (data.len() - pos) as u64));
+    checked.map_err(|e| in_chunk(&ctx, e))?;
+    let (mut color, mut hdr10) = (None, None);
+    loop {
+        let Chunk { ty, payload, ctx, .. } = next_chunk(data, &mut pos, &mut counts, false)?;
+        let dup = |ctx: &str| Error::invalid(format!("{ctx}: a second chunk of this type"));
+        match ty {
+            format::HEAD => return Err(dup(&ctx)),
+            format::COLR if color.is_some() => return Err(dup(&ctx)),
+            format::COLR => color = Some(format::parse_color(payload).map_err(|e| in_chunk(&ctx, e))?),
+            format::HDRM if hdr10.is_some() => return Err(dup(&ctx)),
+            format::HDRM => hdr10 = Some(format::parse_hdr10(payload).map_err(|e| in_chunk(&ctx, e))?),
+            format::END => {
+                if pos != data.len() {
+                    return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", data.len() - pos)));
+                }
+                break;
             }
-            None => {
-                self.per_type.push((t, 1));
-                0
-            }
+            format::DATA | format::INDX | format::META => {}
+            t if t[0].is_ascii_lowercase() => {}
+            _ => return Err(Error::unsupported(format!("{ctx}: unknown critical chunk type"))),
         }
     }
+    let color: ColorInfo = color.unwrap_or_default();
+    Ok(HeadInfo { head, color: ColorInfo { hdr10, ..color } })
 }
 
 impl<'a> Reader<'a> {
@@ -90,43 +183,9 @@ impl<'a> Reader<'a> {
         let mut index: Option<(u64, Vec<IndexEntry>)> = None;
         let mut end_index_offset: Option<u64> = None;
         loop {
-            let left = data.len() - pos;
-            if left < 8 {
-                return Err(Error::truncated(format!(
-                    "the chunk header at offset {pos} (the file ends before the END chunk)"
-                )));
-            }
-            let len = u32::from_be_bytes([data[pos], data[pos + 1], data[pos + 2], data[pos + 3]]);
-            let ty = [data[pos + 4], data[pos + 5], data[pos + 6], data[pos + 7]];
-            let ctx = format!("{} chunk #{} at offset {pos}", type_name(ty), counts.next(ty));
-            if len > MAX_CHUNK_LEN {
-                return Err(Error::invalid(format!("{ctx}: length {len} exceeds the {MAX_CHUNK_LEN}-byte maximum")));
-            }
-            let len = len as usize;
-            if left < len + CHUNK_OVERHEAD {
-                return Err(Error::truncated(format!(
-                    "{ctx} (the chunk needs {} bytes, {left} remain)",
-                    len + CHUNK_OVERHEAD
-                )));
-            }
-            let body = &data[pos + 4..pos + 8 + len];
-            let stored = u32::from_be_bytes(data[pos + 8 + len..pos + 12 + len].try_into().expect("4 bytes"));
-            // Fuzzing builds skip the CRC so that mutations reach the parsers behind it.
-            if crc32c(body) != stored && !cfg!(fuzzing) {
-                return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
-            }
-            if !ty.iter().all(|b| b.is_ascii_alphabetic() || *b == b' ') || !ty[0].is_ascii_alphabetic() {
-                return Err(Error::invalid(format!("{ctx}: the chunk type is not ASCII letters")));
-            }
-            let payload = &body[4..];
-            let chunk_offset = pos as u64;
-            pos += len + CHUNK_OVERHEAD;
-
+            let Chunk { ty, payload, offset: chunk_offset, ctx } = next_chunk(data, &mut pos, &mut counts, true)?;
             let Some(h) = head else {
-                if ty != format::HEAD {
-                    return Err(Error::invalid(format!("{ctx}: the first chunk must be HEAD")));
-                }
-                let h = Head::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
+                let h = first_head(ty, payload, &ctx)?;
                 // The whole image must fit the limits before anything of its size is allocated.
                 format::check_head(&h, limits, (data.len() - pos) as u64).map_err(|e| in_chunk(&ctx, e))?;
                 head = Some(h);

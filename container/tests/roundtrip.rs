@@ -306,3 +306,61 @@ fn the_largest_declared_sizes_fail_cleanly_even_without_limits() {
     payload.push(4);
     assert!(matches!(RawF32Codec.decode(&payload, &Limits::none()), Err(Error::Truncated { .. })));
 }
+
+#[test]
+fn probe_reads_head_colr_and_hdrm_only() {
+    // COLR and HDRM after the tiles, which the format allows: the probe walks every chunk header.
+    let head = Head::new(*b"RF32", 70, 33, Channels::Rgba).with_tiles(32, 32).with_frames(2);
+    let mut w = Writer::new(Vec::new(), &head).unwrap();
+    for f in 0..2 {
+        for t in head.frame_tiles(f) {
+            let tile = pattern(t.width, t.height, Channels::Rgba, f);
+            w.write_data(&t, &RawF32Codec.encode(&tile, &EncodeSettings::default()).unwrap()).unwrap();
+        }
+    }
+    let color = rich_color();
+    w.write_color(&color).unwrap();
+    w.write_hdr10(color.hdr10.as_ref().unwrap()).unwrap();
+    let file = w.finish().unwrap();
+    let info = hdrcodec_container::probe(&file, &Limits::default()).unwrap();
+    assert_eq!(info.head, head);
+    assert_eq!(info.color, color);
+    assert_eq!(info.color, Reader::new(&file, &Limits::default()).unwrap().color_info());
+    let codec = HdrcCodec::default();
+    let i = codec.probe(&file, &Limits::default()).unwrap();
+    assert_eq!((i.width, i.height, i.channels, i.frames), (70, 33, Channels::Rgba, 2));
+    assert_eq!(i.format, "raw-f32 payload, 6 tiles of 32x32");
+    // Nothing of the image's size is needed.
+    let tiny = Limits::default().with_max_alloc_bytes(1 << 10);
+    assert!(Reader::new(&file, &tiny).is_err());
+    assert!(hdrcodec_container::probe(&file, &tiny).is_ok());
+    // A truncated file always lacks its END chunk: an error, never a panic.
+    for n in 0..file.len() {
+        assert!(hdrcodec_container::probe(&file[..n], &Limits::default()).is_err(), "{n}");
+    }
+    // A damaged tile is not the probe's business; a damaged COLR is.
+    let mut bad_tile = file.clone();
+    bad_tile[8 + 12 + 26 + 40] ^= 1;
+    assert!(Reader::new(&bad_tile, &Limits::default()).is_err());
+    assert_eq!(hdrcodec_container::probe(&bad_tile, &Limits::default()).unwrap().head, head);
+    let colr = file.windows(4).position(|w| w == b"COLR").unwrap();
+    let mut bad_colr = file.clone();
+    bad_colr[colr + 5] ^= 1;
+    let e = hdrcodec_container::probe(&bad_colr, &Limits::default()).unwrap_err().to_string();
+    assert!(e.contains("COLR chunk #0") && e.contains("CRC mismatch"), "{e}");
+    // An unknown payload codec fails as decoding does.
+    let e = HdrcCodec::default().probe(&with_codec(with_private(b'z'), *b"QQQQ"), &Limits::default());
+    assert!(matches!(e, Err(Error::Unsupported { .. })), "{e:?}");
+    // The raw payloads' own probe: their 13-byte header.
+    let tile = RawF16Codec.encode(&pattern(5, 3, Channels::Rgb, 1), &EncodeSettings::default()).unwrap();
+    let i = RawF16Codec.probe(&tile, &Limits::default()).unwrap();
+    assert_eq!((i.width, i.height, i.channels, i.format.as_str()), (5, 3, Channels::Rgb, "raw binary16 little-endian"));
+    assert!(RawF16Codec.probe(&tile[..tile.len() - 1], &Limits::default()).is_err());
+}
+
+/// The same file with another payload codec id in HEAD (its CRC fixed).
+fn with_codec(mut file: Vec<u8>, id: [u8; 4]) -> Vec<u8> {
+    file[8 + 8 + 2..8 + 8 + 6].copy_from_slice(&id);
+    fix_crc(&mut file, 8);
+    file
+}
