@@ -153,12 +153,15 @@ fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
     (min, max, mean, nonfinite)
 }
 
-/// `hdrcodec info`.
+/// `hdrcodec info`: the header facts (size, channels, colour, stored format, frames) from the
+/// codec's header probe; the luminance statistics and metadata from a full decode.
 pub fn info(file: &Path, json: bool) -> Result<()> {
     let reg = hdrcodec::registry();
     let data = hdrcodec::read_file(file)?;
-    let (codec, image) = reg.decode(file, &data, &Limits::default())?;
-    let c = &image.color;
+    let codec = reg.for_input(file, &data)?;
+    let header = codec.probe(&data, &Limits::default())?;
+    let image = codec.decode(&data, &Limits::default())?;
+    let c = &header.color;
     let ch = c.primaries.chromaticities();
     // A file without primaries (PFM, DDS): luminance needs some, BT.709 is assumed and said.
     let assumed = (!c.primaries.is_specified()).then(|| c.primaries.or_bt709());
@@ -182,10 +185,12 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             "file": file.display().to_string(),
             "codec": codec.name(),
             "file_size": data.len(),
-            "width": image.width(),
-            "height": image.height(),
-            "channels": image.channels().count(),
-            "layout": format!("{:?}", image.channels()).to_uppercase(),
+            "format": header.format,
+            "frames": header.frames,
+            "width": header.width,
+            "height": header.height,
+            "channels": header.channels.count(),
+            "layout": format!("{:?}", header.channels).to_uppercase(),
             "primaries": c.primaries.name(),
             "chromaticities": assumed.is_none().then(|| json!({"red": ch.red, "green": ch.green, "blue": ch.blue, "white": ch.white})),
             // The primaries the luminance figures took for a file that records none.
@@ -200,8 +205,12 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         }));
     }
     println!("file:          {} ({} bytes, {})", file.display(), data.len(), codec.name());
-    println!("dimensions:    {} x {}", image.width(), image.height());
-    println!("channels:      {} ({:?})", image.channels().count(), image.channels());
+    println!("format:        {}", header.format);
+    if header.frames != 1 {
+        println!("frames:        {}", header.frames);
+    }
+    println!("dimensions:    {} x {}", header.width, header.height);
+    println!("channels:      {} ({:?})", header.channels.count(), header.channels);
     match assumed {
         None => println!(
             "primaries:     {} (R {:?} G {:?} B {:?} W {:?})",

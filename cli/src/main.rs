@@ -26,7 +26,8 @@ enum Command {
     /// converts explicitly. Notes (colour, values clipped to the format's range) are printed
     /// as `hdrcodec: note: ...` lines on stderr after the file is written.
     Convert(ConvertArgs),
-    /// Print what a file holds: size, channels, colour, HDR10 metadata, luminance range.
+    /// Print what a file holds: stored format, size, channels and colour (read from the header),
+    /// HDR10 metadata, luminance range (from the decoded pixels).
     Info {
         /// The image file.
         file: PathBuf,

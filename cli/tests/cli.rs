@@ -124,6 +124,9 @@ fn info_json_describes_the_image() {
     assert_eq!(v["channels"], 3);
     assert_eq!(v["primaries"], "BT.709");
     assert_eq!(v["codec"], "exr");
+    // The corpus is written as float ZIP (`corpus write`), which the header probe reports.
+    assert_eq!(v["format"], "float, ZIP");
+    assert_eq!(v["frames"], 1);
     assert!(v["file_size"].as_u64().unwrap() > 0);
     assert!(v["luminance_nits"]["max"].as_f64().unwrap() > 5e3, "{v}");
     let v = json(&hdrcodec(&[&"info", &corpus().join("bt2020-ramps.exr"), &"--json"]));
@@ -132,7 +135,7 @@ fn info_json_describes_the_image() {
     let v = json(&hdrcodec(&[&"info", &corpus().join("alpha.exr"), &"--json"]));
     assert_eq!(v["channels"], 4);
     let text = ok(&hdrcodec(&[&"info", &corpus().join("sun-sky.exr")]));
-    for needle in ["512 x 256", "channels:", "BT.709", "HDR10:"] {
+    for needle in ["512 x 256", "channels:", "BT.709", "HDR10:", "format:        float, ZIP"] {
         assert!(text.contains(needle), "{needle} missing from:\n{text}");
     }
 }
@@ -337,6 +340,7 @@ fn info_shows_hdr10_metadata_carried_by_the_container() {
     let max_r = img.samples().chunks(3).map(|p| p[0].max(p[1]).max(p[2])).fold(0.0f32, f32::max);
     let measured = v["max_cll_measured_nits"].as_f64().unwrap();
     assert!((measured - f64::from(max_r) * 100.0).abs() < 1e-6 * measured, "{measured}");
+    assert_eq!(v["format"], "raw-f32 payload, untiled", "{v}");
     let text = ok(&hdrcodec(&[&"info", &file]));
     assert!(text.contains("MaxCLL 987 MaxFALL 123"), "{text}");
     assert!(text.contains("mastering display"), "{text}");
