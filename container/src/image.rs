@@ -3,7 +3,7 @@
 
 use crate::format::{DataHeader, Head, SIGNATURE};
 use crate::raw::{RawF16Codec, RawF32Codec};
-use crate::reader::{in_chunk, HeadInfo, Reader};
+use crate::reader::{in_chunk, DataRef, HeadInfo, Reader};
 use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
 use hdrcodec_core::{
@@ -13,7 +13,7 @@ use hdrcodec_core::{
 use std::sync::Arc;
 
 /// The pixels of `image` inside the tile `t`, as an image of their own (same colour, no metadata).
-fn crop(image: &HdrImage, t: &DataHeader) -> Result<HdrImage> {
+pub(crate) fn crop(image: &HdrImage, t: &DataHeader) -> Result<HdrImage> {
     let c = image.channels().count();
     let mut samples = Vec::with_capacity(t.width as usize * t.height as usize * c);
     for y in t.y..t.y + t.height {
@@ -167,13 +167,9 @@ fn encode_frames_reporting(
     }
     let tiles: Vec<(usize, DataHeader)> =
         frames.iter().enumerate().flat_map(|(i, _)| head.frame_tiles(i as u32).map(move |t| (i, t))).collect();
-    let signalling = payload_codec.color_signalling();
     let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = settings.pool.map(tiles.len(), |k| {
         let (i, t) = &tiles[k];
-        let tile = for_payload(crop(&frames[*i], t)?, signalling);
-        let mut out = Vec::new();
-        let report = payload_codec.encode_to(&tile, settings, &mut out)?;
-        Ok((out, report.notes))
+        encode_tile(&frames[*i], t, payload_codec, settings)
     });
     let mut w = Writer::new(Vec::new(), &head)?;
     w.write_color(&first.color)?;
@@ -202,6 +198,20 @@ fn encode_frames_reporting(
         notes.push(format!("{} more notes of the {} payload on other tiles", more.len(), payload_codec.name()));
     }
     Ok((w.finish()?, notes))
+}
+
+/// Encodes the tile `t` of `frame` with the payload codec, in colour the payload can record
+/// ([`for_payload`]); returns the payload and what the codec reported.
+pub(crate) fn encode_tile(
+    frame: &HdrImage,
+    t: &DataHeader,
+    payload_codec: &dyn ImageCodec,
+    settings: &EncodeSettings,
+) -> Result<(Vec<u8>, Vec<String>)> {
+    let tile = for_payload(crop(frame, t)?, payload_codec.color_signalling());
+    let mut out = Vec::new();
+    let report = payload_codec.encode_to(&tile, settings, &mut out)?;
+    Ok((out, report.notes))
 }
 
 /// Decodes a `.hdrc` file of one frame (use [`decode_frames`] for more). `resolve` gives the
@@ -251,44 +261,59 @@ fn decode_reader<'c>(
     let limits = &options.limits;
     limits.check_alloc(frame_bytes.saturating_mul(u64::from(h.frames)), "the decoded frames")?;
     let color = r.color_info();
-    let records_scale = codec.records_nits_per_unit();
-    let c = h.channels.count();
     let mut out = Vec::with_capacity(h.frames as usize);
     for f in 0..h.frames {
-        let refs: Vec<_> = r.frame_tiles(f).collect();
-        let tiles: Vec<Result<HdrImage>> = options.pool.map(refs.len(), |k| {
-            let d = &refs[k];
-            let t = d.header;
-            // A clone shares the caller's allocation budget; the tile's own size bounds it.
-            let mut tile_options = options.clone();
-            tile_options.limits.max_width = t.width;
-            tile_options.limits.max_height = t.height;
-            tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
-            let ctx = format!(
-                "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
-                d.offset, t.width, t.height, t.x, t.y
-            );
-            let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
-            if (img.width(), img.height()) != (t.width, t.height) {
-                return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
-            }
-            Ok(to_header_colour(img.with_channels(h.channels), &color, records_scale))
-        });
-        let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
-        // Allocated only once every tile has decoded to its rectangle.
-        let mut frame = HdrImage::zeroed(h.width, h.height, h.channels);
-        for (d, tile) in refs.iter().zip(tiles) {
-            let t = d.header;
-            for row in 0..t.height {
-                let dst = &mut frame.row_mut(t.y + row)[t.x as usize * c..(t.x + t.width) as usize * c];
-                dst.copy_from_slice(tile.row(row));
-            }
-        }
-        frame.color = color.clone();
-        frame.metadata = r.metadata().to_vec();
-        out.push(frame);
+        let refs: Vec<_> = r.frame_tiles(f).copied().collect();
+        out.push(decode_frame(&h, f, &refs, codec, options, &color, r.metadata())?);
     }
     Ok(out)
+}
+
+/// Decodes frame `f` from its tiles (in grid order), the tiles in parallel on `options.pool`;
+/// each must decode to exactly its rectangle, and is brought into the header's colour `color`
+/// ([`to_header_colour`]). The frame gets `color` and `metadata`.
+pub(crate) fn decode_frame(
+    h: &Head,
+    f: u32,
+    refs: &[DataRef<'_>],
+    codec: &dyn ImageCodec,
+    options: &DecodeOptions,
+    color: &ColorInfo,
+    metadata: &[(String, String)],
+) -> Result<HdrImage> {
+    let records_scale = codec.records_nits_per_unit();
+    let c = h.channels.count();
+    let tiles: Vec<Result<HdrImage>> = options.pool.map(refs.len(), |k| {
+        let d = &refs[k];
+        let t = d.header;
+        // A clone shares the caller's allocation budget; the tile's own size bounds it.
+        let mut tile_options = options.clone();
+        tile_options.limits.max_width = t.width;
+        tile_options.limits.max_height = t.height;
+        tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
+        let ctx = format!(
+            "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
+            d.offset, t.width, t.height, t.x, t.y
+        );
+        let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
+        if (img.width(), img.height()) != (t.width, t.height) {
+            return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
+        }
+        Ok(to_header_colour(img.with_channels(h.channels), color, records_scale))
+    });
+    let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
+    // Allocated only once every tile has decoded to its rectangle.
+    let mut frame = HdrImage::zeroed(h.width, h.height, h.channels);
+    for (d, tile) in refs.iter().zip(tiles) {
+        let t = d.header;
+        for row in 0..t.height {
+            let dst = &mut frame.row_mut(t.y + row)[t.x as usize * c..(t.x + t.width) as usize * c];
+            dst.copy_from_slice(tile.row(row));
+        }
+    }
+    frame.color = color.clone();
+    frame.metadata = metadata.to_vec();
+    Ok(frame)
 }
 
 /// The `.hdrc` container as an [`ImageCodec`] (name `hdrc`, id `HDRC`, extension `hdrc`).
@@ -377,6 +402,31 @@ impl ImageCodec for HdrcCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
+        let p = self.payload_settings(settings)?;
+        let (codec, inner, tile) = (p.codec, p.settings, p.tile);
+        let (bytes, notes) = encode_frames_reporting(std::slice::from_ref(image), codec.as_ref(), &inner, tile)?;
+        out.write_all(&bytes)?;
+        let mut report = hdrcodec_core::EncodeReport::new();
+        for n in notes {
+            report.note(format!("{} payload: {n}", codec.name()));
+        }
+        Ok(report)
+    }
+}
+
+/// What the container's encode options choose: the payload codec, its settings, the tiles.
+pub(crate) struct PayloadSettings {
+    pub(crate) codec: Arc<dyn ImageCodec>,
+    /// The settings with the `payload.<key>` options as the payload codec's `<key>`.
+    pub(crate) settings: EncodeSettings,
+    /// Square tile size; `None`: one tile per frame.
+    pub(crate) tile: Option<u32>,
+}
+
+impl HdrcCodec {
+    /// Parses the container's options (`payload`, `tile`, `payload.<key>`); any other key is
+    /// an error.
+    pub(crate) fn payload_settings(&self, settings: &EncodeSettings) -> Result<PayloadSettings> {
         let (inner, own): (Vec<_>, Vec<_>) =
             settings.options.iter().cloned().partition(|(k, _)| k.starts_with("payload."));
         let mut own_settings = settings.clone();
@@ -391,14 +441,12 @@ impl ImageCodec for HdrcCodec {
         let tile = own.parse_option::<u32>("tile")?.filter(|&t| t > 0);
         let mut inner_settings = settings.clone();
         inner_settings.options = inner.into_iter().map(|(k, v)| (k["payload.".len()..].to_string(), v)).collect();
-        let inner = inner_settings;
-        let (bytes, notes) = encode_frames_reporting(std::slice::from_ref(image), codec.as_ref(), &inner, tile)?;
-        out.write_all(&bytes)?;
-        let mut report = hdrcodec_core::EncodeReport::new();
-        for n in notes {
-            report.note(format!("{} payload: {n}", codec.name()));
-        }
-        Ok(report)
+        Ok(PayloadSettings { codec: codec.clone(), settings: inner_settings, tile })
+    }
+
+    /// The payload codec with this id, shared.
+    pub(crate) fn payload_codec(&self, id: [u8; 4]) -> Result<Arc<dyn ImageCodec>> {
+        self.codecs.iter().find(|c| c.id() == id).cloned().ok_or_else(|| unknown_payload(id))
     }
 }
 

@@ -9,7 +9,9 @@
 //! - [`encode_image`] / [`decode_image`] and [`encode_frames`] / [`decode_frames`] code whole
 //!   images, each tile a stand-alone encoding by another codec, in parallel.
 //! - [`RawF32Codec`] and [`RawF16Codec`]: built-in payload codecs; [`HdrcCodec`]: the
-//!   container as an [`ImageCodec`](hdrcodec_core::ImageCodec).
+//!   container as an [`ImageCodec`](hdrcodec_core::ImageCodec); [`HdrcVideoCodec`]: the
+//!   container as a [`VideoCodec`](hdrcodec_core::VideoCodec) of frame streams, written frame
+//!   by frame and read one frame at a time.
 //!
 //! ```
 //! use hdrcodec_container::{decode_image, encode_image, RawF32Codec};
@@ -33,6 +35,7 @@ mod image;
 mod raw;
 mod reader;
 mod seek;
+mod video;
 mod writer;
 
 pub use crc::{crc32c, Crc32c};
@@ -41,4 +44,5 @@ pub use image::{decode_frames, decode_image, encode_frames, encode_image, HdrcCo
 pub use raw::{RawF16Codec, RawF32Codec};
 pub use reader::{probe, DataRef, HeadInfo, Reader};
 pub use seek::SeekReader;
+pub use video::HdrcVideoCodec;
 pub use writer::Writer;
