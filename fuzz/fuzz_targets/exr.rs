@@ -1,6 +1,5 @@
 //! OpenEXR decoder on arbitrary bytes: must return `Ok` or `Err`, never panic, and never
-//! allocate past `Limits::fuzzing()`. A successful decode is re-encoded with a compression
-//! picked by the last input byte and decoded again.
+//! allocate past `Limits::fuzzing()` (see `entry_points::exr`).
 //!
 //! A panic inside the `exr` crate is caught by the codec and returned as `Error::Invalid`
 //! ("... panicked ..."); libfuzzer-sys's panic hook would abort on it all the same. So the
@@ -11,14 +10,17 @@
 //! src/compression/b44/mod.rs:186-204, with overflow checks on as in fuzz and test builds).
 #![no_main]
 
-use hdrcodec_core::{EncodeSettings, ImageCodec, Limits};
-use hdrcodec_exr::{ExrCodec, ExrCompression};
-use libfuzzer_sys::fuzz_target;
+// The body is shared with the regression test `tests/fuzz_regressions.rs`, which replays the
+// inputs of `fuzz/regressions/exr/` through the same function.
+#[path = "../entry_points.rs"]
+#[allow(dead_code)]
+mod entry_points;
+
 use std::sync::Once;
 
 static HOOK: Once = Once::new();
 
-fuzz_target!(|data: &[u8]| {
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     HOOK.call_once(|| {
         if std::env::var_os("HDRCODEC_FUZZ_STRICT").is_none() {
             let abort = std::panic::take_hook();
@@ -30,18 +32,5 @@ fuzz_target!(|data: &[u8]| {
             }));
         }
     });
-    let limits = Limits::fuzzing();
-    if let Ok(img) = ExrCodec.decode(data, &limits) {
-        if img.pixel_count() <= 1 << 14 {
-            let flags = data.last().copied().unwrap_or(0) as usize;
-            let c = ExrCompression::ALL[flags % ExrCompression::ALL.len()];
-            let pixel = if flags & 0x80 == 0 { "half" } else { "float" };
-            let settings = EncodeSettings::default()
-                .with_option("compression", c.name())
-                .with_option("pixel", pixel);
-            let bytes = ExrCodec.encode(&img, &settings).expect("a decoded image always encodes");
-            let back = ExrCodec.decode(&bytes, &limits).expect("our own output always decodes");
-            assert_eq!((back.width(), back.height(), back.channels()), (img.width(), img.height(), img.channels()));
-        }
-    }
+    entry_points::exr(data);
 });

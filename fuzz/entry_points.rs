@@ -1,0 +1,215 @@
+//! What each fuzz target does with its input, one function per target, shared by the targets
+//! (`fuzz_targets/<target>.rs`, which include this file) and by the workspace test
+//! `tests/fuzz_regressions.rs`, which replays every input under `fuzz/regressions/<target>/`
+//! through the same function. Each function returns normally or panics (an assertion on the
+//! decoders' contract); results of the decoders themselves may be `Ok` or `Err`.
+//!
+//! Beyond "no panic, no allocation past `Limits::fuzzing()`", every target checks that the
+//! codec's header-only `probe` agrees with its decoder: where decoding succeeds, probing must
+//! succeed too and give the same size, channels and colour.
+
+use hdrcodec_bc6h::ktx2::read_ktx2_primaries;
+use hdrcodec_bc6h::modes::{pack_block, unpack_block};
+use hdrcodec_bc6h::{decode_block, decode_surface, read_dds, read_ktx2, write_dds, write_ktx2};
+use hdrcodec_bc6h::{Bc6hDdsCodec, Bc6hKtx2Codec};
+use hdrcodec_container::{decode_frames, HdrcCodec, RawF16Codec, RawF32Codec, Reader, SeekReader};
+use hdrcodec_core::{EncodeSettings, HdrImage, ImageCodec, ImageInfo, Limits, Result};
+use hdrcodec_exr::{ExrCodec, ExrCompression};
+use hdrcodec_logluv::{raster_to_image, read_tiff, DecodeOptions, Encoding, LogLuvTiffCodec};
+use hdrcodec_pfm::PfmCodec;
+use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncodeOptions, Rounding};
+
+/// What a target does with one input.
+pub type Target = fn(&[u8]);
+
+/// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
+pub const TARGETS: [(&str, Target); 7] = [
+    ("bc6h_block", bc6h_block),
+    ("bc6h_files", bc6h_files),
+    ("container", container),
+    ("exr", exr),
+    ("logluv", logluv),
+    ("pfm", pfm),
+    ("rgbe", rgbe),
+];
+
+/// Where `decoded` succeeded, `probed` must have too, with the same header facts.
+fn probe_agrees(codec: &str, probed: Result<ImageInfo>, decoded: &Result<HdrImage>) {
+    if let Ok(img) = decoded {
+        let info = probed.unwrap_or_else(|e| panic!("{codec}: decode succeeds but probe fails: {e}"));
+        assert_eq!(
+            (info.width, info.height, info.channels, &info.color),
+            (img.width(), img.height(), img.channels(), &img.color),
+            "{codec}: probe and decode disagree"
+        );
+    }
+}
+
+/// Runs `codec`'s probe and decode on `data`; checks that they agree; returns the decode.
+fn probe_and_decode(codec: &dyn ImageCodec, data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    let probed = codec.probe(data, limits);
+    let decoded = codec.decode(data, limits);
+    probe_agrees(codec.name(), probed, &decoded);
+    decoded
+}
+
+/// The `.hdrc` container: the validating `Reader` and the whole decode path (`decode_frames`
+/// with the raw payload codecs, `HdrcCodec::decode` and `probe`) and the index-driven
+/// `SeekReader`. Fuzzing builds (`--cfg fuzzing`) skip the CRC check so that mutations reach
+/// the chunk parsers behind it.
+pub fn container(data: &[u8]) {
+    fn raw(id: [u8; 4]) -> Option<&'static dyn ImageCodec> {
+        match &id {
+            b"RF32" => Some(&RawF32Codec),
+            b"RF16" => Some(&RawF16Codec),
+            _ => None,
+        }
+    }
+    let limits = Limits::fuzzing();
+    if let Ok(r) = Reader::new(data, &limits) {
+        let h = *r.head();
+        let _ = (r.color(), r.hdr10(), r.metadata(), r.color_info());
+        // Every tile the grid promises is there, and random access finds exactly it.
+        for d in r.data_chunks() {
+            let (c, row) = (d.header.x / h.tile_width, d.header.y / h.tile_height);
+            assert_eq!(r.tile(d.header.frame, c, row).map(|t| t.offset), Some(d.offset));
+        }
+        assert_eq!(r.data_chunks().len() as u64, u64::from(h.frames) * h.tiles_per_frame());
+        // The probe reads the same HEAD and colour from a file the reader accepts.
+        let p = hdrcodec_container::probe(data, &limits).expect("a file the reader accepts probes");
+        assert_eq!((p.head, &p.color), (h, &r.color_info()));
+        if let Ok(frames) = decode_frames(data, &limits.clone().into(), &raw) {
+            assert_eq!(frames.len() as u64, u64::from(h.frames));
+            for f in &frames {
+                assert_eq!((f.width(), f.height(), f.channels()), (h.width, h.height, h.channels));
+            }
+        }
+    }
+    let _ = probe_and_decode(&HdrcCodec::default(), data, &limits);
+    if let Ok(mut s) = SeekReader::new(std::io::Cursor::new(data), &limits) {
+        let h = *s.head();
+        // Bounded: `new` checked that the file can hold a DATA chunk per tile.
+        for f in 0..h.frames {
+            for row in 0..h.tile_rows() {
+                for c in 0..h.tile_columns() {
+                    if let Ok((t, _)) = s.read_tile(f, c, row) {
+                        assert_eq!(t, h.tile(f, c, row));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// OpenEXR: `Ok` or `Err`, never a panic (a panic inside the `exr` crate is caught by the codec
+/// and returned as `Error::Invalid`), never an allocation past the limits. A successful decode
+/// is re-encoded with a compression picked by the last input byte and decoded again.
+pub fn exr(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    if let Ok(img) = probe_and_decode(&ExrCodec, data, &limits) {
+        if img.pixel_count() <= 1 << 14 {
+            let flags = data.last().copied().unwrap_or(0) as usize;
+            let c = ExrCompression::ALL[flags % ExrCompression::ALL.len()];
+            let pixel = if flags & 0x80 == 0 { "half" } else { "float" };
+            let settings = EncodeSettings::default().with_option("compression", c.name()).with_option("pixel", pixel);
+            let bytes = ExrCodec.encode(&img, &settings).expect("a decoded image always encodes");
+            let back = ExrCodec.decode(&bytes, &limits).expect("our own output always decodes");
+            assert_eq!((back.width(), back.height(), back.channels()), (img.width(), img.height(), img.channels()));
+        }
+    }
+}
+
+/// PFM: a successful decode is re-encoded and must decode to the same samples (bitwise: PFM
+/// stores `f32` exactly).
+pub fn pfm(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    if let Ok(img) = probe_and_decode(&PfmCodec, data, &limits) {
+        let bytes = PfmCodec.encode(&img, &EncodeSettings::default()).expect("a decoded image always encodes");
+        let back = PfmCodec.decode(&bytes, &limits).expect("our own output always decodes");
+        let same = img.samples().iter().zip(back.samples()).all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same && img.samples().len() == back.samples().len(), "PFM round trip changed samples");
+    }
+}
+
+/// Radiance RGBE: both mantissa modes and the raw/exposure paths (picked by the first byte);
+/// a successful decode is re-encoded (both roundings, flat or RLE) and decoded again.
+pub fn rgbe(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    let flags = data.first().copied().unwrap_or(0);
+    let opts = RgbeDecodeOptions {
+        apply_exposure: flags & 1 == 1,
+        mantissa: if flags & 2 == 2 { MantissaDecode::Centred } else { MantissaDecode::Truncated },
+    };
+    let _ = hdrcodec_rgbe::read_header(data);
+    let decoded = decode(data, &limits, &opts);
+    probe_agrees("rgbe", hdrcodec_rgbe::probe(data, &limits), &decoded);
+    if let Ok(img) = decoded {
+        if img.pixel_count() <= 1 << 16 {
+            let rounding = if flags & 4 == 4 { Rounding::Nearest } else { Rounding::Truncate };
+            let bytes = encode(&img, &RgbeEncodeOptions { rounding, rle: flags & 8 == 0, ..Default::default() })
+                .expect("a decoded image always encodes");
+            let back = decode(&bytes, &limits, &opts).expect("our own output always decodes");
+            assert_eq!((back.width(), back.height()), (img.width(), img.height()));
+        }
+    }
+}
+
+/// LogLuv TIFF: the bounded TIFF/IFD reader, the SGILOG run-length decoder and the conversion
+/// to an image. Whatever decodes must re-encode and read back to the same words.
+pub fn logluv(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    let _ = probe_and_decode(&LogLuvTiffCodec::new(Encoding::LogLuv32), data, &limits);
+    if let Ok(raster) = read_tiff(data, &limits) {
+        let img = raster_to_image(&raster, &DecodeOptions::default()).expect("a raster always converts");
+        assert_eq!(img.pixel_count(), raster.words.len());
+        let again = read_tiff(&raster.to_tiff().expect("a raster always writes"), &limits).expect("our file reads");
+        assert_eq!(again.words, raster.words);
+    }
+}
+
+/// BC6H blocks: every 16-byte block (UF16 and SF16) decodes without panicking, never to NaN,
+/// to +Inf never and to -Inf only in SF16 (a mode-14 endpoint of -32768 finishes to 0xFC00, as
+/// the spec's arithmetic gives), and its fields survive unpack -> pack unchanged.
+pub fn bc6h_block(data: &[u8]) {
+    for chunk in data.chunks_exact(16) {
+        let block: &[u8; 16] = chunk.try_into().expect("16 bytes");
+        for signed in [false, true] {
+            for texel in decode_block(block, signed) {
+                for h in texel {
+                    let finite = h & 0x7C00 != 0x7C00;
+                    assert!(finite || (signed && h == 0xFC00), "half {h:#06x} from {block:02x?}");
+                }
+            }
+        }
+        if let Some(fields) = unpack_block(block) {
+            assert_eq!(&pack_block(&fields), block);
+        }
+    }
+    // The surface decoder with a width derived from the data: sizes that disagree are errors.
+    if let Some(&w) = data.first() {
+        let w = u32::from(w % 16) + 1;
+        let blocks = data.len() / 16;
+        let bx = w.div_ceil(4) as usize;
+        let h = (blocks / bx.max(1)) as u32 * 4;
+        let _ = decode_surface(w, h, &data[..data.len() - data.len() % 16], data.len() % 2 == 1);
+    }
+}
+
+/// BC6H DDS and KTX2 files: a file that parses is written back (KTX2 with the primaries it
+/// read) and must read back identically.
+pub fn bc6h_files(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    let _ = probe_and_decode(&Bc6hDdsCodec, data, &limits);
+    let _ = probe_and_decode(&Bc6hKtx2Codec, data, &limits);
+    if let Ok(tex) = read_dds(data, &limits) {
+        let again = read_dds(&write_dds(&tex).expect("a parsed texture writes"), &limits).expect("reads back");
+        assert_eq!(again, tex);
+    }
+    if let Ok(tex) = read_ktx2(data, &limits) {
+        let primaries = read_ktx2_primaries(data);
+        let written = write_ktx2(&tex, primaries).expect("a parsed texture writes, with the primaries it read");
+        let again = read_ktx2(&written, &limits).expect("reads back");
+        assert_eq!(again, tex);
+        assert_eq!(read_ktx2_primaries(&written), primaries);
+    }
+}
