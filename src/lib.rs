@@ -26,7 +26,8 @@ pub use hdrcodec_pfm as pfm;
 pub use hdrcodec_rgbe as rgbe;
 
 use crate::core::{
-    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result,
+    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
+    Result,
 };
 use std::borrow::Cow;
 use std::io::Write;
@@ -160,6 +161,15 @@ impl Registry {
             return Ok(c);
         }
         by_ext.into_iter().next().ok_or_else(|| self.unknown_extension(path))
+    }
+
+    /// Size, channels, colour and stored format of `data` (the contents of `path`) from its
+    /// header, by the codec [`Registry::for_input`] picks ([`ImageCodec::probe`]): no pixel is
+    /// decoded and nothing of the image's size is allocated (for `info` and batch planning).
+    pub fn probe(&self, path: &Path, data: &[u8], limits: &Limits) -> Result<(Arc<dyn ImageCodec>, ImageInfo)> {
+        let codec = self.for_input(path, data)?;
+        let info = codec.probe(data, limits)?;
+        Ok((codec, info))
     }
 
     /// Decodes `data` (the contents of `path`) with the codec [`Registry::for_input`] picks.

@@ -117,3 +117,33 @@ fn probe_equals_decode_on_the_shared_corpus() {
     }
     assert!(checked >= 10, "only {checked} corpus files were compared");
 }
+
+#[test]
+fn probe_never_panics_on_damaged_files_and_agrees_with_decode_where_both_succeed() {
+    let registry = hdrcodec::registry();
+    let scene = hdrcodec_cli::corpus::scene("odd-3x5").expect("the odd-3x5 scene");
+    let limits = Limits::default();
+    for codec in registry.codecs() {
+        let (file, _) = hdrcodec::encode_for(codec.as_ref(), &scene.image, &fast()).unwrap();
+        let mut damaged: Vec<Vec<u8>> = (0..file.len()).map(|n| file[..n].to_vec()).collect();
+        for at in 0..file.len() {
+            for x in [0x01, 0x80, 0xFF] {
+                let mut d = file.clone();
+                d[at] ^= x;
+                damaged.push(d);
+            }
+        }
+        for d in &damaged {
+            let probed = codec.probe(d, &limits);
+            if let Ok(img) = codec.decode(d, &limits) {
+                let info = probed.unwrap_or_else(|e| panic!("{}: decode succeeds, probe fails: {e}", codec.name()));
+                assert_eq!(
+                    (info.width, info.height, info.channels, &info.color),
+                    (img.width(), img.height(), img.channels(), &img.color),
+                    "{}",
+                    codec.name()
+                );
+            }
+        }
+    }
+}

@@ -158,8 +158,7 @@ fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
 pub fn info(file: &Path, json: bool) -> Result<()> {
     let reg = hdrcodec::registry();
     let data = hdrcodec::read_file(file)?;
-    let codec = reg.for_input(file, &data)?;
-    let header = codec.probe(&data, &Limits::default())?;
+    let (codec, header) = reg.probe(file, &data, &Limits::default())?;
     let image = codec.decode(&data, &Limits::default())?;
     let c = &header.color;
     let ch = c.primaries.chromaticities();
