@@ -1,7 +1,7 @@
 //! The commands of the `hdrcodec` binary. Each returns `Err` with a one-line reason; `main`
 //! prints it as `hdrcodec: <reason>` and exits non-zero.
 
-use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, HdrImage, Limits, Result, ThreadPool};
+use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, HdrImage, Limits, Result, ThreadPool, VideoCodec};
 use hdrcodec_cli::bench;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
@@ -159,7 +159,14 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
     let reg = hdrcodec::registry();
     let data = hdrcodec::read_file(file)?;
     let (codec, header) = reg.probe(file, &data, &Limits::default())?;
-    let image = codec.decode(&data, &Limits::default())?;
+    // A sequence's statistics are its first frame's (decoded alone by the stream decoder).
+    let image = if header.frames > 1 && codec.name() == "hdrc" {
+        let video = hdrcodec::container::HdrcVideoCodec::new(reg.codecs().to_vec());
+        let mut frames = video.begin_decode(data.as_slice().into(), &DecodeOptions::new(Limits::default()))?;
+        frames.next_frame()?.ok_or_else(|| Error::invalid("the .hdrc sequence has no frame"))?
+    } else {
+        codec.decode(&data, &Limits::default())?
+    };
     let c = &header.color;
     let ch = c.primaries.chromaticities();
     // A file without primaries (PFM, DDS): luminance needs some, BT.709 is assumed and said.
@@ -222,11 +229,12 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         Some(_) => println!("primaries:     unspecified (the file records none)"),
     }
     println!("nits per unit: {}", c.nits_per_unit);
-    println!("luminance:     min {min:.4e}  max {max:.4e}  mean {mean:.4e} cd/m²");
+    let which = if header.frames > 1 { format!(", first of {} frames", header.frames) } else { String::new() };
+    println!("luminance:     min {min:.4e}  max {max:.4e}  mean {mean:.4e} cd/m²{which}");
     if let Some(p) = assumed {
         println!("               (luminance taken as {}: assumed, the file records no primaries)", p.name());
     }
-    println!("light level:   MaxCLL {measured_cll:.1}  MaxFALL {measured_fall:.1} cd/m² (measured)");
+    println!("light level:   MaxCLL {measured_cll:.1}  MaxFALL {measured_fall:.1} cd/m² (measured{which})");
     if nonfinite > 0 {
         println!("non-finite samples: {nonfinite}");
     }

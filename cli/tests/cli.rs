@@ -347,6 +347,41 @@ fn info_shows_hdr10_metadata_carried_by_the_container() {
 }
 
 #[test]
+fn info_describes_a_frame_sequence_by_its_header_and_first_frame() {
+    use hdrcodec::core::{EncodeSettings, ImageInfo, VideoCodec};
+    let dir = common::temp_dir("cli-frames");
+    let frames: Vec<_> = ["odd-257x129", "odd-257x129", "odd-257x129"]
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let mut img = hdrcodec_cli::corpus::scene(name).unwrap().image;
+            img.samples_mut().iter_mut().for_each(|v| *v *= (i + 1) as f32);
+            img
+        })
+        .collect();
+    let f = &frames[0];
+    let info = ImageInfo::new(f.width(), f.height(), f.channels(), f.color.clone()).with_frames(3);
+    let file = dir.join("seq.hdrc");
+    let out = std::fs::File::create(&file).unwrap();
+    let video = hdrcodec::container::HdrcVideoCodec::default();
+    let settings = EncodeSettings::default().with_option("tile", "100");
+    let mut enc = video.begin_encode(&info, &settings, Box::new(std::io::BufWriter::new(out))).unwrap();
+    for f in &frames {
+        enc.push_frame(f).unwrap();
+    }
+    enc.finish().unwrap();
+    let v = json(&hdrcodec(&[&"info", &file, &"--json"]));
+    assert_eq!((v["frames"].as_u64(), v["width"].as_u64()), (Some(3), Some(257)), "{v}");
+    assert_eq!(v["format"], "raw-f32 payload, 6 tiles of 100x100", "{v}");
+    // The luminance figures are the first frame's.
+    let max = hdrcodec::luminance(f).into_iter().fold(f64::MIN, f64::max);
+    let got = v["luminance_nits"]["max"].as_f64().unwrap();
+    assert!((got - max).abs() <= 1e-9 * max, "{got} vs {max}");
+    let text = ok(&hdrcodec(&[&"info", &file]));
+    assert!(text.contains("frames:        3"), "{text}");
+}
+
+#[test]
 fn no_command_is_a_one_line_usage_error() {
     let dir = common::temp_dir("cli-usage");
     must_fail(&[], &dir, "command is missing");

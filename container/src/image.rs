@@ -245,6 +245,16 @@ pub fn decode_frames<'c>(
     decode_reader(&Reader::new(data, &options.limits)?, options, resolve)
 }
 
+/// The stored format of a file in a few words: "rgbe payload, 15 tiles of 64x64" or "raw-f32
+/// payload, untiled".
+pub(crate) fn stored_format(payload: &str, h: &Head) -> String {
+    if h.tiles_per_frame() == 1 {
+        format!("{payload} payload, untiled")
+    } else {
+        format!("{payload} payload, {} tiles of {}x{}", h.tiles_per_frame(), h.tile_width, h.tile_height)
+    }
+}
+
 /// The error for a payload codec id that no codec given to the decoder has.
 fn unknown_payload(id: [u8; 4]) -> Error {
     Error::unsupported(format!("the payload codec '{}' of this .hdrc file", crate::format::type_name(id)))
@@ -385,12 +395,7 @@ impl ImageCodec for HdrcCodec {
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         let HeadInfo { head: h, color } = crate::reader::probe(data, limits)?;
         let codec = self.resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
-        let tiles = if h.tiles_per_frame() == 1 {
-            "untiled".to_string()
-        } else {
-            format!("{} tiles of {}x{}", h.tiles_per_frame(), h.tile_width, h.tile_height)
-        };
-        let format = format!("{} payload, {tiles}", codec.name());
+        let format = stored_format(codec.name(), &h);
         Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {

@@ -3,7 +3,7 @@
 //! validates the file once and hands out one frame at a time.
 
 use crate::format::{DataHeader, Head, DATA_HEADER_LEN};
-use crate::image::{decode_frame, encode_tile, HdrcCodec};
+use crate::image::{decode_frame, encode_tile, stored_format, HdrcCodec};
 use crate::reader::{DataRef, Reader};
 use crate::writer::Writer;
 use hdrcodec_core::{
@@ -119,7 +119,7 @@ impl VideoCodec for HdrcVideoCodec {
                 (d.header, d.offset, at..at + d.payload.len())
             })
             .collect();
-        let format = format!("{} payload, {} tiles per frame", codec.name(), head.tiles_per_frame());
+        let format = stored_format(codec.name(), &head);
         let info = ImageInfo::new(head.width, head.height, head.channels, r.color_info())
             .with_frames(head.frames)
             .with_format(format);

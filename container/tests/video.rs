@@ -122,6 +122,8 @@ fn streamed_frames_equal_encode_frames_and_decode_one_at_a_time() {
         let info = dec.info().clone();
         assert_eq!((info.width, info.height, info.channels, info.frames), (70, 33, ch, 5));
         assert_eq!(info.color, color);
+        let tiles = if tile.is_some() { "6 tiles of 32x32" } else { "untiled" };
+        assert_eq!(info.format, format!("{payload} payload, {tiles}"));
         let mut got = Vec::new();
         while let Some(f) = dec.next_frame().unwrap() {
             got.push(f);
