@@ -399,6 +399,8 @@ impl ImageCodec for HdrcCodec {
         Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        // The image is charged against the caller's budget for as long as the decode runs.
+        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode_image(data, options, &|id| self.resolve(id))
     }
     fn encode_to(

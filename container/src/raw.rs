@@ -152,6 +152,8 @@ macro_rules! raw_codec {
                 probe::<$t>(data, limits)
             }
             fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+                // The image is charged against the caller's budget while the decode runs.
+                let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
                 decode::<$t>(data, &options.limits)
             }
             fn encode_to(

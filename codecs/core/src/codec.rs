@@ -170,6 +170,13 @@ impl ImageInfo {
         self
     }
 
+    /// Charges the decoded frame this header describes against `limits`' budget (see
+    /// [`Limits::charge`]): what a decoder does, after probing, before it allocates the image.
+    pub fn charge(&self, limits: &Limits) -> Result<crate::Allocation> {
+        limits.check_dimensions(u64::from(self.width), u64::from(self.height))?;
+        limits.charge(self.decoded_bytes(), "the decoded image")
+    }
+
     /// Bytes of the `f32` samples of one decoded frame.
     pub fn decoded_bytes(&self) -> u64 {
         u64::from(self.width) * u64::from(self.height) * self.channels.count() as u64 * 4

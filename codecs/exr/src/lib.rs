@@ -251,6 +251,8 @@ impl ImageCodec for ExrCodec {
         probe_exr(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        // The image is charged against the caller's budget for as long as the decode runs.
+        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode_exr_with(data, options)
     }
     fn encode_to(

@@ -381,6 +381,8 @@ impl ImageCodec for LogLuvTiffCodec {
         probe(data, limits, &DecodeOptions::default())
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        // The image is charged against the caller's budget for as long as the decode runs.
+        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode(data, &options.limits, &DecodeOptions::default())
     }
     fn encode_to(

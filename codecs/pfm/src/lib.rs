@@ -223,6 +223,8 @@ impl ImageCodec for PfmCodec {
         probe_pfm(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        // The image is charged against the caller's budget for as long as the decode runs.
+        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode_pfm(data, &options.limits)
     }
     /// PFM has no options; any `key=value` is an error.

@@ -222,6 +222,8 @@ impl ImageCodec for RgbeCodec {
         decode::probe(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
+        // The image is charged against the caller's budget for as long as the decode runs.
+        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode::decode(data, &options.limits, &self.decode)
     }
     fn encode_to(
