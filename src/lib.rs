@@ -400,9 +400,42 @@ pub fn encode_file(
 
 /// The absolute luminance of every pixel of `image`, in cd/m² (alpha is ignored).
 pub fn luminance(image: &HdrImage) -> Vec<f64> {
+    luminance_iter(image).collect()
+}
+
+/// [`luminance`] one pixel at a time, without a buffer.
+pub fn luminance_iter(image: &HdrImage) -> impl Iterator<Item = f64> + '_ {
     let [wr, wg, wb] = crate::core::color::luminance_weights(&image.color.primaries);
     let k = f64::from(image.color.nits_per_unit);
-    image.rgb().map(|[r, g, b]| k * (wr * f64::from(r) + wg * f64::from(g) + wb * f64::from(b))).collect()
+    image.rgb().map(move |[r, g, b]| k * (wr * f64::from(r) + wg * f64::from(g) + wb * f64::from(b)))
+}
+
+/// Luminance statistics of an image in cd/m², computed in one pass without side buffers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LuminanceStats {
+    /// Smallest finite luminance (+∞ when there is none).
+    pub min: f64,
+    /// Largest finite luminance (−∞ when there is none).
+    pub max: f64,
+    /// Mean of the finite luminances (0 when there is none).
+    pub mean: f64,
+    /// Samples (alpha included) that are NaN or infinite.
+    pub non_finite_samples: usize,
+}
+
+impl LuminanceStats {
+    /// The statistics of `image`.
+    pub fn of(image: &HdrImage) -> Self {
+        let (mut min, mut max, mut sum, mut count) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize);
+        for y in luminance_iter(image).filter(|v| v.is_finite()) {
+            min = min.min(y);
+            max = max.max(y);
+            sum += y;
+            count += 1;
+        }
+        let non_finite_samples = image.samples().iter().filter(|v| !v.is_finite()).count();
+        LuminanceStats { min, max, mean: sum / count.max(1) as f64, non_finite_samples }
+    }
 }
 
 #[cfg(test)]

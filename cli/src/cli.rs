@@ -143,14 +143,10 @@ fn note(text: &str) {
     eprintln!("hdrcodec: note: {line}");
 }
 
+/// One pass over the image, no per-pixel side arrays (`info` holds only the decoded image).
 fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
-    let lum = hdrcodec::luminance(image);
-    let finite: Vec<f64> = lum.iter().copied().filter(|v| v.is_finite()).collect();
-    let min = finite.iter().copied().fold(f64::INFINITY, f64::min);
-    let max = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
-    let nonfinite = image.samples().iter().filter(|v| !v.is_finite()).count();
-    (min, max, mean, nonfinite)
+    let s = hdrcodec::LuminanceStats::of(image);
+    (s.min, s.max, s.mean, s.non_finite_samples)
 }
 
 /// `hdrcodec info`: the header facts (size, channels, colour, stored format, frames) from the
