@@ -279,7 +279,7 @@ fn decode_reader<'c>(
     Ok(out)
 }
 
-/// Decodes frame `f` from its tiles (in grid order), the tiles in parallel on `options.pool`;
+/// Decodes frame `f` from its tiles (in grid order), batches of tiles in parallel on `options.pool`;
 /// each must decode to exactly its rectangle, and is brought into the header's colour `color`
 /// ([`to_header_colour`]). The frame gets `color` and `metadata`.
 pub(crate) fn decode_frame(
@@ -293,34 +293,41 @@ pub(crate) fn decode_frame(
 ) -> Result<HdrImage> {
     let records_scale = codec.records_nits_per_unit();
     let c = h.channels.count();
-    let tiles: Vec<Result<HdrImage>> = options.pool.map(refs.len(), |k| {
-        let d = &refs[k];
-        let t = d.header;
-        // A clone shares the caller's allocation budget; the tile's own size bounds it.
-        let mut tile_options = options.clone();
-        tile_options.limits.max_width = t.width;
-        tile_options.limits.max_height = t.height;
-        tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
-        let ctx = format!(
-            "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
-            d.offset, t.width, t.height, t.x, t.y
-        );
-        let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
-        if (img.width(), img.height()) != (t.width, t.height) {
-            return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
-        }
-        Ok(to_header_colour(img.with_channels(h.channels), color, records_scale))
-    });
-    let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
-    // Allocated only once every tile has decoded to its rectangle.
-    let mut frame = HdrImage::zeroed(h.width, h.height, h.channels);
-    for (d, tile) in refs.iter().zip(tiles) {
-        let t = d.header;
-        for row in 0..t.height {
-            let dst = &mut frame.row_mut(t.y + row)[t.x as usize * c..(t.x + t.width) as usize * c];
-            dst.copy_from_slice(tile.row(row));
+    // The tiles a few at a time, each copied into the frame as soon as it has decoded: the peak
+    // is the frame plus one batch of tiles, not two frames. The frame is allocated once the
+    // first batch has decoded, so a file whose data cannot even deliver that costs nothing.
+    let mut frame: Option<HdrImage> = None;
+    let batch = options.pool.threads().max(1) * 2;
+    for group in refs.chunks(batch) {
+        let tiles: Vec<Result<HdrImage>> = options.pool.map(group.len(), |k| {
+            let d = &group[k];
+            let t = d.header;
+            // A clone shares the caller's allocation budget; the tile's own size bounds it.
+            let mut tile_options = options.clone();
+            tile_options.limits.max_width = t.width;
+            tile_options.limits.max_height = t.height;
+            tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
+            let ctx = format!(
+                "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
+                d.offset, t.width, t.height, t.x, t.y
+            );
+            let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
+            if (img.width(), img.height()) != (t.width, t.height) {
+                return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
+            }
+            Ok(to_header_colour(img.with_channels(h.channels), color, records_scale))
+        });
+        let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
+        let frame = frame.get_or_insert_with(|| HdrImage::zeroed(h.width, h.height, h.channels));
+        for (d, tile) in group.iter().zip(tiles) {
+            let t = d.header;
+            for row in 0..t.height {
+                let dst = &mut frame.row_mut(t.y + row)[t.x as usize * c..(t.x + t.width) as usize * c];
+                dst.copy_from_slice(tile.row(row));
+            }
         }
     }
+    let mut frame = frame.ok_or_else(|| Error::invalid(format!("frame {f} has no tiles")))?;
     frame.color = color.clone();
     frame.metadata = metadata.to_vec();
     Ok(frame)
