@@ -21,4 +21,3 @@ pub use dds::{read_dds, write_dds};
 pub use decode::{block_dims, decode_block, decode_surface, decode_surface_into, surface_bytes};
 pub use ktx2::{read_ktx2, write_ktx2};
 pub use texture::Bc6hTexture;
-

@@ -65,6 +65,7 @@ fn detect() -> CpuLevel {
 
 /// The level the kernels use: the hardware's, capped by `HDRCODEC_CPU` (read once). An
 /// unknown value of the variable is ignored with a message on stderr.
+#[inline]
 pub fn level() -> CpuLevel {
     static LEVEL: OnceLock<CpuLevel> = OnceLock::new();
     *LEVEL.get_or_init(|| {
@@ -84,6 +85,7 @@ pub fn level() -> CpuLevel {
 
 /// True when the AVX2 (+FMA, F16C) kernels may run: the hardware has them and
 /// `HDRCODEC_CPU` does not forbid them.
+#[inline]
 pub fn avx2() -> bool {
     level() >= CpuLevel::Avx2
 }
