@@ -25,6 +25,8 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
+
 mod decode;
 mod encode;
 

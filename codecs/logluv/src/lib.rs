@@ -20,6 +20,8 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
+
 pub mod pixel;
 mod rle;
 pub mod tiff;

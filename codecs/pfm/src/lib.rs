@@ -25,6 +25,8 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
+
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, Limits, Result};
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
