@@ -20,5 +20,14 @@ cargo clippy --workspace --all-targets -- -D warnings
 step "cargo test (workspace)"
 cargo test --workspace
 
+# The same build (`--workspace` keeps the features of the step above, so nothing is rebuilt):
+# every crate's unit tests, the codec crates' own test files and the cross-crate checks that
+# drive the RGBE and BC6H kernels, on the portable code. A codec crate's new test file goes here.
+step "cargo test on the portable path (HDRCODEC_CPU=scalar)"
+HDRCODEC_CPU=scalar cargo test --workspace --lib \
+    --test robustness --test portable_path --test bad_input --test mips \
+    --test damage --test limits --test roundtrip --test seek --test spec \
+    --test rgbe_oiio --test bc6h_decode --test bc6h_encode
+
 step "fuzz smoke run"
 bash scripts/fuzz-smoke.sh

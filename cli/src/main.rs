@@ -2,6 +2,8 @@
 //! exit status 0 on success; otherwise exactly one line `hdrcodec: <reason>` on stderr, a
 //! non-zero status and no output file. `--json` prints exactly one JSON object on stdout.
 
+#![forbid(unsafe_code)]
+
 mod cli;
 
 use clap::{Args, Parser, Subcommand};

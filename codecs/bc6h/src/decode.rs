@@ -333,12 +333,13 @@ pub fn decode_surface_into(
 }
 
 /// Decodes one row of blocks into up to 4 rows of `width` RGB texels (`out.len()` decides how
-/// many rows exist).
+/// many rows exist), with the AVX2/F16C kernel when [`hdrcodec_core::cpu::avx2`] allows it.
 fn decode_block_row(width: usize, row_blocks: &[u8], out: &mut [f32], signed: bool) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("f16c") {
-        // SAFETY: the CPU supports AVX2 and F16C (checked just above), the only requirement
-        // of `decode_block_row_avx2`.
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+        // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2,f16c` that
+        // `decode_block_row_avx2` requires.
         unsafe { decode_block_row_avx2(width, row_blocks, out, signed) };
         return;
     }
@@ -544,6 +545,8 @@ mod avx2 {
 mod tests {
     use super::*;
     use crate::modes::{pack_block, BlockFields};
+    #[cfg(target_arch = "x86_64")]
+    use hdrcodec_core::cpu::{self, CpuLevel};
 
     #[test]
     fn half_conversion_matches_the_half_crate_for_every_non_nan_half() {
@@ -558,7 +561,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_kernel_matches_the_scalar_twin() {
-        if !(std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("f16c")) {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_kernel_matches_the_scalar_twin") {
             return;
         }
         // 4096 random blocks, the mode bits cycling through all 32 values, plus the SF16
@@ -587,7 +590,7 @@ mod tests {
                 for chunk in blocks.chunks_exact(n * 16) {
                     let (mut a, mut b) = (vec![0f32; w * rows * 3], vec![1f32; w * rows * 3]);
                     decode_block_row_scalar(w, chunk, &mut a, signed);
-                    // SAFETY: AVX2 and F16C support was checked above.
+                    // SAFETY: `twin_test_can_run` above found AVX2, FMA and F16C in the hardware.
                     unsafe { decode_block_row_avx2(w, chunk, &mut b, signed) };
                     assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "w {w} rows {rows}");
                 }

@@ -144,12 +144,13 @@ struct Surface<'a> {
 
 impl Surface<'_> {
     /// Encodes block row `by` into `row` (16 bytes per block), with the AVX2 build of the block
-    /// encoder when the CPU has it.
+    /// encoder when [`hdrcodec_core::cpu::avx2`] allows it.
     fn encode_row(&self, by: usize, row: &mut [u8]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-            // `encode_row_avx2`; its body is the safe portable code compiled for AVX2.
+        if hdrcodec_core::cpu::avx2() {
+            // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+            // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2` that
+            // `encode_row_avx2` requires; its body is the safe portable code compiled for AVX2.
             unsafe { self.encode_row_avx2(by, row) };
             return;
         }
@@ -204,6 +205,8 @@ impl Surface<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use hdrcodec_core::cpu::{self, CpuLevel};
 
     /// The clamping the Direct3D specification asks for, on the IEEE half encodings.
     #[test]
@@ -233,7 +236,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_build_matches_portable_build() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_build_matches_portable_build") {
             return;
         }
         let (w, h) = (36usize, 12usize);
@@ -256,7 +259,8 @@ mod tests {
                     let mut portable = vec![0u8; w / 4 * 16];
                     let mut avx2 = vec![0u8; w / 4 * 16];
                     surface.encode_row_portable(by, &mut portable);
-                    // SAFETY: AVX2 support was checked at the top of the test.
+                    // SAFETY: `twin_test_can_run` at the top found AVX2 (with FMA and F16C) in the
+                    // hardware.
                     unsafe { surface.encode_row_avx2(by, &mut avx2) };
                     assert_eq!(portable, avx2, "signed {signed} effort {effort} block row {by}");
                 }

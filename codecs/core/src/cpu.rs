@@ -65,6 +65,7 @@ fn detect() -> CpuLevel {
 
 /// The level the kernels use: the hardware's, capped by `HDRCODEC_CPU` (read once). An
 /// unknown value of the variable is ignored with a message on stderr.
+#[inline]
 pub fn level() -> CpuLevel {
     static LEVEL: OnceLock<CpuLevel> = OnceLock::new();
     *LEVEL.get_or_init(|| {
@@ -84,6 +85,7 @@ pub fn level() -> CpuLevel {
 
 /// True when the AVX2 (+FMA, F16C) kernels may run: the hardware has them and
 /// `HDRCODEC_CPU` does not forbid them.
+#[inline]
 pub fn avx2() -> bool {
     level() >= CpuLevel::Avx2
 }
@@ -117,5 +119,44 @@ mod tests {
             Some(CpuLevel::Scalar) => assert!(!avx2()),
             _ => assert_eq!(level(), detected()),
         }
+    }
+
+    /// The variable is read once, when a process first asks, so each value is tried in a fresh
+    /// process: this test binary run again on [`child_reports_its_level`] only.
+    #[test]
+    fn the_variable_sets_the_level_of_a_fresh_process() {
+        let exe = std::env::current_exe().expect("the test binary's path");
+        let hw = detected();
+        for (value, want) in [
+            ("scalar", CpuLevel::Scalar),
+            ("portable", CpuLevel::Scalar),
+            ("avx2", hw.min(CpuLevel::Avx2)),
+            ("avx512", hw), // unknown: ignored (with a message on stderr)
+        ] {
+            let out = std::process::Command::new(&exe)
+                .args(["--exact", "cpu::tests::child_reports_its_level", "--test-threads=1"])
+                .env(ENV_VAR, value)
+                .env(CHILD_WANTS, want.name())
+                .output()
+                .expect("run the test binary again");
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(
+                out.status.success() && stdout.contains("1 passed"),
+                "{ENV_VAR}={value}: {stdout}{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+
+    /// Set in the child process run by the test above: the level it must see.
+    const CHILD_WANTS: &str = "HDRCODEC_CPU_TEST_WANTS";
+
+    /// Checks the level in the child process (and nothing elsewhere).
+    #[test]
+    fn child_reports_its_level() {
+        let Ok(want) = std::env::var(CHILD_WANTS) else { return };
+        assert_eq!(level().name(), want);
+        assert_eq!(avx2(), want == "avx2");
+        assert!(level() <= detected());
     }
 }

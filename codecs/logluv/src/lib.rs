@@ -25,6 +25,8 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+#![forbid(unsafe_code)]
+
 pub mod pixel;
 mod rle;
 mod scale;

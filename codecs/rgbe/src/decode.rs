@@ -33,12 +33,13 @@ pub fn decode_pixel(rgbe: [u8; 4], mantissa: MantissaDecode) -> [f32; 3] {
 }
 
 /// Converts one scanline held as four planes (R, G, B, E; `n` bytes each, `n + SLACK` apart)
-/// to interleaved RGB appended to `out`, with AVX2 when the CPU has it.
+/// to interleaved RGB appended to `out`, with AVX2 when [`hdrcodec_core::cpu::avx2`] allows it.
 fn planes_to_f32(planes: &[u8], n: usize, table: &[f32; 256], bias: f32, out: &mut Vec<f32>) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `planes_to_f32_avx2` (its vector loads and stores stay inside checked slices).
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+        // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2` that
+        // `planes_to_f32_avx2` requires (its vector loads and stores stay inside checked slices).
         unsafe { planes_to_f32_avx2(planes, n, table, bias, out) };
         return;
     }
@@ -181,12 +182,14 @@ const SLACK: usize = 128;
 /// blends run and literal without a branch and writes 32 or `2 * CHUNK` bytes).
 const CHUNK: usize = 64;
 
-/// Decodes the four RLE channels of a scanline into `planes`, with AVX2 when the CPU has it.
+/// Decodes the four RLE channels of a scanline into `planes`, with AVX2 when
+/// [`hdrcodec_core::cpu::avx2`] allows it.
 fn read_rle_planes(data: &[u8], pos: &mut usize, planes: &mut [u8], n: usize, y: usize) -> Result<()> {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `read_rle_planes_avx2` (its vector loads and stores stay inside checked slices).
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+        // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2` that
+        // `read_rle_planes_avx2` requires (its vector loads and stores stay inside checked slices).
         return unsafe { read_rle_planes_avx2(data, pos, planes, n, y) };
     }
     read_rle_planes_impl(data, pos, planes, n, y)
@@ -562,6 +565,8 @@ fn finish(hdr: Header, width: u32, height: u32, mut samples: Vec<f32>, opts: &Rg
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use hdrcodec_core::cpu::{self, CpuLevel};
 
     #[test]
     fn table_is_exact_powers_of_two() {
@@ -575,7 +580,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_rle_decode_matches_the_portable_twin() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_rle_decode_matches_the_portable_twin") {
             return;
         }
         let mut next = crate::test_rng(0x2545_F491_4F6C_DD1Du64);
@@ -604,7 +609,7 @@ mod tests {
                 let (mut a, mut b) = (vec![0u8; (n + SLACK) * 4], vec![1u8; (n + SLACK) * 4]);
                 let (mut pa, mut pb) = (0, 0);
                 let ra = read_rle_planes_impl(input, &mut pa, &mut a, n, 0);
-                // SAFETY: AVX2 support was checked above.
+                // SAFETY: `twin_test_can_run` above found AVX2 (with FMA and F16C) in the hardware.
                 let rb = unsafe { read_rle_planes_avx2(input, &mut pb, &mut b, n, 0) };
                 assert_eq!(ra.as_ref().map_err(|e| e.to_string()), rb.as_ref().map_err(|e| e.to_string()));
                 if ra.is_ok() {
@@ -626,7 +631,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_conversion_matches_the_portable_twin() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_conversion_matches_the_portable_twin") {
             return;
         }
         let table = exponent_table();
@@ -655,7 +660,7 @@ mod tests {
                 // Both append after what is already there.
                 let (mut a, mut b) = (vec![7.0f32], vec![7.0f32]);
                 planes_to_f32_impl(&planes, n, &table, bias, &mut a);
-                // SAFETY: AVX2 support was checked above.
+                // SAFETY: `twin_test_can_run` above found AVX2 (with FMA and F16C) in the hardware.
                 unsafe { planes_to_f32_avx2(&planes, n, &table, bias, &mut b) };
                 assert_eq!(a.len(), 1 + n * 3);
                 assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "n = {n}, bias = {bias}");

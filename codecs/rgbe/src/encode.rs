@@ -223,7 +223,8 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
 }
 
 /// Converts one row of `n` pixels (`stride` samples each) into four byte planes (R, G, B, E)
-/// starting `pstride` bytes apart in `planes`, with AVX2 when the CPU has it.
+/// starting `pstride` bytes apart in `planes`, with AVX2 when [`hdrcodec_core::cpu::avx2`]
+/// allows it.
 fn fill_planes(row: &[f32], stride: usize, rounding: Rounding, planes: &mut [u8], n: usize, pstride: usize) {
     let (r, rest) = planes.split_at_mut(pstride);
     let (g, rest) = rest.split_at_mut(pstride);
@@ -231,10 +232,11 @@ fn fill_planes(row: &[f32], stride: usize, rounding: Rounding, planes: &mut [u8]
     let planes = [&mut r[..n], &mut g[..n], &mut b[..n], &mut e[..n]];
     let row = &row[..n * stride];
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && (stride == 3 || stride == 4) {
+    if (stride == 3 || stride == 4) && hdrcodec_core::cpu::avx2() {
         let nearest = rounding == Rounding::Nearest;
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `fill_planes_avx2` (its loads and stores stay inside checked arrays).
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+        // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2` that
+        // `fill_planes_avx2` requires (its loads and stores stay inside checked arrays).
         unsafe {
             match (stride, nearest) {
                 (3, false) => fill_planes_avx2::<3, false>(row, planes),
@@ -392,6 +394,8 @@ fn encode8_avx2<const NEAREST: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use hdrcodec_core::cpu::{self, CpuLevel};
 
     #[test]
     fn rgbe_max_is_the_saturated_pixel() {
@@ -443,7 +447,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_conversion_matches_the_portable_twin() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_conversion_matches_the_portable_twin") {
             return;
         }
         let vals = interesting_floats();
@@ -481,7 +485,7 @@ mod tests {
                     [r, g, b, e]
                 }
                 fill_planes_portable(&row, stride, rounding, split(&mut a));
-                // SAFETY: AVX2 support was checked above.
+                // SAFETY: `twin_test_can_run` above found AVX2 (with FMA and F16C) in the hardware.
                 unsafe {
                     match (stride, rounding) {
                         (3, Rounding::Truncate) => fill_planes_avx2::<3, false>(&row, split(&mut b)),

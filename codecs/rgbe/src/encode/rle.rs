@@ -40,12 +40,13 @@ pub(super) fn plane_bound(n: usize) -> usize {
 /// to `out` at `o` and returns the new position; `out` must have room for
 /// [`plane_bound`]`(n)` bytes from `o` plus [`PAD`] (literals are copied in fixed blocks).
 /// `eq` ([`mask_words`]`(n)` words) is scratch space for the channel's equality mask.
-/// AVX2 when the CPU has it.
+/// AVX2 when [`hdrcodec_core::cpu::avx2`] allows it.
 pub(super) fn write_channel(plane: &[u8], n: usize, eq: &mut [u64], out: &mut [u8], o: usize) -> usize {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // `write_channel_avx2` (its vector loads stay inside a checked 65-byte array).
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C (detected
+        // once; `HDRCODEC_CPU` can only lower the level), which covers the `avx2` that
+        // `write_channel_avx2` requires (its vector loads stay inside a checked 65-byte array).
         return unsafe { write_channel_avx2(plane, n, eq, out, o) };
     }
     eq_mask_portable(plane, n, eq);
@@ -222,6 +223,8 @@ fn write_plane(plane: &[u8], n: usize, eq: &[u64], out: &mut [u8], mut o: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use hdrcodec_core::cpu::{self, CpuLevel};
 
     /// The encoder's previous, byte-at-a-time writer: the same choice of runs and literals as
     /// rgbe.c's `RGBE_WriteBytes_RLE`, which `truncating_writer_is_byte_identical_to_oiio`
@@ -292,7 +295,8 @@ mod tests {
     }
 
     /// Random channels built from runs of every length and literal stretches, against the
-    /// reference loop; the portable writer and the one `write_channel` picks (AVX2 here).
+    /// reference loop; the portable writer and the one `write_channel` picks (AVX2 where the
+    /// CPU has it, unless `HDRCODEC_CPU=scalar`).
     #[test]
     fn mask_writer_matches_rgbe_c() {
         let mut next = crate::test_rng(0x2545_F491_4F6C_DD1Du64);
@@ -330,7 +334,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_mask_matches_the_portable_twin() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_mask_matches_the_portable_twin") {
             return;
         }
         let mut next = crate::test_rng(0x9E37_79B9_7F4A_7C15u64);
@@ -338,7 +342,7 @@ mod tests {
             let plane: Vec<u8> = (0..n + PAD).map(|_| (next() % 3) as u8).collect();
             let (mut a, mut b) = (vec![1u64; mask_words(n)], vec![2u64; mask_words(n)]);
             eq_mask_portable(&plane, n, &mut a);
-            // SAFETY: AVX2 support was checked above.
+            // SAFETY: `twin_test_can_run` above found AVX2 (with FMA and F16C) in the hardware.
             unsafe { eq_mask_avx2(&plane, n, &mut b) };
             assert_eq!(a, b, "n = {n}");
             // And the portable mask is its definition.
