@@ -17,6 +17,14 @@ cargo fmt --all -- --check
 step "cargo clippy (all targets, warnings are errors)"
 cargo clippy --workspace --all-targets -- -D warnings
 
+# A program that embeds the codecs must not pull the tool's dependencies (issue 9).
+step "the hdrcodec library pulls no CLI or peer crates"
+if cargo tree -p hdrcodec -e normal,build,dev --prefix none | sed 's/ .*//' | sort -u \
+  | grep -E -x 'clap|indicatif|plotters|png|serde|serde_json|criterion|intel_tex_2|ispc_rt'; then
+  echo "cargo tree -p hdrcodec lists the crates above" >&2
+  exit 1
+fi
+
 step "cargo test (workspace)"
 cargo test --workspace
 
