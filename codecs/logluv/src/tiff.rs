@@ -134,6 +134,13 @@ fn read_header(data: &[u8]) -> Result<(Tiff<'_>, Vec<Entry>, TiffInfo)> {
         }
         _ => None,
     };
+    // STONITS becomes the image's nits_per_unit (an f32): it must be a positive finite number
+    // there too (libtiff does not check it; a NaN or 0 would make every luminance meaningless).
+    if let Some(s) = stonits {
+        if !(s > 0.0 && (s as f32).is_finite() && s as f32 > 0.0) {
+            return Err(Error::invalid(format!("STONITS {s} is not a positive finite number of cd/m² per unit")));
+        }
+    }
     Ok((r, entries, TiffInfo { width, height, encoding, stonits }))
 }
 
@@ -267,6 +274,17 @@ mod tests {
                 let back = read(&file, &Limits::default()).unwrap();
                 assert_eq!(back, r, "{e:?} rows/strip {rps}");
             }
+        }
+    }
+
+    #[test]
+    fn a_stonits_that_is_no_scale_is_an_error() {
+        // Found by the fuzzer (fuzz/regressions/logluv/crash-4348...): a NaN STONITS made probe
+        // and decode report a NaN nits_per_unit.
+        for s in [f64::NAN, 0.0, -179.0, f64::INFINITY, 1e300, 1e-300] {
+            let file = write(&LogLuvRaster { stonits: Some(s), ..raster(Encoding::LogLuv32) }, 5).unwrap();
+            let e = read(&file, &Limits::default()).unwrap_err().to_string();
+            assert!(e.contains("is not a positive finite number"), "{s}: {e}");
         }
     }
 
