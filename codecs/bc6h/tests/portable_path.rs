@@ -5,10 +5,7 @@
 
 use hdrcodec_bc6h::decode_surface;
 use hdrcodec_bc6h::encode::{encode_surface, EncodeOptions};
-use hdrcodec_core::cpu::{self, CpuLevel};
-
-/// Set in the child process: the digest it must reproduce.
-const CHILD_WANTS: &str = "HDRCODEC_BC6H_TEST_WANTS";
+use hdrcodec_core::cpu;
 
 /// FNV-1a over the encoded blocks and the bits of the decoded floats.
 fn digest() -> u64 {
@@ -73,23 +70,5 @@ fn digest() -> u64 {
 
 #[test]
 fn the_portable_path_gives_the_same_blocks_and_texels() {
-    if let Ok(want) = std::env::var(CHILD_WANTS) {
-        assert_eq!(cpu::level(), CpuLevel::Scalar, "the child runs with {}=scalar", cpu::ENV_VAR);
-        assert_eq!(format!("{:016x}", digest()), want, "the portable path differs from the parent's");
-        return;
-    }
-    let here = format!("{:016x}", digest());
-    let out = std::process::Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "the_portable_path_gives_the_same_blocks_and_texels", "--test-threads=1"])
-        .env(cpu::ENV_VAR, "scalar")
-        .env(CHILD_WANTS, &here)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("1 passed"),
-        "parent at {:?}: {stdout}{}",
-        cpu::level(),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    cpu::check_portable_path_in_child("the_portable_path_gives_the_same_blocks_and_texels", digest);
 }

@@ -104,6 +104,37 @@ pub fn twin_test_can_run(needed: CpuLevel, test: &str) -> bool {
     false
 }
 
+/// Set in the child process of [`check_portable_path_in_child`]: the digest it must reproduce.
+const PORTABLE_DIGEST: &str = "HDRCODEC_PORTABLE_DIGEST";
+
+/// For a test that checks, through a codec's public API, that the portable path gives what the
+/// SIMD path gives. In the test process it computes `digest`, runs the test binary again on
+/// `test` (the calling test's exact name) with `HDRCODEC_CPU=scalar`, and panics unless that
+/// child passes; in the child it checks that the level is scalar and that `digest` is the same.
+/// The variable is read once per process, so the portable run needs a process of its own.
+pub fn check_portable_path_in_child(test: &str, digest: impl Fn() -> u64) {
+    if let Ok(want) = std::env::var(PORTABLE_DIGEST) {
+        assert_eq!(level(), CpuLevel::Scalar, "the child runs with {ENV_VAR}=scalar");
+        assert_eq!(format!("{:016x}", digest()), want, "the portable path differs from the parent's");
+        return;
+    }
+    let here = format!("{:016x}", digest());
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let out = std::process::Command::new(exe)
+        .args(["--exact", test, "--test-threads=1"])
+        .env(ENV_VAR, "scalar")
+        .env(PORTABLE_DIGEST, &here)
+        .output()
+        .expect("run the test binary again");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "parent at {:?}: {stdout}{}",
+        level(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,12 +3,9 @@
 //! same images on the portable path and must get what this process got (with the AVX2 kernels
 //! where the CPU has them; the unit tests compare each kernel with its twin directly).
 
-use hdrcodec_core::cpu::{self, CpuLevel};
+use hdrcodec_core::cpu;
 use hdrcodec_core::{Channels, ColorInfo, HdrImage, Limits};
 use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncodeOptions, Rounding};
-
-/// Set in the child process: the digest it must reproduce.
-const CHILD_WANTS: &str = "HDRCODEC_RGBE_TEST_WANTS";
 
 /// FNV-1a over the encoded files and the bits of the decoded floats.
 fn digest() -> u64 {
@@ -75,23 +72,5 @@ fn digest() -> u64 {
 
 #[test]
 fn the_portable_path_gives_the_same_files_and_pixels() {
-    if let Ok(want) = std::env::var(CHILD_WANTS) {
-        assert_eq!(cpu::level(), CpuLevel::Scalar, "the child runs with {}=scalar", cpu::ENV_VAR);
-        assert_eq!(format!("{:016x}", digest()), want, "the portable path differs from the parent's");
-        return;
-    }
-    let here = format!("{:016x}", digest());
-    let out = std::process::Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "the_portable_path_gives_the_same_files_and_pixels", "--test-threads=1"])
-        .env(cpu::ENV_VAR, "scalar")
-        .env(CHILD_WANTS, &here)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("1 passed"),
-        "parent at {:?}: {stdout}{}",
-        cpu::level(),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    cpu::check_portable_path_in_child("the_portable_path_gives_the_same_files_and_pixels", digest);
 }
