@@ -1,3 +1,4 @@
+use crate::sink::{FrameBufMut, FrameSink, ImageSink, RowSink};
 use crate::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result, ThreadPool};
 use std::io::Write;
 use std::str::FromStr;
@@ -42,6 +43,30 @@ pub trait ImageCodec: Send + Sync {
     /// Decodes a whole file held in memory, with the caller's limits and threads. Never
     /// panics; checks (and charges) `options.limits` before allocating.
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage>;
+    /// Decodes a whole file held in memory into `sink`, row band by row band, so that nothing
+    /// of the image's size is allocated besides what the sink holds (see [`crate::sink`]).
+    /// Calls [`RowSink::start`] with what [`probe`](Self::probe) returns, then delivers every
+    /// row once. Never panics; charges its own working buffers to `options.limits`.
+    ///
+    /// The provided version decodes the whole image with [`decode_with`](Self::decode_with)
+    /// and copies it out (holding it twice); every codec of the family overrides it, and then
+    /// implements `decode_with` as [`decode_image`]`(self, ..)`.
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        let image = self.decode_with(data, options)?;
+        let mut info = ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone());
+        info.metadata = image.metadata.clone();
+        sink.start(&info)?;
+        sink.put_rows(0, image.samples())
+    }
+    /// Decodes into a caller's buffer of `f32` or `f16` samples with a stride (see
+    /// [`FrameBufMut`]) and returns what the header says (size, channels, colour, metadata).
+    /// Allocates nothing of the image's size; fails, writing nothing, if the buffer cannot hold
+    /// the image [`probe`](Self::probe) describes.
+    fn decode_into(&self, data: &[u8], options: &DecodeOptions, out: FrameBufMut<'_>) -> Result<ImageInfo> {
+        let mut sink = FrameSink::new(out);
+        self.decode_rows(data, options, &mut sink)?;
+        sink.info().cloned().ok_or_else(|| Error::invalid("the decoder delivered no image (a bug in the decoder)"))
+    }
     /// Encodes an image and writes the file to `out`, reporting what the caller should know
     /// (values clipped to the format's range, a scale chosen for it).
     fn encode_to(&self, image: &HdrImage, settings: &EncodeSettings, out: &mut dyn Write) -> Result<EncodeReport>;
@@ -56,6 +81,15 @@ pub trait ImageCodec: Send + Sync {
         self.encode_to(image, settings, &mut out)?;
         Ok(out)
     }
+}
+
+/// [`ImageCodec::decode_with`] for a codec that implements
+/// [`decode_rows`](ImageCodec::decode_rows): the rows go into an [`ImageSink`], which charges
+/// the image to `options.limits` and lets the decoder write it in place.
+pub fn decode_image<C: ImageCodec + ?Sized>(codec: &C, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+    let mut sink = ImageSink::new(&options.limits);
+    codec.decode_rows(data, options, &mut sink)?;
+    sink.finish()
 }
 
 /// Which colour signalling a format's files carry.
@@ -150,12 +184,21 @@ pub struct ImageInfo {
     pub frames: u32,
     /// The stored sample format in a few words ("half, PIZ", "BC6H UF16, 3 mips"), if known.
     pub format: String,
+    /// What the file says besides its pixels (`key`, `value`), as [`HdrImage::metadata`]
+    /// will hold it after decoding.
+    pub metadata: Vec<(String, String)>,
 }
 
 impl ImageInfo {
     /// One frame of `width` × `height` with these channels and colour.
     pub fn new(width: u32, height: u32, channels: Channels, color: ColorInfo) -> Self {
-        ImageInfo { width, height, channels, color, frames: 1, format: String::new() }
+        ImageInfo { width, height, channels, color, frames: 1, format: String::new(), metadata: Vec::new() }
+    }
+
+    /// The same with one more metadata entry.
+    pub fn with_metadata(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {
+        self.metadata.push((key.into(), value.into()));
+        self
     }
 
     /// The same with the sample format described as `format`.

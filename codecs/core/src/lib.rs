@@ -5,6 +5,8 @@
 //!   container, fuzzers and benches can treat all codecs alike.
 //! - [`Limits`]: what a decoder may allocate; checked before every allocation, with a budget
 //!   that decoders charge as they allocate.
+//! - [`sink`]: where decoders put rows: an [`HdrImage`], a caller's `f32`/`f16` buffer with a
+//!   stride ([`ImageCodec::decode_into`]), or a consumer that keeps nothing.
 //! - [`ThreadPool`]: the one handle to worker threads, passed down through encode and decode.
 //! - [`cpu`]: CPU features detected once; `HDRCODEC_CPU=scalar` selects the portable kernels.
 //! - [`Error`]: the one error enum of the family.
@@ -28,14 +30,17 @@ pub mod hdr10;
 mod image;
 mod limits;
 pub mod metrics;
+pub mod sink;
+/// The `half` crate, whose `f16` is the sample type of half-float buffers ([`sink::FrameBufMut::f16`]).
+pub use half;
 pub mod threads;
 pub mod tiff;
 pub mod tonemap;
 pub mod transfer;
 
 pub use codec::{
-    ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, VideoCodec, VideoDecoder,
-    VideoEncoder,
+    decode_image, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, VideoCodec,
+    VideoDecoder, VideoEncoder,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};

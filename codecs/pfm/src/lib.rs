@@ -27,8 +27,10 @@
 
 #![forbid(unsafe_code)]
 
+use hdrcodec_core::sink::{band_rows, fill_rows, RowSink};
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
+    Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
+    Result,
 };
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
@@ -138,14 +140,22 @@ pub fn probe_pfm(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         if h.grey { "grey" } else { "RGB" },
         if h.little_endian { "little" } else { "big" }
     );
-    Ok(ImageInfo::new(h.width, h.height, Channels::Rgb, pfm_color()).with_format(format))
+    let info = ImageInfo::new(h.width, h.height, Channels::Rgb, pfm_color()).with_format(format);
+    Ok(if h.scale != 1.0 { info.with_metadata("pfm.scale", h.scale.to_string()) } else { info })
 }
 
 /// Decodes a PFM file held in memory.
 pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+    hdrcodec_core::decode_image(&PfmCodec, data, &DecodeOptions::new(limits.clone()))
+}
+
+/// Decodes a PFM file into `sink`, one band of rows at a time (PFM stores rows bottom up, so
+/// the bands arrive from the bottom of the image). Holds nothing of the image's size when the
+/// sink takes rows in place, and at most a 1 MB band otherwise.
+pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
     let h = parse_header(data)?;
-    let (w, ht) = (h.width as usize, h.height as usize);
-    limits.check_image(w as u64, ht as u64, Channels::Rgb)?;
+    let info = probe_pfm(data, limits)?;
+    let w = h.width as usize;
     let per_pixel = if h.grey { 1 } else { 3 };
     let need = pixel_bytes(&h, data)?;
     let pixels = &data[h.data_start..h.data_start + need as usize];
@@ -157,21 +167,35 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
             f32::from_be_bytes(b)
         }
     };
-    let row_bytes = w * per_pixel as usize * 4;
-    let mut samples = Vec::with_capacity(w * ht * 3);
-    // Rows are stored bottom to top.
-    for row in pixels.chunks_exact(row_bytes).rev() {
-        if h.grey {
-            samples.extend(row.chunks_exact(4).flat_map(|b| [read(b); 3]));
-        } else {
-            samples.extend(row.chunks_exact(4).map(read));
-        }
+    sink.start(&info)?;
+    let row_bytes = w * per_pixel * 4;
+    let row_len = w * 3;
+    let band = band_rows(row_len, 1 << 20);
+    let _scratch_charge = limits.charge(u64::from(band.min(h.height)) * row_len as u64 * 4, "a band of PFM rows")?;
+    let mut scratch = Vec::new();
+    let mut y = 0;
+    while y < h.height {
+        let rows = band.min(h.height - y);
+        fill_rows(sink, y, rows, row_len, &mut scratch, |out| {
+            for (i, out_row) in out.chunks_exact_mut(row_len).enumerate() {
+                // Rows are stored bottom to top.
+                let stored = (h.height - 1 - (y + i as u32)) as usize;
+                let row = &pixels[stored * row_bytes..(stored + 1) * row_bytes];
+                if h.grey {
+                    for (px, b) in out_row.chunks_exact_mut(3).zip(row.chunks_exact(4)) {
+                        px.fill(read(b));
+                    }
+                } else {
+                    for (d, b) in out_row.iter_mut().zip(row.chunks_exact(4)) {
+                        *d = read(b);
+                    }
+                }
+            }
+            Ok(())
+        })?;
+        y += rows;
     }
-    let mut image = HdrImage::new(h.width, h.height, Channels::Rgb, samples, pfm_color())?;
-    if h.scale != 1.0 {
-        image.set_metadata("pfm.scale", h.scale.to_string());
-    }
-    Ok(image)
+    Ok(())
 }
 
 /// Encodes `image` as a little-endian `PF` file (alpha, if any, is dropped).
@@ -224,10 +248,11 @@ impl ImageCodec for PfmCodec {
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe_pfm(data, limits)
     }
-    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        // The image is charged against the caller's budget for as long as the decode runs.
-        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
-        decode_pfm(data, &options.limits)
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        decode_pfm_rows(data, &options.limits, sink)
     }
     /// PFM has no options; any `key=value` is an error.
     fn encode_to(

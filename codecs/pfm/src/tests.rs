@@ -124,3 +124,29 @@ fn probe_reads_the_header_as_decode_would() {
     assert!(PfmCodec.decode(&big, &tiny).is_err());
     assert_eq!(PfmCodec.probe(&big, &tiny).unwrap().width, 300);
 }
+
+#[test]
+fn decode_into_a_strided_f16_or_f32_buffer_gives_the_decoded_samples() {
+    use hdrcodec_core::sink::FrameBufMut;
+    // Tall enough for several 1 MB bands would be slow here; two rows show the bottom-up order.
+    let samples: Vec<f32> = (0..3 * 2 * 3).map(|i| i as f32 * 0.5 - 2.0).collect();
+    let image = HdrImage::new(3, 2, Channels::Rgb, samples, ColorInfo::default()).unwrap();
+    let data = encode_pfm(&image).unwrap();
+    let options = DecodeOptions::default();
+    let decoded = PfmCodec.decode_with(&data, &options).unwrap();
+    let stride = 3 * 3 + 2;
+    let mut f32_buf = vec![7.0f32; stride * 2];
+    let info = PfmCodec.decode_into(&data, &options, FrameBufMut::f32(&mut f32_buf, stride)).unwrap();
+    assert_eq!((info.width, info.height), (3, 2));
+    let mut f16_buf = vec![hdrcodec_core::half::f16::from_f32(7.0); stride * 2];
+    PfmCodec.decode_into(&data, &options, FrameBufMut::f16(&mut f16_buf, stride)).unwrap();
+    for y in 0..2 {
+        let row = decoded.row(y as u32);
+        assert_eq!(&f32_buf[y * stride..y * stride + 9], row);
+        assert_eq!(&f32_buf[y * stride + 9..(y + 1) * stride], &[7.0, 7.0], "padding untouched");
+        let halves: Vec<f32> = f16_buf[y * stride..y * stride + 9].iter().map(|h| h.to_f32()).collect();
+        assert_eq!(halves, row, "these values are exact in half");
+    }
+    let mut small = vec![0.0f32; stride * 2 - 3];
+    assert!(PfmCodec.decode_into(&data, &options, FrameBufMut::f32(&mut small, stride)).is_err());
+}
