@@ -239,7 +239,7 @@ impl ImageCodec for RgbeCodec {
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
         let options = RgbeEncodeOptions::from_settings(settings)?;
-        out.write_all(&encode::encode(image, &options)?)?;
+        encode::write(image, &options, out)?;
         let mut report = hdrcodec_core::EncodeReport::new();
         if !image.color.primaries.is_specified() {
             // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
