@@ -562,7 +562,7 @@ mod tests {
         ifd.long(tag::IMAGE_BYTE_COUNT, image.len() as u32);
         ifd.long(tag::ALPHA_OFFSET, 0);
         ifd.long(tag::ALPHA_BYTE_COUNT, 0);
-        let start = 8 + (8 - 8 % 2);
+        let start = 8; // the IFD follows the 8-byte header
         let image_at = (start + ifd.size() as usize).next_multiple_of(2);
         let alpha_at = image_at + image.len();
         let alpha_count = if alpha_count_is_end { alpha_at + alpha.len() } else { alpha.len() };
