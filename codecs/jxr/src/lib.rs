@@ -14,3 +14,4 @@ pub mod container;
 #[allow(dead_code)]
 mod mb;
 pub mod output;
+pub mod transform;
