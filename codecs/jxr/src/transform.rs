@@ -32,14 +32,143 @@
 
 use crate::mb::{hp, lp, MbCoeffs, DC, MB_COEFFS};
 use hdrcodec_core::{Error, Result};
-use std::num::Wrapping;
+use std::ops::{Add, AddAssign, Mul, Neg, Range, RangeInclusive, Shr, Sub, SubAssign};
 
-type W = Wrapping<i32>;
-const W1: W = Wrapping(1);
-const W2: W = Wrapping(2);
-const W3: W = Wrapping(3);
-const W4: W = Wrapping(4);
-const W6: W = Wrapping(6);
+/// The arithmetic the operators need: wrapping 32-bit integer lifting steps. Implemented for
+/// one sample ([`S`]) and for [`LANES`] samples of as many independent windows or blocks
+/// ([`V`]), whose lane-wise loops the compiler turns into SIMD instructions.
+trait Lane:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Neg<Output = Self>
+    + Shr<u32, Output = Self>
+    + Add<i32, Output = Self>
+    + Mul<i32, Output = Self>
+    + AddAssign
+    + SubAssign
+{
+}
+
+/// One sample, wrapping like 32-bit C.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct S(i32);
+
+/// Samples processed together by the vector paths.
+const LANES: usize = 8;
+
+/// [`LANES`] samples, one per window or block, wrapping like 32-bit C.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct V([i32; LANES]);
+
+macro_rules! lane_ops {
+    ($t:ident, $map:ident) => {
+        impl Add for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn add(self, o: $t) -> $t {
+                $map!(self, o, |a: i32, b: i32| a.wrapping_add(b))
+            }
+        }
+        impl Sub for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn sub(self, o: $t) -> $t {
+                $map!(self, o, |a: i32, b: i32| a.wrapping_sub(b))
+            }
+        }
+        impl AddAssign for $t {
+            #[inline(always)]
+            fn add_assign(&mut self, o: $t) {
+                *self = *self + o;
+            }
+        }
+        impl SubAssign for $t {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: $t) {
+                *self = *self - o;
+            }
+        }
+        impl Lane for $t {}
+    };
+}
+
+macro_rules! map_s {
+    ($a:expr, $b:expr, $f:expr) => {
+        S($f($a.0, $b.0))
+    };
+}
+
+macro_rules! map_v {
+    ($a:expr, $b:expr, $f:expr) => {{
+        let (a, b) = ($a.0, $b.0);
+        let mut r = [0i32; LANES];
+        for i in 0..LANES {
+            r[i] = $f(a[i], b[i]);
+        }
+        V(r)
+    }};
+}
+
+lane_ops!(S, map_s);
+lane_ops!(V, map_v);
+
+impl Neg for S {
+    type Output = S;
+    #[inline(always)]
+    fn neg(self) -> S {
+        S(self.0.wrapping_neg())
+    }
+}
+impl Shr<u32> for S {
+    type Output = S;
+    #[inline(always)]
+    fn shr(self, k: u32) -> S {
+        S(self.0 >> k)
+    }
+}
+impl Add<i32> for S {
+    type Output = S;
+    #[inline(always)]
+    fn add(self, k: i32) -> S {
+        S(self.0.wrapping_add(k))
+    }
+}
+impl Mul<i32> for S {
+    type Output = S;
+    #[inline(always)]
+    fn mul(self, k: i32) -> S {
+        S(self.0.wrapping_mul(k))
+    }
+}
+impl Neg for V {
+    type Output = V;
+    #[inline(always)]
+    fn neg(self) -> V {
+        V(self.0.map(i32::wrapping_neg))
+    }
+}
+impl Shr<u32> for V {
+    type Output = V;
+    #[inline(always)]
+    fn shr(self, k: u32) -> V {
+        V(self.0.map(|a| a >> k))
+    }
+}
+impl Add<i32> for V {
+    type Output = V;
+    #[inline(always)]
+    fn add(self, k: i32) -> V {
+        V(self.0.map(|a| a.wrapping_add(k)))
+    }
+}
+impl Mul<i32> for V {
+    type Output = V;
+    #[inline(always)]
+    fn mul(self, k: i32) -> V {
+        V(self.0.map(|a| a.wrapping_mul(k)))
+    }
+}
 
 /// OVERLAP_MODE (T.832 8.3.2): which POT stages run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -123,12 +252,12 @@ pub struct Plane {
 // The operators (T.835 `algo.c`), on samples of a slice picked by index.
 
 #[inline(always)]
-fn load<const N: usize>(p: &[i32], i: [usize; N]) -> [W; N] {
-    i.map(|k| Wrapping(p[k]))
+fn load<const N: usize>(p: &[i32], i: [usize; N]) -> [S; N] {
+    i.map(|k| S(p[k]))
 }
 
 #[inline(always)]
-fn store<const N: usize>(p: &mut [i32], i: [usize; N], v: [W; N]) {
+fn store<const N: usize>(p: &mut [i32], i: [usize; N], v: [S; N]) {
     for (k, x) in i.into_iter().zip(v) {
         p[k] = x.0;
     }
@@ -136,7 +265,7 @@ fn store<const N: usize>(p: &mut [i32], i: [usize; N], v: [W; N]) {
 
 /// The 2×2 Hadamard butterfly `_2x2T_h` (self-inverse).
 #[inline(always)]
-fn t2x2h(v: [W; 4], r: W) -> [W; 4] {
+fn t2x2h<T: Lane>(v: [T; 4], r: i32) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     a += d;
     b -= c;
@@ -149,10 +278,11 @@ fn t2x2h(v: [W; 4], r: W) -> [W; 4] {
     [a, b, c, d]
 }
 
-fn t2x2h_post(v: [W; 4]) -> [W; 4] {
+#[inline(always)]
+fn t2x2h_post<T: Lane>(v: [T; 4]) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     b -= c;
-    a += (d * W3 + W4) >> 3;
+    a += (d * 3 + 4) >> 3;
     d -= b >> 1;
     let t1 = ((a - b) >> 1) - c;
     c = d;
@@ -162,7 +292,8 @@ fn t2x2h_post(v: [W; 4]) -> [W; 4] {
     [a, b, c, d]
 }
 
-fn t2x2h_enc(v: [W; 4]) -> [W; 4] {
+#[inline(always)]
+fn t2x2h_enc<T: Lane>(v: [T; 4]) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     a += d;
     b -= c;
@@ -170,39 +301,41 @@ fn t2x2h_enc(v: [W; 4]) -> [W; 4] {
     c = ((a - b) >> 1) - t1;
     d = t2 + (b >> 1);
     b += c;
-    a -= (d * W3 + W4) >> 3;
+    a -= (d * 3 + 4) >> 3;
     [a, b, c, d]
 }
 
-fn inv_t_odd(v: [W; 4]) -> [W; 4] {
+#[inline(always)]
+fn inv_t_odd<T: Lane>(v: [T; 4]) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     b += d;
     a -= c;
     d -= b >> 1;
-    c += (a + W1) >> 1;
-    a -= (b * W3 + W4) >> 3;
-    b += (a * W3 + W4) >> 3;
-    c -= (d * W3 + W4) >> 3;
-    d += (c * W3 + W4) >> 3;
-    c -= (b + W1) >> 1;
-    d = ((a + W1) >> 1) - d;
+    c += (a + 1) >> 1;
+    a -= (b * 3 + 4) >> 3;
+    b += (a * 3 + 4) >> 3;
+    c -= (d * 3 + 4) >> 3;
+    d += (c * 3 + 4) >> 3;
+    c -= (b + 1) >> 1;
+    d = ((a + 1) >> 1) - d;
     b += c;
     a -= d;
     [a, b, c, d]
 }
 
-fn fwd_t_odd(v: [W; 4]) -> [W; 4] {
+#[inline(always)]
+fn fwd_t_odd<T: Lane>(v: [T; 4]) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     b -= c;
     a += d;
-    c += (b + W1) >> 1;
-    d = ((a + W1) >> 1) - d;
-    b -= (a * W3 + W4) >> 3;
-    a += (b * W3 + W4) >> 3;
-    d -= (c * W3 + W4) >> 3;
-    c += (d * W3 + W4) >> 3;
+    c += (b + 1) >> 1;
+    d = ((a + 1) >> 1) - d;
+    b -= (a * 3 + 4) >> 3;
+    a += (b * 3 + 4) >> 3;
+    d -= (c * 3 + 4) >> 3;
+    c += (d * 3 + 4) >> 3;
     d += b >> 1;
-    c -= (a + W1) >> 1;
+    c -= (a + 1) >> 1;
     b -= d;
     a += c;
     [a, b, c, d]
@@ -210,7 +343,8 @@ fn fwd_t_odd(v: [W; 4]) -> [W; 4] {
 
 /// The odd-odd rotation shared by `_InvT_odd_odd` (rounding 3, 3; outputs b and c negated)
 /// and `_InvT_odd_odd_POST` (rounding 6, 2).
-fn inv_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
+#[inline(always)]
+fn inv_odd_odd<T: Lane>(v: [T; 4], r1: i32, r2: i32, negate: bool) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     d += a;
     c -= b;
@@ -218,9 +352,9 @@ fn inv_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
     let t2 = c >> 1;
     a -= t1;
     b += t2;
-    a -= (b * W3 + r1) >> 3;
-    b += (a * W3 + r2) >> 2;
-    a -= (b * W3 + W4) >> 3;
+    a -= (b * 3 + r1) >> 3;
+    b += (a * 3 + r2) >> 2;
+    a -= (b * 3 + 4) >> 3;
     b -= t2;
     a += t1;
     c += b;
@@ -234,7 +368,8 @@ fn inv_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
 
 /// The inverse of [`inv_odd_odd`] with the same parameters (`_T_odd_odd`,
 /// `fwdT_Odd_Odd_PRE`).
-fn fwd_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
+#[inline(always)]
+fn fwd_odd_odd<T: Lane>(v: [T; 4], r1: i32, r2: i32, negate: bool) -> [T; 4] {
     let [mut a, mut b, mut c, mut d] = v;
     if negate {
         b = -b;
@@ -246,9 +381,9 @@ fn fwd_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
     let t2 = c >> 1;
     a -= t1;
     b += t2;
-    a += (b * W3 + W4) >> 3;
-    b -= (a * W3 + r2) >> 2;
-    a += (b * W3 + r1) >> 3;
+    a += (b * 3 + 4) >> 3;
+    b -= (a * 3 + r2) >> 2;
+    a += (b * 3 + r1) >> 3;
     b -= t2;
     a += t1;
     c += b;
@@ -256,159 +391,177 @@ fn fwd_odd_odd(v: [W; 4], r1: W, r2: W, negate: bool) -> [W; 4] {
     [a, b, c, d]
 }
 
-fn inv_t_odd_odd(v: [W; 4]) -> [W; 4] {
-    inv_odd_odd(v, W3, W3, true)
-}
-
-fn fwd_t_odd_odd(v: [W; 4]) -> [W; 4] {
-    fwd_odd_odd(v, W3, W3, true)
-}
-
-fn inv_t_odd_odd_post(v: [W; 4]) -> [W; 4] {
-    inv_odd_odd(v, W6, W2, false)
-}
-
-fn fwd_t_odd_odd_pre(v: [W; 4]) -> [W; 4] {
-    fwd_odd_odd(v, W6, W2, false)
+#[inline(always)]
+fn inv_t_odd_odd<T: Lane>(v: [T; 4]) -> [T; 4] {
+    inv_odd_odd(v, 3, 3, true)
 }
 
 #[inline(always)]
-fn inv_rotate([mut a, mut b]: [W; 2]) -> [W; 2] {
-    a -= (b + W1) >> 1;
-    b += (a + W1) >> 1;
+fn fwd_t_odd_odd<T: Lane>(v: [T; 4]) -> [T; 4] {
+    fwd_odd_odd(v, 3, 3, true)
+}
+
+#[inline(always)]
+fn inv_t_odd_odd_post<T: Lane>(v: [T; 4]) -> [T; 4] {
+    inv_odd_odd(v, 6, 2, false)
+}
+
+#[inline(always)]
+fn fwd_t_odd_odd_pre<T: Lane>(v: [T; 4]) -> [T; 4] {
+    fwd_odd_odd(v, 6, 2, false)
+}
+
+#[inline(always)]
+fn inv_rotate<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
+    a -= (b + 1) >> 1;
+    b += (a + 1) >> 1;
     [a, b]
 }
 
 #[inline(always)]
-fn fwd_rotate([mut a, mut b]: [W; 2]) -> [W; 2] {
-    b -= (a + W1) >> 1;
-    a += (b + W1) >> 1;
+fn fwd_rotate<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
+    b -= (a + 1) >> 1;
+    a += (b + 1) >> 1;
     [a, b]
 }
 
 #[inline(always)]
-fn inv_scale([mut a, mut b]: [W; 2]) -> [W; 2] {
+fn inv_scale<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
     a += b;
     b = (a >> 1) - b;
-    a += (b * W3) >> 3;
+    a += (b * 3) >> 3;
     b -= a >> 10;
     b += a >> 7;
-    b += (a * W3) >> 4;
+    b += (a * 3) >> 4;
     [a, b]
 }
 
 #[inline(always)]
-fn fwd_scale([mut a, mut b]: [W; 2]) -> [W; 2] {
-    b -= (a * W3) >> 4;
+fn fwd_scale<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
+    b -= (a * 3) >> 4;
     b -= a >> 7;
     b += a >> 10;
-    a -= (b * W3) >> 3;
+    a -= (b * 3) >> 3;
     b = (a >> 1) - b;
     a -= b;
     [a, b]
 }
 
-/// Applies `f` to the samples at indices `i` of `p`.
+/// Applies `f` to the elements of `x` at indices `i`.
 #[inline(always)]
-fn on<const N: usize>(p: &mut [i32], i: [usize; N], f: impl Fn([W; N]) -> [W; N]) {
-    let v = load(p, i);
-    store(p, i, f(v));
+fn ap<T: Lane, const N: usize, const M: usize>(x: &mut [T; N], i: [usize; M], f: impl Fn([T; M]) -> [T; M]) {
+    let v = f(i.map(|k| x[k]));
+    for (k, y) in i.into_iter().zip(v) {
+        x[k] = y;
+    }
 }
 
 /// `_jxr_4x4IPCT`: 16 coefficients (DC first) to 16 samples in raster order.
-fn ipct4x4(c: &mut [i32; 16]) {
+#[inline(always)]
+fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     const INV_PERMUTE: [usize; 16] = [0, 8, 4, 13, 2, 15, 3, 14, 1, 12, 5, 9, 7, 11, 6, 10];
-    let mut t = [0; 16];
+    let mut t = c;
     for (i, &v) in c.iter().enumerate() {
         t[INV_PERMUTE[i]] = v;
     }
-    on(&mut t, [0, 1, 4, 5], |v| t2x2h(v, W1));
-    on(&mut t, [2, 3, 6, 7], inv_t_odd);
-    on(&mut t, [8, 12, 9, 13], inv_t_odd);
-    on(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
-    on(&mut t, [0, 3, 12, 15], |v| t2x2h(v, Wrapping(0)));
-    on(&mut t, [5, 6, 9, 10], |v| t2x2h(v, Wrapping(0)));
-    on(&mut t, [1, 2, 13, 14], |v| t2x2h(v, Wrapping(0)));
-    on(&mut t, [4, 7, 8, 11], |v| t2x2h(v, Wrapping(0)));
-    *c = t;
+    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap(&mut t, [2, 3, 6, 7], inv_t_odd);
+    ap(&mut t, [8, 12, 9, 13], inv_t_odd);
+    ap(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
+    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    t
 }
 
-/// `_jxr_4x4PCT`: the inverse of [`ipct4x4`].
-fn pct4x4(c: &mut [i32; 16]) {
+/// `_jxr_4x4PCT`: the inverse of [`ipct4x4_g`].
+#[inline(always)]
+fn pct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     const FWD_PERMUTE: [usize; 16] = [0, 8, 4, 6, 2, 10, 14, 12, 1, 11, 15, 13, 9, 3, 7, 5];
-    let t = c;
-    on(t, [0, 3, 12, 15], |v| t2x2h(v, Wrapping(0)));
-    on(t, [5, 6, 9, 10], |v| t2x2h(v, Wrapping(0)));
-    on(t, [1, 2, 13, 14], |v| t2x2h(v, Wrapping(0)));
-    on(t, [4, 7, 8, 11], |v| t2x2h(v, Wrapping(0)));
-    on(t, [0, 1, 4, 5], |v| t2x2h(v, W1));
-    on(t, [2, 3, 6, 7], fwd_t_odd);
-    on(t, [8, 12, 9, 13], fwd_t_odd);
-    on(t, [10, 11, 14, 15], fwd_t_odd_odd);
-    let mut out = [0; 16];
+    let mut t = c;
+    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap(&mut t, [2, 3, 6, 7], fwd_t_odd);
+    ap(&mut t, [8, 12, 9, 13], fwd_t_odd);
+    ap(&mut t, [10, 11, 14, 15], fwd_t_odd_odd);
+    let mut out = t;
     for (i, &v) in t.iter().enumerate() {
         out[FWD_PERMUTE[i]] = v;
     }
-    *t = out;
+    out
 }
 
-/// `_jxr_4x4OverlapFilter` on 16 samples in raster order of a 4×4 window.
-fn post4x4(p: &mut [i32], i: [usize; 16]) {
-    let [a, b, c, d, e, f, g, h, ii, j, k, l, m, n, o, pp] = i;
-    let z = Wrapping(0);
-    on(p, [a, d, m, pp], |v| t2x2h(v, z));
-    on(p, [b, c, n, o], |v| t2x2h(v, z));
-    on(p, [e, h, ii, l], |v| t2x2h(v, z));
-    on(p, [f, g, j, k], |v| t2x2h(v, z));
-    on(p, [n, m], inv_rotate);
-    on(p, [j, ii], inv_rotate);
-    on(p, [h, d], inv_rotate);
-    on(p, [g, c], inv_rotate);
-    on(p, [k, l, o, pp], inv_t_odd_odd_post);
-    on(p, [a, pp], inv_scale);
-    on(p, [b, o], inv_scale);
-    on(p, [e, l], inv_scale);
-    on(p, [f, k], inv_scale);
-    on(p, [a, d, m, pp], t2x2h_post);
-    on(p, [b, c, n, o], t2x2h_post);
-    on(p, [e, h, ii, l], t2x2h_post);
-    on(p, [f, g, j, k], t2x2h_post);
+fn ipct4x4(c: &mut [i32; 16]) {
+    *c = ipct4x4_g(c.map(S)).map(|v| v.0);
 }
 
-/// `_jxr_4x4PreFilter`: the inverse of [`post4x4`].
-fn pre4x4(p: &mut [i32], i: [usize; 16]) {
-    let [a, b, c, d, e, f, g, h, ii, j, k, l, m, n, o, pp] = i;
-    let z = Wrapping(0);
-    on(p, [a, d, m, pp], t2x2h_enc);
-    on(p, [b, c, n, o], t2x2h_enc);
-    on(p, [e, h, ii, l], t2x2h_enc);
-    on(p, [f, g, j, k], t2x2h_enc);
-    on(p, [a, pp], fwd_scale);
-    on(p, [b, o], fwd_scale);
-    on(p, [e, l], fwd_scale);
-    on(p, [f, k], fwd_scale);
-    on(p, [n, m], fwd_rotate);
-    on(p, [j, ii], fwd_rotate);
-    on(p, [h, d], fwd_rotate);
-    on(p, [g, c], fwd_rotate);
-    on(p, [k, l, o, pp], fwd_t_odd_odd_pre);
-    on(p, [a, m, d, pp], |v| t2x2h(v, z));
-    on(p, [b, c, n, o], |v| t2x2h(v, z));
-    on(p, [e, h, ii, l], |v| t2x2h(v, z));
-    on(p, [f, g, j, k], |v| t2x2h(v, z));
+fn pct4x4(c: &mut [i32; 16]) {
+    *c = pct4x4_g(c.map(S)).map(|v| v.0);
+}
+
+/// `_jxr_4x4OverlapFilter` on a 4×4 window in raster order (a..p).
+#[inline(always)]
+fn post4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
+    let mut x = x;
+    ap(&mut x, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap(&mut x, [13, 12], inv_rotate);
+    ap(&mut x, [9, 8], inv_rotate);
+    ap(&mut x, [7, 3], inv_rotate);
+    ap(&mut x, [6, 2], inv_rotate);
+    ap(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
+    ap(&mut x, [0, 15], inv_scale);
+    ap(&mut x, [1, 14], inv_scale);
+    ap(&mut x, [4, 11], inv_scale);
+    ap(&mut x, [5, 10], inv_scale);
+    ap(&mut x, [0, 3, 12, 15], t2x2h_post);
+    ap(&mut x, [1, 2, 13, 14], t2x2h_post);
+    ap(&mut x, [4, 7, 8, 11], t2x2h_post);
+    ap(&mut x, [5, 6, 9, 10], t2x2h_post);
+    x
+}
+
+/// `_jxr_4x4PreFilter`: the inverse of [`post4x4_g`].
+#[inline(always)]
+fn pre4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
+    let mut x = x;
+    ap(&mut x, [0, 3, 12, 15], t2x2h_enc);
+    ap(&mut x, [1, 2, 13, 14], t2x2h_enc);
+    ap(&mut x, [4, 7, 8, 11], t2x2h_enc);
+    ap(&mut x, [5, 6, 9, 10], t2x2h_enc);
+    ap(&mut x, [0, 15], fwd_scale);
+    ap(&mut x, [1, 14], fwd_scale);
+    ap(&mut x, [4, 11], fwd_scale);
+    ap(&mut x, [5, 10], fwd_scale);
+    ap(&mut x, [13, 12], fwd_rotate);
+    ap(&mut x, [9, 8], fwd_rotate);
+    ap(&mut x, [7, 3], fwd_rotate);
+    ap(&mut x, [6, 2], fwd_rotate);
+    ap(&mut x, [10, 11, 14, 15], fwd_t_odd_odd_pre);
+    ap(&mut x, [0, 12, 3, 15], |v| t2x2h(v, 0));
+    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    x
 }
 
 /// `_jxr_4OverlapFilter`: the 4-point POT across a seam along an edge (and on corners).
-fn post4(p: &mut [i32], i: [usize; 4]) {
-    let [mut a, mut b, mut c, mut d] = load(p, i);
+#[inline(always)]
+fn post4_g<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
     a += d;
     b += c;
-    d -= (a + W1) >> 1;
-    c -= (b + W1) >> 1;
+    d -= (a + 1) >> 1;
+    c -= (b + 1) >> 1;
     [a, d] = inv_scale([a, d]);
     [b, c] = inv_scale([b, c]);
-    a += (d * W3 + W4) >> 3;
-    b += (c * W3 + W4) >> 3;
+    a += (d * 3 + 4) >> 3;
+    b += (c * 3 + 4) >> 3;
     d -= a >> 1;
     c -= b >> 1;
     a += d;
@@ -416,20 +569,20 @@ fn post4(p: &mut [i32], i: [usize; 4]) {
     d = -d;
     c = -c;
     [c, d] = inv_rotate([c, d]);
-    d += (a + W1) >> 1;
-    c += (b + W1) >> 1;
+    d += (a + 1) >> 1;
+    c += (b + 1) >> 1;
     a -= d;
     b -= c;
-    store(p, i, [a, b, c, d]);
+    [a, b, c, d]
 }
 
-/// `_jxr_4PreFilter`: the inverse of [`post4`].
-fn pre4(p: &mut [i32], i: [usize; 4]) {
-    let [mut a, mut b, mut c, mut d] = load(p, i);
+/// `_jxr_4PreFilter`: the inverse of [`post4_g`].
+#[inline(always)]
+fn pre4_g<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
     a += d;
     b += c;
-    d -= (a + W1) >> 1;
-    c -= (b + W1) >> 1;
+    d -= (a + 1) >> 1;
+    c -= (b + 1) >> 1;
     [c, d] = fwd_rotate([c, d]);
     d = -d;
     c = -c;
@@ -437,79 +590,105 @@ fn pre4(p: &mut [i32], i: [usize; 4]) {
     b -= c;
     d += a >> 1;
     c += b >> 1;
-    a -= (d * W3 + W4) >> 3;
-    b -= (c * W3 + W4) >> 3;
+    a -= (d * 3 + 4) >> 3;
+    b -= (c * 3 + 4) >> 3;
     [a, d] = fwd_scale([a, d]);
     [b, c] = fwd_scale([b, c]);
-    d += (a + W1) >> 1;
-    c += (b + W1) >> 1;
+    d += (a + 1) >> 1;
+    c += (b + 1) >> 1;
     a -= d;
     b -= c;
-    store(p, i, [a, b, c, d]);
+    [a, b, c, d]
 }
 
 /// `_jxr_2x2OverlapFilter`: the chroma DC-domain POT on a 2×2 window.
-fn post2x2(p: &mut [i32], i: [usize; 4]) {
-    let [mut a, mut b, mut c, mut d] = load(p, i);
+#[inline(always)]
+fn post2x2_g<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
     a += d;
     b += c;
-    d -= (a + W1) >> 1;
-    c -= (b + W1) >> 1;
-    b += (a + W2) >> 2;
-    a += (b + W1) >> 1;
+    d -= (a + 1) >> 1;
+    c -= (b + 1) >> 1;
+    b += (a + 2) >> 2;
+    a += (b + 1) >> 1;
     a += b >> 5;
     a += b >> 9;
     a += b >> 13;
-    b += (a + W2) >> 2;
-    d += (a + W1) >> 1;
-    c += (b + W1) >> 1;
+    b += (a + 2) >> 2;
+    d += (a + 1) >> 1;
+    c += (b + 1) >> 1;
     a -= d;
     b -= c;
-    store(p, i, [a, b, c, d]);
+    [a, b, c, d]
 }
 
-/// `_jxr_2x2PreFilter`: the inverse of [`post2x2`].
-fn pre2x2(p: &mut [i32], i: [usize; 4]) {
-    let [mut a, mut b, mut c, mut d] = load(p, i);
+/// `_jxr_2x2PreFilter`: the inverse of [`post2x2_g`].
+#[inline(always)]
+fn pre2x2_g<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
     a += d;
     b += c;
-    d -= (a + W1) >> 1;
-    c -= (b + W1) >> 1;
-    b -= (a + W2) >> 2;
+    d -= (a + 1) >> 1;
+    c -= (b + 1) >> 1;
+    b -= (a + 2) >> 2;
     a -= b >> 5;
     a -= b >> 9;
     a -= b >> 13;
-    a -= (b + W1) >> 1;
-    b -= (a + W2) >> 2;
-    d += (a + W1) >> 1;
-    c += (b + W1) >> 1;
+    a -= (b + 1) >> 1;
+    b -= (a + 2) >> 2;
+    d += (a + 1) >> 1;
+    c += (b + 1) >> 1;
     a -= d;
     b -= c;
-    store(p, i, [a, b, c, d]);
+    [a, b, c, d]
 }
 
 /// `_jxr_2OverlapFilter`: the chroma DC-domain POT across a seam along an edge.
-fn post2(p: &mut [i32], i: [usize; 2]) {
-    let [mut a, mut b] = load(p, i);
-    b += (a + W2) >> 2;
-    a += (b + W1) >> 1;
+#[inline(always)]
+fn post2_g<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
+    b += (a + 2) >> 2;
+    a += (b + 1) >> 1;
     a += b >> 5;
     a += b >> 9;
     a += b >> 13;
-    b += (a + W2) >> 2;
-    store(p, i, [a, b]);
+    b += (a + 2) >> 2;
+    [a, b]
 }
 
-/// `_jxr_2PreFilter`: the inverse of [`post2`].
-fn pre2(p: &mut [i32], i: [usize; 2]) {
-    let [mut a, mut b] = load(p, i);
-    b -= (a + W2) >> 2;
+/// `_jxr_2PreFilter`: the inverse of [`post2_g`].
+#[inline(always)]
+fn pre2_g<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
+    b -= (a + 2) >> 2;
     a -= b >> 13;
     a -= b >> 9;
     a -= b >> 5;
-    a -= (b + W1) >> 1;
-    b -= (a + W2) >> 2;
-    store(p, i, [a, b]);
+    a -= (b + 1) >> 1;
+    b -= (a + 2) >> 2;
+    [a, b]
+}
+
+/// Applies the one-sample operator `f` to the samples of `p` at indices `i`.
+#[inline(always)]
+fn on<const N: usize>(p: &mut [i32], i: [usize; N], f: impl Fn([S; N]) -> [S; N]) {
+    let v = load(p, i);
+    store(p, i, f(v));
+}
+
+fn post4(p: &mut [i32], i: [usize; 4]) {
+    on(p, i, post4_g);
+}
+fn pre4(p: &mut [i32], i: [usize; 4]) {
+    on(p, i, pre4_g);
+}
+fn post2x2(p: &mut [i32], i: [usize; 4]) {
+    on(p, i, post2x2_g);
+}
+fn pre2x2(p: &mut [i32], i: [usize; 4]) {
+    on(p, i, pre2x2_g);
+}
+fn post2(p: &mut [i32], i: [usize; 2]) {
+    on(p, i, post2_g);
+}
+fn pre2(p: &mut [i32], i: [usize; 2]) {
+    on(p, i, pre2_g);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -553,86 +732,124 @@ enum Dir {
     Forward,
 }
 
-/// The pitch-4 POT pattern (4×4 interior windows, 4-point edge seams, 2×2 corners) on `r`.
-fn pot4_region(p: &mut [i32], stride: usize, r: Rect, dir: Dir) {
-    let at = |x: usize, y: usize| y * stride + x;
-    let f4 = |p: &mut [i32], i: [usize; 4]| if dir == Dir::Inverse { post4(p, i) } else { pre4(p, i) };
-    let f16 = |p: &mut [i32], i: [usize; 16]| if dir == Dir::Inverse { post4x4(p, i) } else { pre4x4(p, i) };
-    // Interior windows, row by row (each row of windows touches rows y-2..y+2 only).
-    for y in (r.y0 + 4..r.y1).step_by(4) {
-        for x in (r.x0 + 4..r.x1).step_by(4) {
-            let i: [usize; 16] = std::array::from_fn(|k| at(x - 2 + k % 4, y - 2 + k / 4));
-            f16(p, i);
-        }
+/// Rows `y_base..` of a plane: `data[(y - y_base) * stride + x]` is sample `(x, y)`.
+struct Rows<'a> {
+    data: &'a mut [i32],
+    stride: usize,
+    y_base: usize,
+}
+
+impl Rows<'_> {
+    #[inline(always)]
+    fn at(&self, x: usize, y: usize) -> usize {
+        (y - self.y_base) * self.stride + x
     }
-    // Seams along the top and bottom edges (two rows each) and the left and right edges.
-    for x in (r.x0 + 4..r.x1).step_by(4) {
-        for y in [r.y0, r.y0 + 1, r.y1 - 2, r.y1 - 1] {
-            f4(p, [at(x - 2, y), at(x - 1, y), at(x, y), at(x + 1, y)]);
-        }
-    }
-    for y in (r.y0 + 4..r.y1).step_by(4) {
+}
+
+/// The pitch-4 POT pattern (4×4 interior windows, 4-point edge seams, 2×2 corners) on `r`,
+/// limited to the operations keyed by a row in `keys`: a seam's operations by the seam's row,
+/// the top edge's and top corners' by `r.y0`, the bottom's by `r.y1`. Operations with
+/// different keys touch different samples, so any split of the keys gives the same result.
+fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
+    let f4 = |p: &mut Rows, i: [usize; 4]| if dir == Dir::Inverse { post4(p.data, i) } else { pre4(p.data, i) };
+    for y in (r.y0 + 4..r.y1).step_by(4).filter(|y| keys.contains(y)) {
+        // Interior windows (LANES at once), and the seams along the left and right edges.
+        pot4_interior_row(p, r, y, dir);
         for x in [r.x0, r.x0 + 1, r.x1 - 2, r.x1 - 1] {
-            f4(p, [at(x, y - 2), at(x, y - 1), at(x, y), at(x, y + 1)]);
+            f4(p, [p.at(x, y - 2), p.at(x, y - 1), p.at(x, y), p.at(x, y + 1)]);
         }
     }
-    // The corners.
-    for (x, y) in [(r.x0, r.y0), (r.x1 - 2, r.y0), (r.x0, r.y1 - 2), (r.x1 - 2, r.y1 - 2)] {
-        f4(p, [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)]);
+    for (key, rows) in [(r.y0, [r.y0, r.y0 + 1]), (r.y1, [r.y1 - 2, r.y1 - 1])] {
+        if !keys.contains(&key) {
+            continue;
+        }
+        // The seams along the top (bottom) edge, two rows, and the two corners.
+        for y in rows {
+            for x in (r.x0 + 4..r.x1).step_by(4) {
+                f4(p, [p.at(x - 2, y), p.at(x - 1, y), p.at(x, y), p.at(x + 1, y)]);
+            }
+        }
+        let y = rows[0];
+        for x in [r.x0, r.x1 - 2] {
+            f4(p, [p.at(x, y), p.at(x + 1, y), p.at(x, y + 1), p.at(x + 1, y + 1)]);
+        }
+    }
+}
+
+/// The 4×4 windows centred on `(x, y)` for `x = r.x0 + 4, r.x0 + 8, … < r.x1`, [`LANES`] at a
+/// time: gathered into lane vectors, filtered, scattered back.
+fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir) {
+    let count = ((r.x1 - r.x0) / 4).saturating_sub(1);
+    let top = p.at(0, y - 2);
+    let stride = p.stride;
+    let mut g = 0;
+    while g < count {
+        let n = (count - g).min(LANES);
+        let mut v = [V([0; LANES]); 16];
+        for l in 0..n {
+            let x = r.x0 + 4 * (g + l + 1) - 2;
+            for j in 0..4 {
+                let row = &p.data[top + j * stride + x..][..4];
+                for i in 0..4 {
+                    v[4 * j + i].0[l] = row[i];
+                }
+            }
+        }
+        let v = if dir == Dir::Inverse { post4x4_g(v) } else { pre4x4_g(v) };
+        for l in 0..n {
+            let x = r.x0 + 4 * (g + l + 1) - 2;
+            for j in 0..4 {
+                let row = &mut p.data[top + j * stride + x..][..4];
+                for i in 0..4 {
+                    row[i] = v[4 * j + i].0[l];
+                }
+            }
+        }
+        g += n;
     }
 }
 
 /// The pitch-2 POT of 4:2:0 and 4:2:2 chroma DC planes on `r` (T.835
 /// `overlap_level1_up2_420/422`): 2×2 windows at interior grid corners, 2-point seams along
 /// the outermost rows and columns, and corners kept as differences from their neighbour
-/// while the filters run (jxrlib `COMPUTE_CORNER_PRED_DIFF/ADD`).
-fn pot2_region(p: &mut [i32], stride: usize, r: Rect, dir: Dir) {
-    let at = |x: usize, y: usize| y * stride + x;
+/// while the filters run (jxrlib `COMPUTE_CORNER_PRED_DIFF/ADD`). Keys as in [`pot4_region`].
+fn pot2_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
+    let (top, bottom) = (keys.contains(&r.y0), keys.contains(&r.y1));
     // Corner, neighbour; in T.835's order (top-left, top-right, bottom-left, bottom-right).
-    let corners = [
-        (at(r.x0, r.y0), at(r.x0 + 1, r.y0)),
-        (at(r.x1 - 1, r.y0), at(r.x1 - 2, r.y0)),
-        (at(r.x0, r.y1 - 1), at(r.x0 + 1, r.y1 - 1)),
-        (at(r.x1 - 1, r.y1 - 1), at(r.x1 - 2, r.y1 - 1)),
-    ];
-    let filters = |p: &mut [i32]| {
-        let f2 = |p: &mut [i32], i: [usize; 2]| if dir == Dir::Inverse { post2(p, i) } else { pre2(p, i) };
-        let f4 = |p: &mut [i32], i: [usize; 4]| if dir == Dir::Inverse { post2x2(p, i) } else { pre2x2(p, i) };
-        for y in (r.y0 + 2..r.y1).step_by(2) {
-            for x in (r.x0 + 2..r.x1).step_by(2) {
-                f4(p, [at(x - 1, y - 1), at(x, y - 1), at(x - 1, y), at(x, y)]);
-            }
-        }
+    let mut corners = Vec::with_capacity(4);
+    if top {
+        corners.push((p.at(r.x0, r.y0), p.at(r.x0 + 1, r.y0)));
+        corners.push((p.at(r.x1 - 1, r.y0), p.at(r.x1 - 2, r.y0)));
+    }
+    if bottom {
+        corners.push((p.at(r.x0, r.y1 - 1), p.at(r.x0 + 1, r.y1 - 1)));
+        corners.push((p.at(r.x1 - 1, r.y1 - 1), p.at(r.x1 - 2, r.y1 - 1)));
+    }
+    if dir == Dir::Forward {
+        corners.reverse();
+    }
+    for &(c, n) in &corners {
+        p.data[c] = p.data[c].wrapping_sub(p.data[n]);
+    }
+    let f2 = |p: &mut Rows, i: [usize; 2]| if dir == Dir::Inverse { post2(p.data, i) } else { pre2(p.data, i) };
+    let f4 = |p: &mut Rows, i: [usize; 4]| if dir == Dir::Inverse { post2x2(p.data, i) } else { pre2x2(p.data, i) };
+    for y in (r.y0 + 2..r.y1).step_by(2).filter(|y| keys.contains(y)) {
         for x in (r.x0 + 2..r.x1).step_by(2) {
-            for y in [r.y0, r.y1 - 1] {
-                f2(p, [at(x - 1, y), at(x, y)]);
+            f4(p, [p.at(x - 1, y - 1), p.at(x, y - 1), p.at(x - 1, y), p.at(x, y)]);
+        }
+        for x in [r.x0, r.x1 - 1] {
+            f2(p, [p.at(x, y - 1), p.at(x, y)]);
+        }
+    }
+    for (key, y) in [(top, r.y0), (bottom, r.y1 - 1)] {
+        if key {
+            for x in (r.x0 + 2..r.x1).step_by(2) {
+                f2(p, [p.at(x - 1, y), p.at(x, y)]);
             }
         }
-        for y in (r.y0 + 2..r.y1).step_by(2) {
-            for x in [r.x0, r.x1 - 1] {
-                f2(p, [at(x, y - 1), at(x, y)]);
-            }
-        }
-    };
-    match dir {
-        Dir::Inverse => {
-            for &(c, n) in &corners {
-                p[c] = p[c].wrapping_sub(p[n]);
-            }
-            filters(p);
-            for &(c, n) in &corners {
-                p[c] = p[c].wrapping_add(p[n]);
-            }
-        }
-        Dir::Forward => {
-            for &(c, n) in corners.iter().rev() {
-                p[c] = p[c].wrapping_sub(p[n]);
-            }
-            filters(p);
-            for &(c, n) in corners.iter().rev() {
-                p[c] = p[c].wrapping_add(p[n]);
-            }
-        }
+    }
+    for &(c, n) in &corners {
+        p.data[c] = p.data[c].wrapping_add(p.data[n]);
     }
 }
 
@@ -650,7 +867,7 @@ fn stage2_inverse(kind: PlaneKind, double: bool, c: &MbCoeffs, out: &mut [i32; 1
         }
         PlaneKind::Chroma420 => {
             out[..4].copy_from_slice(&c[DC..=lp(3)]);
-            on(out, [0, 1, 2, 3], |v| t2x2h(v, Wrapping(0)));
+            on(out, [0, 1, 2, 3], |v| t2x2h(v, 0));
             out.swap(1, 2);
             4
         }
@@ -658,12 +875,12 @@ fn stage2_inverse(kind: PlaneKind, double: bool, c: &MbCoeffs, out: &mut [i32; 1
             out[..8].copy_from_slice(&c[DC..=lp(7)]);
             // _jxr_2ptT on DC and LP4, then two 2×2 transforms.
             on(out, [0, 4], |[mut a, mut b]| {
-                a -= (b + W1) >> 1;
+                a -= (b + 1) >> 1;
                 b += a;
                 [a, b]
             });
-            on(out, [0, 1, 2, 3], |v| t2x2h(v, Wrapping(0)));
-            on(out, [4, 5, 6, 7], |v| t2x2h(v, Wrapping(0)));
+            on(out, [0, 1, 2, 3], |v| t2x2h(v, 0));
+            on(out, [4, 5, 6, 7], |v| t2x2h(v, 0));
             out.swap(1, 2);
             out.swap(5, 6);
             8
@@ -693,17 +910,17 @@ fn stage2_forward(kind: PlaneKind, double: bool, dcs: &[i32; 16], c: &mut MbCoef
         PlaneKind::Full => pct4x4(&mut v),
         PlaneKind::Chroma420 => {
             v.swap(1, 2);
-            on(&mut v, [0, 1, 2, 3], |x| t2x2h(x, Wrapping(0)));
+            on(&mut v, [0, 1, 2, 3], |x| t2x2h(x, 0));
         }
         PlaneKind::Chroma422 => {
             v.swap(1, 2);
             v.swap(5, 6);
-            on(&mut v, [0, 1, 2, 3], |x| t2x2h(x, Wrapping(0)));
-            on(&mut v, [4, 5, 6, 7], |x| t2x2h(x, Wrapping(0)));
+            on(&mut v, [0, 1, 2, 3], |x| t2x2h(x, 0));
+            on(&mut v, [4, 5, 6, 7], |x| t2x2h(x, 0));
             // _jxr_2ptFwdT.
             on(&mut v, [0, 4], |[mut a, mut b]| {
                 b -= a;
-                a += (b + W1) >> 1;
+                a += (b + 1) >> 1;
                 [a, b]
             });
         }
@@ -714,26 +931,140 @@ fn stage2_forward(kind: PlaneKind, double: bool, dcs: &[i32; 16], c: &mut MbCoef
 // ---------------------------------------------------------------------------------------------
 // Whole planes.
 
-fn check_geometry(kind: PlaneKind, mb_w: usize, mb_h: usize, n: usize) -> Result<(usize, usize)> {
+/// Macroblock rows per band in [`inverse_plane`] (the band's halo is recomputed, so longer
+/// bands cost less extra work; 8 rows of a 4096-wide image keep a band's buffers in L2).
+pub const BAND_MB_ROWS: usize = 8;
+
+/// The size of a channel's plane, after checking the grid.
+fn plane_size(kind: PlaneKind, mb_w: usize, mb_h: usize) -> Result<(usize, usize)> {
     if mb_w == 0 || mb_h == 0 {
         return Err(Error::invalid("an image of no macroblocks"));
     }
-    let mbs = mb_w.checked_mul(mb_h).ok_or_else(|| Error::limit("macroblock count overflows"))?;
-    if n != mbs {
-        return Err(Error::invalid(format!("{n} macroblocks given for a {mb_w}×{mb_h} grid")));
-    }
     let (bx, by) = kind.blocks();
-    Ok((mb_w * bx * 4, mb_h * by * 4))
+    let w = mb_w.checked_mul(bx * 4).ok_or_else(|| Error::limit("plane width overflows"))?;
+    let h = mb_h.checked_mul(by * 4).ok_or_else(|| Error::limit("plane height overflows"))?;
+    w.checked_mul(h).ok_or_else(|| Error::limit("plane size overflows"))?;
+    Ok((w, h))
 }
 
-/// The inverse lapped transform of one channel.
+/// The inverse lapped transform of the macroblock rows `rows` of one channel, written to
+/// `out`: the plane rows `rows.start · H .. rows.end · H` (H = 16, or 8 for 4:2:0 chroma),
+/// row-major, `W` samples each (`W` = 16·`mb_w`, or 8·`mb_w` for 4:2:0 and 4:2:2 chroma).
 ///
-/// `coeffs` holds the channel's macroblocks in raster order over the extended image
-/// (`mb_w × mb_h`), each dequantized and predicted in the [`crate::mb`] layout: `[0]` DC,
-/// `[1..16]` LP 1..15 (4:2:0 chroma: LP 1..3; 4:2:2 chroma: LP 1..7), `[16 + 15·b + k − 1]`
-/// HP `k` of block `b`, blocks numbered in raster order inside the macroblock (`b = 4·by + bx`
-/// for full planes, `2·by + bx` for 4:2:0 and 4:2:2 chroma). `channel` is the channel's index
-/// (channels after the first are doubled after stage 2 in scaled arithmetic).
+/// `coeffs` holds consecutive macroblock rows starting at row `coeffs_first_row`, `mb_w`
+/// macroblocks each in raster order, each dequantized and predicted in the [`crate::mb`]
+/// layout: `[0]` DC, `[1..16]` LP 1..15 (4:2:0 chroma: LP 1..3; 4:2:2 chroma: LP 1..7),
+/// `[16 + 15·b + k − 1]` HP `k` of block `b`, blocks numbered in raster order inside the
+/// macroblock (`b = 4·y + x` for full planes, `2·y + x` for 4:2:0 and 4:2:2 chroma). They
+/// must cover the band and its halo: rows `rows.start − 2 .. rows.end + 2` (clipped to the
+/// image). `channel` is the channel's index: channels after the first are doubled after stage
+/// 2 in scaled arithmetic.
+///
+/// Bands are independent: a decoder can run them in any order or in parallel, and start a
+/// band as soon as the macroblock rows of its halo are decoded.
+#[allow(clippy::too_many_arguments)]
+pub fn inverse_band(
+    params: &TransformParams,
+    kind: PlaneKind,
+    channel: usize,
+    mb_w: usize,
+    mb_h: usize,
+    coeffs: &[MbCoeffs],
+    coeffs_first_row: usize,
+    rows: Range<usize>,
+    out: &mut [i32],
+) -> Result<()> {
+    let (width, _) = plane_size(kind, mb_w, mb_h)?;
+    let (bx, by) = kind.blocks();
+    let (r0, r1) = (rows.start, rows.end);
+    if r0 >= r1 || r1 > mb_h {
+        return Err(Error::invalid(format!("macroblock rows {r0}..{r1} of an image of {mb_h}")));
+    }
+    // Macroblock rows whose stage 2 is needed, block rows whose stage 1 is needed.
+    let (s0, s1) = (r0.saturating_sub(2), (r1 + 2).min(mb_h));
+    let have = coeffs_first_row..coeffs_first_row + coeffs.len() / mb_w;
+    if coeffs.len() % mb_w != 0 || s0 < have.start || s1 > have.end {
+        return Err(Error::invalid(format!(
+            "coefficients of macroblock rows {}..{} given, {s0}..{s1} needed",
+            have.start, have.end
+        )));
+    }
+    let mb = |mx: usize, my: usize| &coeffs[(my - coeffs_first_row) * mb_w + mx];
+    let double = params.scaled && channel > 0;
+    let dw = bx * mb_w;
+
+    // Stage 2 for macroblock rows s0..s1: DC rows by·s0..by·s1.
+    let mut dc = vec![0i32; dw * by * (s1 - s0)];
+    let mut v = [0i32; 16];
+    for my in s0..s1 {
+        for mx in 0..mb_w {
+            stage2_inverse(kind, double, mb(mx, my), &mut v);
+            for j in 0..by {
+                let row = ((my - s0) * by + j) * dw + mx * bx;
+                dc[row..row + bx].copy_from_slice(&v[j * bx..(j + 1) * bx]);
+            }
+        }
+    }
+    // The stage-2 POT makes the DCs of macroblock rows r0 − 1 ..= r1 final.
+    if params.overlap == OverlapMode::Two {
+        let keys = by * r0.saturating_sub(1)..=by * (r1 + 1).min(mb_h);
+        let mut p = Rows { data: &mut dc, stride: dw, y_base: by * s0 };
+        for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
+            match kind {
+                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse),
+                _ => pot2_region(&mut p, r, &keys, Dir::Inverse),
+            }
+        }
+    }
+
+    // Stage 1 for block rows b0..b1 (the band and one block row of halo each side), LANES
+    // blocks at once.
+    let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
+    let mut data = vec![0i32; width * 4 * (b1 - b0)];
+    for y in b0..b1 {
+        let (my, jy) = (y / by, y % by);
+        let dc_row = &dc[(y - by * s0) * dw..][..dw];
+        let mut x = 0;
+        while x < dw {
+            let n = (dw - x).min(LANES);
+            let mut t = [V([0; LANES]); 16];
+            for l in 0..n {
+                let xb = x + l;
+                let c = mb(xb / bx, my);
+                let b = jy * bx + xb % bx;
+                t[0].0[l] = dc_row[xb];
+                for (k, &h) in c[hp(b, 1)..=hp(b, 15)].iter().enumerate() {
+                    t[k + 1].0[l] = h;
+                }
+            }
+            let t = ipct4x4_g(t);
+            for l in 0..n {
+                for j in 0..4 {
+                    let row = &mut data[((y - b0) * 4 + j) * width + (x + l) * 4..][..4];
+                    for i in 0..4 {
+                        row[i] = t[4 * j + i].0[l];
+                    }
+                }
+            }
+            x += n;
+        }
+    }
+    // The stage-1 POT of every seam from the band's top row to its bottom row.
+    let unit = 4 * by;
+    if params.overlap != OverlapMode::None {
+        let keys = unit * r0..=unit * r1;
+        let mut p = Rows { data: &mut data, stride: width, y_base: 4 * b0 };
+        for r in regions(params.hard.as_ref(), mb_w, mb_h, 4 * bx, unit) {
+            pot4_region(&mut p, r, &keys, Dir::Inverse);
+        }
+    }
+    let band = &data[(unit * r0 - 4 * b0) * width..][..unit * (r1 - r0) * width];
+    out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
+    Ok(())
+}
+
+/// The inverse lapped transform of one channel, band by band ([`inverse_band`] over
+/// [`BAND_MB_ROWS`] macroblock rows at a time). `coeffs` holds all `mb_w × mb_h` macroblocks.
 ///
 /// Returns the samples before colour conversion: `16·mb_w × 16·mb_h` for full planes,
 /// `8·mb_w × 8·mb_h` (4:2:0) or `8·mb_w × 16·mb_h` (4:2:2) for chroma.
@@ -745,51 +1076,15 @@ pub fn inverse_plane(
     mb_h: usize,
     coeffs: &[MbCoeffs],
 ) -> Result<Plane> {
-    let (width, height) = check_geometry(kind, mb_w, mb_h, coeffs.len())?;
-    let (bx, by) = kind.blocks();
-    let double = params.scaled && channel > 0;
-
-    // Stage 2: the DC plane, bx·mb_w × by·mb_h.
-    let (dw, dh) = (bx * mb_w, by * mb_h);
-    let mut dc = vec![0i32; dw * dh];
-    let mut v = [0i32; 16];
-    for (m, c) in coeffs.iter().enumerate() {
-        let (mx, my) = (m % mb_w, m / mb_w);
-        stage2_inverse(kind, double, c, &mut v);
-        for j in 0..by {
-            let row = (my * by + j) * dw + mx * bx;
-            dc[row..row + bx].copy_from_slice(&v[j * bx..(j + 1) * bx]);
-        }
+    let (width, height) = plane_size(kind, mb_w, mb_h)?;
+    if coeffs.len() != mb_w * mb_h {
+        return Err(Error::invalid(format!("{} macroblocks given for a {mb_w}×{mb_h} grid", coeffs.len())));
     }
-    if params.overlap == OverlapMode::Two {
-        for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
-            match kind {
-                PlaneKind::Full => pot4_region(&mut dc, dw, r, Dir::Inverse),
-                _ => pot2_region(&mut dc, dw, r, Dir::Inverse),
-            }
-        }
-    }
-
-    // Stage 1: every block's DC and HP to samples.
+    let unit = kind.blocks().1 * 4;
     let mut data = vec![0i32; width * height];
-    for (m, c) in coeffs.iter().enumerate() {
-        let (mx, my) = (m % mb_w, m / mb_w);
-        for b in 0..bx * by {
-            let (x, y) = (mx * bx + b % bx, my * by + b / bx);
-            let mut t = [0i32; 16];
-            t[0] = dc[y * dw + x];
-            t[1..].copy_from_slice(&c[hp(b, 1)..=hp(b, 15)]);
-            ipct4x4(&mut t);
-            for j in 0..4 {
-                let row = (y * 4 + j) * width + x * 4;
-                data[row..row + 4].copy_from_slice(&t[j * 4..j * 4 + 4]);
-            }
-        }
-    }
-    if params.overlap != OverlapMode::None {
-        for r in regions(params.hard.as_ref(), mb_w, mb_h, bx * 4, by * 4) {
-            pot4_region(&mut data, width, r, Dir::Inverse);
-        }
+    for r0 in (0..mb_h).step_by(BAND_MB_ROWS) {
+        let r1 = (r0 + BAND_MB_ROWS).min(mb_h);
+        inverse_band(params, kind, channel, mb_w, mb_h, coeffs, 0, r0..r1, &mut data[r0 * unit * width..])?;
     }
     Ok(Plane { width, height, data })
 }
@@ -805,16 +1100,17 @@ pub fn forward_plane(
     mb_h: usize,
     plane: &Plane,
 ) -> Result<Vec<MbCoeffs>> {
+    let (width, height) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
-    let (width, height) = (mb_w * bx * 4, mb_h * by * 4);
-    if mb_w == 0 || mb_h == 0 || plane.width != width || plane.height != height || plane.data.len() != width * height {
+    if plane.width != width || plane.height != height || plane.data.len() != width * height {
         return Err(Error::invalid("plane size does not match the macroblock grid"));
     }
     let double = params.scaled && channel > 0;
     let mut data = plane.data.clone();
     if params.overlap != OverlapMode::None {
+        let mut p = Rows { data: &mut data, stride: width, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx * 4, by * 4) {
-            pot4_region(&mut data, width, r, Dir::Forward);
+            pot4_region(&mut p, r, &(0..=height), Dir::Forward);
         }
     }
     let (dw, dh) = (bx * mb_w, by * mb_h);
@@ -835,10 +1131,11 @@ pub fn forward_plane(
         }
     }
     if params.overlap == OverlapMode::Two {
+        let mut p = Rows { data: &mut dc, stride: dw, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
-                PlaneKind::Full => pot4_region(&mut dc, dw, r, Dir::Forward),
-                _ => pot2_region(&mut dc, dw, r, Dir::Forward),
+                PlaneKind::Full => pot4_region(&mut p, r, &(0..=dh), Dir::Forward),
+                _ => pot2_region(&mut p, r, &(0..=dh), Dir::Forward),
             }
         }
     }
@@ -886,8 +1183,8 @@ mod tests {
                 ipct4x4(&mut v);
                 assert_eq!(v, orig, "PCT");
                 let mut v = orig;
-                pre4x4(&mut v, idx16);
-                post4x4(&mut v, idx16);
+                on(&mut v, idx16, pre4x4_g);
+                on(&mut v, idx16, post4x4_g);
                 assert_eq!(v, orig, "4x4 POT");
                 let mut v = orig;
                 pre4(&mut v, [0, 1, 2, 3]);
@@ -924,7 +1221,7 @@ mod tests {
     #[test]
     fn forward_then_inverse_is_the_identity() {
         let mut r = rng(11);
-        let grids = [(1, 1), (1, 3), (3, 1), (2, 2), (3, 2), (5, 3)];
+        let grids = [(1, 1), (1, 3), (3, 1), (2, 2), (3, 2), (5, 3), (2, 17)];
         let edges = [
             None,
             Some(HardEdges { columns: vec![1, 3], rows: vec![1] }),
@@ -1164,6 +1461,50 @@ mod tests {
             }
             let diff = got.iter().zip(expected).filter(|(a, b)| a != b).count();
             assert_eq!((got.len(), diff), (expected.len(), 0), "jxrlib swap {swap}");
+        }
+    }
+
+    /// Every split into bands, and coefficient windows holding only a band's halo, give the
+    /// same samples as one band over the whole image.
+    #[test]
+    fn bands_agree_with_the_whole_image() {
+        let mut r = rng(21);
+        let (mb_w, mb_h) = (3, 11);
+        let hard = [None, Some(HardEdges { columns: vec![2], rows: vec![4, 5, 9] })];
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+                for h in &hard {
+                    let params = TransformParams { overlap, scaled: true, hard: h.clone() };
+                    let coeffs: Vec<MbCoeffs> =
+                        (0..mb_w * mb_h).map(|_| std::array::from_fn(|_| sample(&mut r, 14))).collect();
+                    let (width, height) = plane_size(kind, mb_w, mb_h).unwrap();
+                    let unit = height / mb_h;
+                    let mut whole = vec![0; width * height];
+                    inverse_band(&params, kind, 2, mb_w, mb_h, &coeffs, 0, 0..mb_h, &mut whole).unwrap();
+                    assert_eq!(inverse_plane(&params, kind, 2, mb_w, mb_h, &coeffs).unwrap().data, whole);
+                    for band in [1, 2, 3, 5] {
+                        for r0 in (0..mb_h).step_by(band) {
+                            let r1 = (r0 + band).min(mb_h);
+                            // Only the halo's coefficients.
+                            let (s0, s1) = (r0.saturating_sub(2), (r1 + 2).min(mb_h));
+                            let window = &coeffs[s0 * mb_w..s1 * mb_w];
+                            let mut out = vec![0; (r1 - r0) * unit * width];
+                            inverse_band(&params, kind, 2, mb_w, mb_h, window, s0, r0..r1, &mut out).unwrap();
+                            assert_eq!(
+                                out,
+                                whole[r0 * unit * width..r1 * unit * width],
+                                "{kind:?} {overlap:?} {h:?} band {r0}..{r1}"
+                            );
+                            // A window one row short is refused.
+                            if s1 - s0 > 1 && s0 > 0 {
+                                let short = &coeffs[(s0 + 1) * mb_w..s1 * mb_w];
+                                assert!(inverse_band(&params, kind, 2, mb_w, mb_h, short, s0 + 1, r0..r1, &mut out)
+                                    .is_err());
+                            }
+                        }
+                    }
+                }
+            }
         }
     }
 }
