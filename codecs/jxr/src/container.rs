@@ -146,8 +146,11 @@ impl OutputBitDepth {
 pub struct PixelFormat {
     /// The name jxrlib and WIC use, without the `GUID_PKPixelFormat` prefix ("64bppRGBAHalf").
     pub name: &'static str,
-    /// The last byte of the GUID `{6FDDC324-4E03-4BFE-B185-3D77768DC9xx}`.
+    /// The last byte of the GUID (`{6FDDC324-4E03-4BFE-B185-3D77768DC9xx}` for all but the
+    /// four WIC formats).
     pub id: u8,
+    /// The 16 bytes of the GUID as stored in a file (Data1-3 little-endian).
+    pub guid: [u8; 16],
     /// The output colour format the codestream should carry.
     pub color: OutputColorFormat,
     /// The output bit depth.
@@ -167,13 +170,6 @@ pub struct PixelFormat {
 }
 
 impl PixelFormat {
-    /// The 16 bytes of the GUID as stored in a file (Data1-3 little-endian).
-    pub fn guid(&self) -> [u8; 16] {
-        let mut g = GUID_PREFIX_BYTES;
-        g[15] = self.id;
-        g
-    }
-
     /// Channels a decoded pixel holds: colour channels, plus alpha.
     pub fn samples_per_pixel(&self) -> u8 {
         self.channels + u8::from(self.alpha)
@@ -185,14 +181,17 @@ impl PixelFormat {
 const GUID_PREFIX_BYTES: [u8; 16] =
     [0x24, 0xC3, 0xDD, 0x6F, 0x03, 0x4E, 0xFE, 0x4B, 0xB1, 0x85, 0x3D, 0x77, 0x76, 0x8D, 0xC9, 0x00];
 
-/// WIC pixel formats that jxrlib knows but that are not JPEG XR formats (their GUIDs do not
-/// share the prefix above): stored bytes and names, for a clear error.
-const WIC_ONLY_GUIDS: [([u8; 16], &str); 4] = [
-    ([0x95, 0x6B, 0x8C, 0xD9, 0xFE, 0x3E, 0xD6, 0x47, 0xBB, 0x25, 0xEB, 0x17, 0x48, 0xAB, 0x0C, 0xF1], "32bppRGB"),
-    ([0x2D, 0xAD, 0xC7, 0xF5, 0x8D, 0x6A, 0xDD, 0x43, 0xA7, 0xA8, 0xA2, 0x99, 0x35, 0x26, 0x1A, 0xE9], "32bppRGBA"),
-    ([0x50, 0xA6, 0xC4, 0x3C, 0x27, 0xA5, 0x37, 0x4D, 0xA9, 0x16, 0x31, 0x42, 0xC7, 0xEB, 0xED, 0xBA], "32bppPRGBA"),
-    ([0x8F, 0xD7, 0xFE, 0xE3, 0xDB, 0xE8, 0xCF, 0x4A, 0x84, 0xC1, 0xE9, 0x7F, 0x61, 0x36, 0xB3, 0x27], "96bppRGBFloat"),
-];
+/// The stored GUIDs of the four WIC pixel formats that jxrlib also reads and writes
+/// (`JXRGlue.h`; T.832 does not list them, but imagecodecs' `jpegxr_encode`, which calls
+/// jxrlib, writes 96bppRGBFloat for float32 RGB).
+const GUID_32BPP_RGB: [u8; 16] =
+    [0x95, 0x6B, 0x8C, 0xD9, 0xFE, 0x3E, 0xD6, 0x47, 0xBB, 0x25, 0xEB, 0x17, 0x48, 0xAB, 0x0C, 0xF1];
+const GUID_32BPP_RGBA: [u8; 16] =
+    [0x2D, 0xAD, 0xC7, 0xF5, 0x8D, 0x6A, 0xDD, 0x43, 0xA7, 0xA8, 0xA2, 0x99, 0x35, 0x26, 0x1A, 0xE9];
+const GUID_32BPP_PRGBA: [u8; 16] =
+    [0x50, 0xA6, 0xC4, 0x3C, 0x27, 0xA5, 0x37, 0x4D, 0xA9, 0x16, 0x31, 0x42, 0xC7, 0xEB, 0xED, 0xBA];
+const GUID_96BPP_RGB_FLOAT: [u8; 16] =
+    [0x8F, 0xD7, 0xFE, 0xE3, 0xDB, 0xE8, 0xCF, 0x4A, 0x84, 0xC1, 0xE9, 0x7F, 0x61, 0x36, 0xB3, 0x27];
 
 const fn pf(
     name: &'static str,
@@ -203,9 +202,24 @@ const fn pf(
     flags: u8,
     bits_per_pixel: u16,
 ) -> PixelFormat {
+    let mut guid = GUID_PREFIX_BYTES;
+    guid[15] = id;
+    wic(name, guid, color, bit_depth, channels, flags, bits_per_pixel)
+}
+
+const fn wic(
+    name: &'static str,
+    guid: [u8; 16],
+    color: OutputColorFormat,
+    bit_depth: OutputBitDepth,
+    channels: u8,
+    flags: u8,
+    bits_per_pixel: u16,
+) -> PixelFormat {
     PixelFormat {
         name,
-        id,
+        id: guid[15],
+        guid,
         color,
         bit_depth,
         channels,
@@ -222,7 +236,8 @@ const X: u8 = 4; // padding channel
 const B: u8 = 8; // blue first
 
 /// Every pixel format of T.832 Table A.6 that jxrlib defines a GUID for (`JXRGlue.h`), with the
-/// output colour format and bit depth JXR-NOTES §1 gives.
+/// output colour format and bit depth JXR-NOTES §1 gives, then the four WIC formats jxrlib
+/// also accepts (`JXRGlue.c: pixelInfo`).
 pub const PIXEL_FORMATS: &[PixelFormat] = {
     use OutputBitDepth::*;
     use OutputColorFormat::*;
@@ -306,22 +321,17 @@ pub const PIXEL_FORMATS: &[PixelFormat] = {
         pf("32bppCMYKDIRECT", 0x54, CmykDirect, Bd8, 4, 0, 32),
         pf("64bppCMYKDIRECT", 0x55, CmykDirect, Bd16, 4, 0, 64),
         pf("40bppCMYKDIRECTAlpha", 0x56, CmykDirect, Bd8, 4, A, 40),
+        wic("32bppRGB", GUID_32BPP_RGB, Rgb, Bd8, 3, X, 32),
+        wic("32bppRGBA", GUID_32BPP_RGBA, Rgb, Bd8, 3, A, 32),
+        wic("32bppPRGBA", GUID_32BPP_PRGBA, Rgb, Bd8, 3, P, 32),
+        wic("96bppRGBFloat", GUID_96BPP_RGB_FLOAT, Rgb, Bd32F, 3, 0, 96),
     ]
 };
 
 /// The pixel format whose stored GUID is `guid`.
 pub fn pixel_format_from_guid(guid: &[u8; 16]) -> Result<&'static PixelFormat> {
-    if guid[..15] == GUID_PREFIX_BYTES[..15] {
-        if let Some(f) = PIXEL_FORMATS.iter().find(|f| f.id == guid[15]) {
-            return Ok(f);
-        }
-        return Err(Error::unsupported(format!(
-            "JPEG XR pixel format {{6FDDC324-4E03-4BFE-B185-3D77768DC9{:02X}}} (not in T.832 Table A.6)",
-            guid[15]
-        )));
-    }
-    if let Some((_, name)) = WIC_ONLY_GUIDS.iter().find(|(g, _)| g == guid) {
-        return Err(Error::invalid(format!("pixel format {name} is a WIC format, not valid in a JPEG XR file")));
+    if let Some(f) = PIXEL_FORMATS.iter().find(|f| &f.guid == guid) {
+        return Ok(f);
     }
     Err(Error::unsupported(format!("JPEG XR pixel format GUID {}", guid_string(guid))))
 }
@@ -549,7 +559,7 @@ mod tests {
         let fmt = PIXEL_FORMATS.iter().find(|f| f.name == "64bppRGBAHalf").unwrap();
         // Fix the layout: the IFD first, then the two codestreams.
         let mut ifd = IfdWriter::new();
-        ifd.bytes(tag::PIXEL_FORMAT, &fmt.guid());
+        ifd.bytes(tag::PIXEL_FORMAT, &fmt.guid);
         ifd.long(tag::SPATIAL_XFRM_PRIMARY, 5);
         ifd.long(tag::IMAGE_WIDTH, 17);
         ifd.short(tag::IMAGE_HEIGHT, 5);
@@ -655,10 +665,10 @@ mod tests {
         let mut f = file.clone();
         f[at + 15] = 0x60;
         let e = parse_container(&f).unwrap_err();
-        assert!(matches!(e, Error::Unsupported { .. }) && e.to_string().contains("DC960"), "{e}");
-        f[at..at + 16].copy_from_slice(&WIC_ONLY_GUIDS[3].0);
-        let e = parse_container(&f).unwrap_err();
-        assert!(e.to_string().contains("96bppRGBFloat"), "{e}");
+        assert!(matches!(e, Error::Unsupported { .. }) && e.to_string().contains("8DC960"), "{e}");
+        // The WIC GUID imagecodecs writes for float32 RGB is read, as jxrlib reads it.
+        f[at..at + 16].copy_from_slice(&GUID_96BPP_RGB_FLOAT);
+        assert_eq!(parse_container(&f).unwrap().pixel_format.name, "96bppRGBFloat");
         assert_eq!(c.pixel_format.samples_per_pixel(), 4);
     }
 
@@ -666,16 +676,17 @@ mod tests {
     fn pixel_format_table() {
         // Ids are unique, GUIDs round-trip, and the registry form matches JXRGlue.h.
         for (i, f) in PIXEL_FORMATS.iter().enumerate() {
-            assert!(PIXEL_FORMATS[..i].iter().all(|g| g.id != f.id && g.name != f.name), "{}", f.name);
-            assert_eq!(pixel_format_from_guid(&f.guid()).unwrap(), f);
+            assert!(PIXEL_FORMATS[..i].iter().all(|g| g.guid != f.guid && g.name != f.name), "{}", f.name);
+            assert_eq!(pixel_format_from_guid(&f.guid).unwrap(), f);
             // The name's leading number of bits per pixel agrees with the table.
             if let Some(bpp) = f.name.split("bpp").next().and_then(|n| n.parse::<u16>().ok()) {
                 assert_eq!(bpp, f.bits_per_pixel, "{}", f.name);
             }
         }
-        assert_eq!(PIXEL_FORMATS.len(), 79, "every prefixed GUID of JXRGlue.h but DontCare");
-        let half = pixel_format_from_guid(&PIXEL_FORMATS[52].guid()).unwrap();
-        assert_eq!(guid_string(&half.guid()), "{6FDDC324-4E03-4BFE-B185-3D77768DC93B}");
+        assert_eq!(PIXEL_FORMATS.len(), 79 + 4, "every GUID of JXRGlue.h but DontCare");
+        let half = pixel_format_from_guid(&PIXEL_FORMATS[52].guid).unwrap();
+        assert_eq!(guid_string(&half.guid), "{6FDDC324-4E03-4BFE-B185-3D77768DC93B}");
+        assert_eq!(guid_string(&GUID_96BPP_RGB_FLOAT), "{E3FED78F-E8DB-4ACF-84C1-E97F6136B327}");
         assert_eq!(half.name, "48bppRGBHalf");
         assert_eq!(OutputBitDepth::from_code(5), None);
         for code in 0..16 {

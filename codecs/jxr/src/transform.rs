@@ -1341,7 +1341,8 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         let mut lines = text.lines();
         let h: Vec<usize> = lines.next().unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect();
-        let rows: Vec<Vec<i32>> = lines.map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect()).collect();
+        let rows: Vec<Vec<i32>> =
+            lines.map(|l| l.split_whitespace().map(|v| v.parse::<i64>().unwrap() as i32).collect()).collect();
         let n = h[0] * h[1];
         let images = if (rows.len() - 1) % n == 0 { 1 } else { 2 };
         let (mbs, expected) = rows.split_at(rows.len() - images);
@@ -1505,6 +1506,55 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// 48bppRGBHalf (scaled) and 96bppRGBFloat (unscaled, LEN_MANTISSA 13, EXP_BIAS 4) at
+    /// quality 0.6, written by imagecodecs' `jpegxr_encode` (jxrlib; overlap 0, 4:4:4): the
+    /// transform and BD16F / BD32F formatting give jxrlib's exact half and float bit patterns
+    /// (including -1.5, 65504 and 1e-6 in the source).
+    #[test]
+    fn matches_jxrlib_half_and_float_output() {
+        use crate::container::{OutputBitDepth, OutputColorFormat, PIXEL_FORMATS};
+        use crate::output::{InternalColorFormat, OutputParams};
+        for (name, format, bd, shift) in [
+            ("half_q06", "48bppRGBHalf", OutputBitDepth::Bd16F, 0),
+            ("float_q06", "96bppRGBFloat", OutputBitDepth::Bd32F, 13),
+        ] {
+            let f = fixture(&format!("{name}.txt"));
+            let pf = PIXEL_FORMATS.iter().find(|p| p.name == format).unwrap();
+            let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
+            let planes: Vec<Plane> = (0..3)
+                .map(|ch| inverse_plane(&params, PlaneKind::Full, ch, f.mb_w, f.mb_h, &f.channels[ch]).unwrap())
+                .collect();
+            let out = OutputParams::new(
+                pf,
+                bd,
+                OutputColorFormat::Rgb,
+                InternalColorFormat::Yuv444,
+                f.scaled,
+                shift,
+                4,
+                false,
+                None,
+            )
+            .unwrap();
+            let w = planes[0].width;
+            let mut got = Vec::new();
+            for y in 0..f.height {
+                let rows: Vec<&[i32]> = planes.iter().map(|p| &p.data[y * w..(y + 1) * w]).collect();
+                let mut row = vec![0u8; out.row_bytes(f.width)];
+                out.format_row(&rows, None, f.width, &mut row).unwrap();
+                if bd == OutputBitDepth::Bd16F {
+                    got.extend(row.chunks(2).map(|b| i64::from(u16::from_le_bytes([b[0], b[1]]))));
+                } else {
+                    got.extend(row.chunks(4).map(|b| i64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))));
+                }
+            }
+            let expected: Vec<i64> = f.expected.iter().map(|&v| i64::from(v as u32)).collect();
+            assert_eq!(got.len(), expected.len());
+            let diff = got.iter().zip(&expected).filter(|(a, b)| a != b).count();
+            assert_eq!(diff, 0, "{name}: {diff} of {} samples differ", got.len());
         }
     }
 }
