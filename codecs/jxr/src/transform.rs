@@ -225,6 +225,22 @@ impl HardEdges {
     }
 }
 
+/// Checks that the transform implements the operator set of a codestream's sub-version (the
+/// 4 bits jxrlib reads as HARD_TILING_FLAG and RESERVED_C, JXR-NOTES §2 and §6): 1 (soft
+/// tiles) and 9 (hard tiles) use the JPEG XR operators implemented here; 0 (HD Photo 1.0,
+/// `.wdp`/`.hdp` files from Vista-era WIC) uses jxrlib's legacy `invTransformMacroblock`
+/// operators with DC-leakage compensation, which are not implemented; jxrlib refuses every
+/// other value.
+pub fn check_operator_set(sub_version: u8) -> Result<()> {
+    match sub_version {
+        1 | 9 => Ok(()),
+        0 => Err(Error::unsupported(
+            "HD Photo 1.0 codestreams (sub-version 0, the legacy transform operators of .wdp/.hdp files)",
+        )),
+        v => Err(Error::invalid(format!("codestream sub-version {v} (jxrlib accepts 0, 1 and 9)"))),
+    }
+}
+
 /// What the transform needs from the headers.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TransformParams {
@@ -1364,6 +1380,36 @@ mod tests {
         }
     }
 
+    /// Decodes a three-channel fixture through the transform, chroma upsampling and `out`'s
+    /// formatting: the raw output bytes of the `width × height` image.
+    fn render(f: &Fixture, internal: crate::output::InternalColorFormat, out: &crate::output::OutputParams) -> Vec<u8> {
+        use crate::output::{upsample_chroma_row, InternalColorFormat};
+        let kind = match internal {
+            InternalColorFormat::Yuv420 => PlaneKind::Chroma420,
+            InternalColorFormat::Yuv422 => PlaneKind::Chroma422,
+            _ => PlaneKind::Full,
+        };
+        let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
+        let planes: Vec<Plane> = (0..3)
+            .map(|ch| {
+                let k = if ch == 0 { PlaneKind::Full } else { kind };
+                inverse_plane(&params, k, ch, f.mb_w, f.mb_h, &f.channels[ch]).unwrap()
+            })
+            .collect();
+        let w = planes[0].width;
+        let (mut u, mut v) = (vec![0; w], vec![0; w]);
+        let mut bytes = Vec::new();
+        for y in 0..f.height {
+            let c = &planes[1];
+            upsample_chroma_row(internal, &c.data, c.width, c.height, y, &mut u).unwrap();
+            upsample_chroma_row(internal, &planes[2].data, c.width, c.height, y, &mut v).unwrap();
+            let mut row = vec![0u8; out.row_bytes(f.width)];
+            out.format_row(&[&planes[0].data[y * w..(y + 1) * w], &u, &v], None, f.width, &mut row).unwrap();
+            bytes.extend(row);
+        }
+        bytes
+    }
+
     /// The inverse transform reproduces T.835's and jxrlib's decoded 8-bit grey images
     /// exactly (lossless and QP 30; overlap 0, 1 and 2), formatted as BD8 output does.
     #[test]
@@ -1397,22 +1443,15 @@ mod tests {
     #[test]
     fn matches_t835_on_colour_streams() {
         use crate::container::{OutputBitDepth, OutputColorFormat, PIXEL_FORMATS};
-        use crate::output::{upsample_chroma_row, InternalColorFormat, OutputParams};
+        use crate::output::{InternalColorFormat, OutputParams};
         let rgb = PIXEL_FORMATS.iter().find(|f| f.name == "24bppRGB").unwrap();
         for name in ["rgb_c_d1_l1", "rgb_c_d1_l2", "rgb_c_d2_l1", "rgb_c_d2_l2", "rgb_c_d3_l1", "rgb_c_d3_l2"] {
             let f = fixture(&format!("{name}.txt"));
-            let (kind, internal) = match &name[6..8] {
-                "d1" => (PlaneKind::Chroma420, InternalColorFormat::Yuv420),
-                "d2" => (PlaneKind::Chroma422, InternalColorFormat::Yuv422),
-                _ => (PlaneKind::Full, InternalColorFormat::Yuv444),
+            let internal = match &name[6..8] {
+                "d1" => InternalColorFormat::Yuv420,
+                "d2" => InternalColorFormat::Yuv422,
+                _ => InternalColorFormat::Yuv444,
             };
-            let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
-            let planes: Vec<Plane> = (0..3)
-                .map(|ch| {
-                    let k = if ch == 0 { PlaneKind::Full } else { kind };
-                    inverse_plane(&params, k, ch, f.mb_w, f.mb_h, &f.channels[ch]).unwrap()
-                })
-                .collect();
             let out = OutputParams::new(
                 rgb,
                 OutputBitDepth::Bd8,
@@ -1425,21 +1464,8 @@ mod tests {
                 None,
             )
             .unwrap();
-            let ext_w = planes[0].width;
-            let mut got = Vec::new();
-            let (mut u, mut v) = (vec![0; ext_w], vec![0; ext_w]);
-            for y in 0..f.height {
-                let c = &planes[1];
-                upsample_chroma_row(internal, &c.data, c.width, c.height, y, &mut u).unwrap();
-                upsample_chroma_row(internal, &planes[2].data, c.width, c.height, y, &mut v).unwrap();
-                let yrow = &planes[0].data[y * ext_w..(y + 1) * ext_w];
-                let mut row = vec![0u8; out.row_bytes(f.width)];
-                out.format_row(&[yrow, &u, &v], None, f.width, &mut row).unwrap();
-                got.extend(row.into_iter().map(i32::from));
-            }
-            assert_eq!(got.len(), f.expected.len());
-            let diff = got.iter().zip(&f.expected).filter(|(a, b)| a != b).count();
-            assert_eq!(diff, 0, "{name}: {diff} of {} samples differ", got.len());
+            let got: Vec<i32> = render(&f, internal, &out).into_iter().map(i32::from).collect();
+            assert_eq!(got, f.expected, "{name}");
         }
     }
 
@@ -1523,10 +1549,6 @@ mod tests {
         ] {
             let f = fixture(&format!("{name}.txt"));
             let pf = PIXEL_FORMATS.iter().find(|p| p.name == format).unwrap();
-            let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
-            let planes: Vec<Plane> = (0..3)
-                .map(|ch| inverse_plane(&params, PlaneKind::Full, ch, f.mb_w, f.mb_h, &f.channels[ch]).unwrap())
-                .collect();
             let out = OutputParams::new(
                 pf,
                 bd,
@@ -1539,22 +1561,36 @@ mod tests {
                 None,
             )
             .unwrap();
-            let w = planes[0].width;
-            let mut got = Vec::new();
-            for y in 0..f.height {
-                let rows: Vec<&[i32]> = planes.iter().map(|p| &p.data[y * w..(y + 1) * w]).collect();
-                let mut row = vec![0u8; out.row_bytes(f.width)];
-                out.format_row(&rows, None, f.width, &mut row).unwrap();
-                if bd == OutputBitDepth::Bd16F {
-                    got.extend(row.chunks(2).map(|b| i64::from(u16::from_le_bytes([b[0], b[1]]))));
-                } else {
-                    got.extend(row.chunks(4).map(|b| i64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))));
-                }
-            }
-            let expected: Vec<i64> = f.expected.iter().map(|&v| i64::from(v as u32)).collect();
-            assert_eq!(got.len(), expected.len());
-            let diff = got.iter().zip(&expected).filter(|(a, b)| a != b).count();
-            assert_eq!(diff, 0, "{name}: {diff} of {} samples differ", got.len());
+            let bytes = render(&f, InternalColorFormat::Yuv444, &out);
+            let got: Vec<i32> = if bd == OutputBitDepth::Bd16F {
+                bytes.chunks(2).map(|b| i32::from(u16::from_le_bytes([b[0], b[1]]))).collect()
+            } else {
+                bytes.chunks(4).map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+            };
+            assert_eq!(got, f.expected, "{name}");
         }
+    }
+
+    /// 32bppRGBE written by JxrEncApp from a flat Radiance file, lossless (unscaled) and QP 40
+    /// (scaled), overlap 1: the RGBE bytes of JxrDecApp's `.hdr` output, exactly.
+    #[test]
+    fn matches_jxrlib_rgbe_output() {
+        use crate::container::{OutputBitDepth, OutputColorFormat, PIXEL_FORMATS};
+        use crate::output::{InternalColorFormat, OutputParams};
+        let pf = PIXEL_FORMATS.iter().find(|p| p.name == "32bppRGBE").unwrap();
+        for name in ["rgbe_e_ll", "rgbe_e_q"] {
+            let f = fixture(&format!("{name}.txt"));
+            let (bd, cf, internal) = (OutputBitDepth::Bd8, OutputColorFormat::Rgbe, InternalColorFormat::Yuv444);
+            let out = OutputParams::new(pf, bd, cf, internal, f.scaled, 0, 0, false, None).unwrap();
+            let got: Vec<i32> = render(&f, internal, &out).into_iter().map(i32::from).collect();
+            assert_eq!(got, f.expected, "{name}");
+        }
+    }
+
+    #[test]
+    fn operator_sets() {
+        assert!(check_operator_set(1).is_ok() && check_operator_set(9).is_ok());
+        assert!(matches!(check_operator_set(0), Err(Error::Unsupported { .. })));
+        assert!(matches!(check_operator_set(5), Err(Error::Invalid { .. })));
     }
 }
