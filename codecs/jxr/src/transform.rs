@@ -748,6 +748,31 @@ enum Dir {
     Forward,
 }
 
+/// The row length of a coefficient-major scratch for `count` windows or blocks: whole lane
+/// groups, plus one spare group so that a power-of-two image width does not make the 16 rows
+/// map onto the same cache sets.
+fn scratch_stride(count: usize) -> usize {
+    count.next_multiple_of(LANES) + LANES
+}
+
+/// Runs `f` on the first `count` columns of `cm`, a coefficient-major scratch of 16 rows of
+/// `n` values ([`scratch_stride`]): row `k` holds input `k` of every window or block. The
+/// gather into `cm` and the scatter out of it are separate passes, so the vector loads here
+/// never wait on the scalar stores that filled them.
+#[inline(always)]
+fn run_lanes(cm: &mut [i32], n: usize, count: usize, f: impl Fn([V; 16]) -> [V; 16]) {
+    for x in (0..count).step_by(LANES) {
+        let v: [V; 16] = std::array::from_fn(|k| {
+            let mut l = [0; LANES];
+            l.copy_from_slice(&cm[k * n + x..k * n + x + LANES]);
+            V(l)
+        });
+        for (k, r) in f(v).into_iter().enumerate() {
+            cm[k * n + x..k * n + x + LANES].copy_from_slice(&r.0);
+        }
+    }
+}
+
 /// Rows `y_base..` of a plane: `data[(y - y_base) * stride + x]` is sample `(x, y)`.
 struct Rows<'a> {
     data: &'a mut [i32],
@@ -768,9 +793,10 @@ impl Rows<'_> {
 /// different keys touch different samples, so any split of the keys gives the same result.
 fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
     let f4 = |p: &mut Rows, i: [usize; 4]| if dir == Dir::Inverse { post4(p.data, i) } else { pre4(p.data, i) };
+    let mut cm = Vec::new();
     for y in (r.y0 + 4..r.y1).step_by(4).filter(|y| keys.contains(y)) {
         // Interior windows (LANES at once), and the seams along the left and right edges.
-        pot4_interior_row(p, r, y, dir);
+        pot4_interior_row(p, r, y, dir, &mut cm);
         for x in [r.x0, r.x0 + 1, r.x1 - 2, r.x1 - 1] {
             f4(p, [p.at(x, y - 2), p.at(x, y - 1), p.at(x, y), p.at(x, y + 1)]);
         }
@@ -792,36 +818,36 @@ fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
     }
 }
 
-/// The 4×4 windows centred on `(x, y)` for `x = r.x0 + 4, r.x0 + 8, … < r.x1`, [`LANES`] at a
-/// time: gathered into lane vectors, filtered, scattered back.
-fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir) {
+/// The 4×4 windows centred on `(x, y)` for `x = r.x0 + 4, r.x0 + 8, … < r.x1`: gathered into
+/// a coefficient-major scratch, filtered [`LANES`] at a time, scattered back.
+fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
     let count = ((r.x1 - r.x0) / 4).saturating_sub(1);
-    let top = p.at(0, y - 2);
+    if count == 0 {
+        return;
+    }
+    let n = scratch_stride(count);
+    cm.resize(16 * n, 0);
+    let top = p.at(r.x0 + 2, y - 2);
     let stride = p.stride;
-    let mut g = 0;
-    while g < count {
-        let n = (count - g).min(LANES);
-        let mut v = [V([0; LANES]); 16];
-        for l in 0..n {
-            let x = r.x0 + 4 * (g + l + 1) - 2;
-            for j in 0..4 {
-                let row = &p.data[top + j * stride + x..][..4];
-                for i in 0..4 {
-                    v[4 * j + i].0[l] = row[i];
-                }
+    for j in 0..4 {
+        let row = &p.data[top + j * stride..][..4 * count];
+        for (w, px) in row.chunks_exact(4).enumerate() {
+            for i in 0..4 {
+                cm[(4 * j + i) * n + w] = px[i];
             }
         }
-        let v = if dir == Dir::Inverse { post4x4_g(v) } else { pre4x4_g(v) };
-        for l in 0..n {
-            let x = r.x0 + 4 * (g + l + 1) - 2;
-            for j in 0..4 {
-                let row = &mut p.data[top + j * stride + x..][..4];
-                for i in 0..4 {
-                    row[i] = v[4 * j + i].0[l];
-                }
+    }
+    match dir {
+        Dir::Inverse => run_lanes(cm, n, count, post4x4_g),
+        Dir::Forward => run_lanes(cm, n, count, pre4x4_g),
+    }
+    for j in 0..4 {
+        let row = &mut p.data[top + j * stride..][..4 * count];
+        for (w, px) in row.chunks_exact_mut(4).enumerate() {
+            for i in 0..4 {
+                px[i] = cm[(4 * j + i) * n + w];
             }
         }
-        g += n;
     }
 }
 
@@ -1033,36 +1059,29 @@ pub fn inverse_band(
         }
     }
 
-    // Stage 1 for block rows b0..b1 (the band and one block row of halo each side), LANES
-    // blocks at once.
+    // Stage 1 for block rows b0..b1 (the band and one block row of halo each side): each
+    // block row gathered coefficient-major, transformed LANES blocks at a time, scattered.
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
     let mut data = vec![0i32; width * 4 * (b1 - b0)];
+    let n = scratch_stride(dw);
+    let mut cm = vec![0i32; 16 * n];
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
-        let dc_row = &dc[(y - by * s0) * dw..][..dw];
-        let mut x = 0;
-        while x < dw {
-            let n = (dw - x).min(LANES);
-            let mut t = [V([0; LANES]); 16];
-            for l in 0..n {
-                let xb = x + l;
-                let c = mb(xb / bx, my);
-                let b = jy * bx + xb % bx;
-                t[0].0[l] = dc_row[xb];
-                for (k, &h) in c[hp(b, 1)..=hp(b, 15)].iter().enumerate() {
-                    t[k + 1].0[l] = h;
+        cm[..dw].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
+        for xb in 0..dw {
+            let b = jy * bx + xb % bx;
+            for (k, &h) in mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].iter().enumerate() {
+                cm[(k + 1) * n + xb] = h;
+            }
+        }
+        run_lanes(&mut cm, n, dw, ipct4x4_g);
+        for j in 0..4 {
+            let row = &mut data[((y - b0) * 4 + j) * width..][..width];
+            for (xb, px) in row.chunks_exact_mut(4).enumerate() {
+                for i in 0..4 {
+                    px[i] = cm[(4 * j + i) * n + xb];
                 }
             }
-            let t = ipct4x4_g(t);
-            for l in 0..n {
-                for j in 0..4 {
-                    let row = &mut data[((y - b0) * 4 + j) * width + (x + l) * 4..][..4];
-                    for i in 0..4 {
-                        row[i] = t[4 * j + i].0[l];
-                    }
-                }
-            }
-            x += n;
         }
     }
     // The stage-1 POT of every seam from the band's top row to its bottom row.
