@@ -8,7 +8,7 @@
 //! jxrlib's `strInvTransform.c` on JPEG XR streams (JXR-NOTES §8). Where T.835 applies them is
 //! `r_strip.c`; here the same operations are laid out plane-wide, stage by stage:
 //!
-//! 1. **Stage-2 PCT** per macroblock: DC and LP coefficients (the [`crate::mb`] layout) to the
+//! 1. **Stage-2 PCT** per macroblock: DC and LP coefficients (T.835's per-macroblock layout, see [`inverse_band`]) to the
 //!    16 block DCs (4:2:0 chroma: a 2×2 transform to 4; 4:2:2 chroma: a 2-point Haar step and
 //!    two 2×2 transforms to 8), doubled for every channel after the first in scaled
 //!    arithmetic (T.835 `IPCT_level1_up1`). The DCs form a *DC plane* (4 per MB each way; 2
@@ -994,7 +994,7 @@ fn plane_size(kind: PlaneKind, mb_w: usize, mb_h: usize) -> Result<(usize, usize
 /// row-major, `W` samples each (`W` = 16·`mb_w`, or 8·`mb_w` for 4:2:0 and 4:2:2 chroma).
 ///
 /// `coeffs` holds consecutive macroblock rows starting at row `coeffs_first_row`, `mb_w`
-/// macroblocks each in raster order, each dequantized and predicted in the [`crate::mb`]
+/// macroblocks each in raster order, each dequantized and predicted in the `mb.rs`
 /// layout: `[0]` DC, `[1..16]` LP 1..15 (4:2:0 chroma: LP 1..3; 4:2:2 chroma: LP 1..7),
 /// `[16 + 15·b + k − 1]` HP `k` of block `b`, blocks numbered in raster order inside the
 /// macroblock (`b = 4·y + x` for full planes, `2·y + x` for 4:2:0 and 4:2:2 chroma). They
