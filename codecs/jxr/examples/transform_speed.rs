@@ -1,5 +1,7 @@
 //! Times the inverse transform of one 4096×4096 channel, band by band into a reused buffer
 //! (run with `cargo run --release -p hdrcodec-jxr --example transform_speed`).
+use hdrcodec_jxr::container::{OutputBitDepth, OutputColorFormat, PIXEL_FORMATS};
+use hdrcodec_jxr::output::{InternalColorFormat, OutputParams};
 use hdrcodec_jxr::transform::{inverse_band, OverlapMode, PlaneKind, TransformParams, BAND_MB_ROWS};
 
 fn main() {
@@ -33,6 +35,30 @@ fn main() {
         let sum = out.iter().fold(0i64, |a, &v| a.wrapping_add(i64::from(v)));
         println!(
             "{overlap:?}: best of 7 {:.1} ms, {:.0} Msamples/s (checksum {sum})",
+            best * 1e3,
+            (256.0 * (mb_w * mb_h) as f64) / best / 1e6
+        );
+    }
+
+    // Output formatting of the plane as Y, U and V of 48bppRGBHalf and 128bppRGBFloat.
+    for (name, bd, shift) in [("48bppRGBHalf", OutputBitDepth::Bd16F, 0), ("128bppRGBFloat", OutputBitDepth::Bd32F, 13)]
+    {
+        let f = PIXEL_FORMATS.iter().find(|f| f.name == name).unwrap();
+        let p =
+            OutputParams::new(f, bd, OutputColorFormat::Rgb, InternalColorFormat::Yuv444, true, shift, 4, false, None)
+                .unwrap();
+        let mut row = vec![0u8; p.row_bytes(width)];
+        let mut best = f64::MAX;
+        for _ in 0..7 {
+            let t = std::time::Instant::now();
+            for y in 0..16 * mb_h {
+                let r = &out[y * width..(y + 1) * width];
+                p.format_row(&[r, r, r], None, width, &mut row).unwrap();
+            }
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        println!(
+            "{name} formatting: {:.1} ms, {:.0} Mpixels/s",
             best * 1e3,
             (256.0 * (mb_w * mb_h) as f64) / best / 1e6
         );

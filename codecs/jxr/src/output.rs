@@ -137,9 +137,12 @@ pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
         e = 1;
     }
     e = e.wrapping_add(127 - i32::from(exp_bias));
-    while m < lmshift && e > 1 && m > 0 {
-        e -= 1;
-        m <<= 1;
+    // jxrlib normalises a denormal one bit at a time while the exponent allows
+    // (`while (m < lmshift && e > 1 && m > 0) { e--; m <<= 1; }`); the same in one step.
+    if m > 0 && m < lmshift && e > 1 {
+        let k = (m.leading_zeros() as i32 - (31 - lm as i32)).min(e - 1);
+        m <<= k;
+        e -= k;
     }
     if m < lmshift {
         e = 0;
@@ -404,71 +407,44 @@ impl OutputParams {
         use OutputBitDepth::*;
         use OutputColorFormat as C;
 
-        // Each pixel's colour channels, biased and colour-converted but not yet shifted, are
-        // produced by `pixel`; then each bit depth writes them.
+        // Each pixel's colour channels, biased and colour-converted but not yet shifted; each
+        // bit depth writes them with its own conversion (the per-sample work has no branch
+        // on the format: `rgb!` instantiates one loop per conversion and colour source).
         let y = &channels[0][..width];
         let rgb_mode = self.color == C::Rgb || self.color == C::Rgbe;
         let gray_to_rgb = rgb_mode && self.internal == InternalColorFormat::YOnly;
-        let convert = |x: usize| -> [i32; 3] {
-            if gray_to_rgb {
-                let g = y[x].wrapping_add(bias);
-                [g, g, g]
-            } else {
-                let (r, g, b) = inverse_cc(y[x].wrapping_add(bias), channels[1][x], channels[2][x]);
-                [r, g, b]
-            }
+        let (u, v) = if n >= 3 { (&channels[1][..width], &channels[2][..width]) } else { (y, y) };
+        let grey = |x: usize| -> [i32; 3] {
+            let g = y[x].wrapping_add(bias);
+            [g, g, g]
         };
+        let colour = |x: usize| -> [i32; 3] {
+            let (r, g, b) = inverse_cc(y[x].wrapping_add(bias), u[x], v[x]);
+            [r, g, b]
+        };
+        let convert = |x: usize| if gray_to_rgb { grey(x) } else { colour(x) };
         let (ri, bi) = if self.format.bgr { (2, 0) } else { (0, 2) };
         let nl = u32::from(self.shift);
+        let padded = self.format.padded;
+        macro_rules! rgb {
+            ($bytes:expr, $f:expr) => {
+                if gray_to_rgb {
+                    write_rgb::<$bytes>(out, spp, padded, (ri, bi), grey, $f)
+                } else {
+                    write_rgb::<$bytes>(out, spp, padded, (ri, bi), colour, $f)
+                }
+            };
+        }
 
         match (self.color, self.bit_depth) {
-            (C::Rgb, Bd8) => {
-                for (x, px) in out.chunks_exact_mut(spp).enumerate() {
-                    let [r, g, b] = convert(x);
-                    px[ri] = clip8(r >> s);
-                    px[1] = clip8(g >> s);
-                    px[bi] = clip8(b >> s);
-                    if self.format.padded {
-                        px[3] = 0;
-                    }
-                }
+            (C::Rgb, Bd8) => rgb!(1, |v: i32| [clip8(v >> s)]),
+            (C::Rgb, Bd16) => rgb!(2, |v: i32| ((v >> s).wrapping_shl(nl).clamp(0, 65535) as u16).to_le_bytes()),
+            (C::Rgb, Bd16S) => {
+                rgb!(2, |v: i32| ((v >> s).wrapping_shl(nl).clamp(-32768, 32767) as i16).to_le_bytes())
             }
-            (C::Rgb, Bd16 | Bd16S | Bd16F) => {
-                let f = |v: i32| -> u16 {
-                    match self.bit_depth {
-                        Bd16 => ((v >> s).wrapping_shl(nl)).clamp(0, 65535) as u16,
-                        Bd16S => ((v >> s).wrapping_shl(nl)).clamp(-32768, 32767) as i16 as u16,
-                        _ => int_to_half_bits(v >> s),
-                    }
-                };
-                for (x, px) in out.chunks_exact_mut(2 * spp).enumerate() {
-                    let [r, g, b] = convert(x);
-                    put16(px, 0, f(r));
-                    put16(px, 1, f(g));
-                    put16(px, 2, f(b));
-                    if self.format.padded {
-                        put16(px, 3, 0);
-                    }
-                }
-            }
-            (C::Rgb, Bd32S | Bd32F) => {
-                let f = |v: i32| -> u32 {
-                    if self.bit_depth == Bd32S {
-                        (v >> s).wrapping_shl(nl) as u32
-                    } else {
-                        int_to_float_bits(v >> s, self.exp_bias, nl)
-                    }
-                };
-                for (x, px) in out.chunks_exact_mut(4 * spp).enumerate() {
-                    let [r, g, b] = convert(x);
-                    put32(px, 0, f(r));
-                    put32(px, 1, f(g));
-                    put32(px, 2, f(b));
-                    if self.format.padded {
-                        put32(px, 3, 0);
-                    }
-                }
-            }
+            (C::Rgb, Bd16F) => rgb!(2, |v: i32| int_to_half_bits(v >> s).to_le_bytes()),
+            (C::Rgb, Bd32S) => rgb!(4, |v: i32| ((v >> s).wrapping_shl(nl)).to_le_bytes()),
+            (C::Rgb, Bd32F) => rgb!(4, |v: i32| int_to_float_bits(v >> s, self.exp_bias, nl).to_le_bytes()),
             (C::Rgb, Bd5 | Bd565 | Bd10) => {
                 let (bits, gbits, shift_rb) = match self.bit_depth {
                     Bd5 => (5, 5, 0),
@@ -529,31 +505,25 @@ impl OutputParams {
             // YONLY, YUV444, NCOMPONENT and CMYKDIRECT: each channel on its own
             // (`outputNChannel`).
             _ => {
-                let bytes = match self.bit_depth {
-                    Bd8 => 1,
-                    Bd16 | Bd16S | Bd16F => 2,
-                    _ => 4,
-                };
-                for (c, plane) in channels[..n].iter().enumerate() {
-                    for (x, &v) in plane[..width].iter().enumerate() {
-                        let p = v.wrapping_add(bias) >> s;
-                        let at = (x * spp + c) * bytes;
-                        let px = &mut out[at..at + bytes];
-                        match self.bit_depth {
-                            Bd8 => px[0] = clip8(p),
-                            Bd16 => put16(px, 0, p.wrapping_shl(nl).clamp(0, 65535) as u16),
-                            Bd16S => put16(px, 0, p.wrapping_shl(nl).clamp(-32768, 32767) as i16 as u16),
-                            Bd16F => put16(px, 0, int_to_half_bits(p)),
-                            Bd32S => put32(px, 0, p.wrapping_shl(nl) as u32),
-                            _ => put32(px, 0, int_to_float_bits(p, self.exp_bias, nl)),
-                        }
-                    }
-                }
-                if self.format.padded {
-                    for x in 0..width {
-                        let at = (x * spp + n) * bytes;
-                        out[at..at + bytes].fill(0);
-                    }
+                let planes = &channels[..n];
+                let exp_bias = self.exp_bias;
+                match self.bit_depth {
+                    Bd8 => write_channels::<1>(out, spp, padded, planes, |v| [clip8(v.wrapping_add(bias) >> s)]),
+                    Bd16 => write_channels::<2>(out, spp, padded, planes, |v| {
+                        ((v.wrapping_add(bias) >> s).wrapping_shl(nl).clamp(0, 65535) as u16).to_le_bytes()
+                    }),
+                    Bd16S => write_channels::<2>(out, spp, padded, planes, |v| {
+                        ((v.wrapping_add(bias) >> s).wrapping_shl(nl).clamp(-32768, 32767) as i16).to_le_bytes()
+                    }),
+                    Bd16F => write_channels::<2>(out, spp, padded, planes, |v| {
+                        int_to_half_bits(v.wrapping_add(bias) >> s).to_le_bytes()
+                    }),
+                    Bd32S => write_channels::<4>(out, spp, padded, planes, |v| {
+                        ((v.wrapping_add(bias) >> s).wrapping_shl(nl)).to_le_bytes()
+                    }),
+                    _ => write_channels::<4>(out, spp, padded, planes, |v| {
+                        int_to_float_bits(v.wrapping_add(bias) >> s, exp_bias, nl).to_le_bytes()
+                    }),
                 }
             }
         }
@@ -609,6 +579,53 @@ impl OutputParams {
                     put32(&mut out[(x * spp + pos) * 4..], 0, bits);
                 }
             }
+        }
+    }
+}
+
+/// Writes R, G, B (from `px(x)`, converted by `f` to `B` little-endian bytes each) for every
+/// pixel of `out` (`spp` samples of `B` bytes per pixel, R at `order.0`, B at `order.1`, a
+/// padding sample zeroed).
+#[inline(always)]
+fn write_rgb<const B: usize>(
+    out: &mut [u8],
+    spp: usize,
+    padded: bool,
+    order: (usize, usize),
+    px: impl Fn(usize) -> [i32; 3],
+    f: impl Fn(i32) -> [u8; B],
+) {
+    let (ri, bi) = order;
+    for (x, p) in out.chunks_exact_mut(B * spp).enumerate() {
+        let [r, g, b] = px(x);
+        p[ri * B..ri * B + B].copy_from_slice(&f(r));
+        p[B..2 * B].copy_from_slice(&f(g));
+        p[bi * B..bi * B + B].copy_from_slice(&f(b));
+        if padded {
+            p[3 * B..4 * B].fill(0);
+        }
+    }
+}
+
+/// Writes each plane of `planes` as one sample of every pixel (`outputNChannel`), converted by
+/// `f`; a padding sample after them is zeroed.
+#[inline(always)]
+fn write_channels<const B: usize>(
+    out: &mut [u8],
+    spp: usize,
+    padded: bool,
+    planes: &[&[i32]],
+    f: impl Fn(i32) -> [u8; B],
+) {
+    for (c, plane) in planes.iter().enumerate() {
+        for (p, &v) in out.chunks_exact_mut(B * spp).zip(plane.iter()) {
+            p[c * B..c * B + B].copy_from_slice(&f(v));
+        }
+    }
+    if padded {
+        let n = planes.len();
+        for p in out.chunks_exact_mut(B * spp) {
+            p[n * B..n * B + B].fill(0);
         }
     }
 }
@@ -1125,5 +1142,45 @@ mod tests {
             }
         }
         assert!(made > 150, "{made} combinations formatted");
+    }
+
+    /// jxrlib's `pixel2float` transcribed loop for loop, to check the one-step normalisation.
+    fn pixel2float_reference(h: i32, c: i8, lm: u32) -> u32 {
+        let lmshift = 1i32 << lm;
+        let s = h >> 31;
+        let a = (h ^ s).wrapping_sub(s);
+        let mut e = ((a as u32) >> lm) as i32;
+        let mut m = (a & (lmshift - 1)) | lmshift;
+        if e == 0 {
+            m ^= lmshift;
+            e = 1;
+        }
+        e = e.wrapping_add(127 - i32::from(c));
+        while m < lmshift && e > 1 && m > 0 {
+            e -= 1;
+            m <<= 1;
+        }
+        if m < lmshift {
+            e = 0;
+        } else {
+            m ^= lmshift;
+        }
+        ((s as u32) & 0x8000_0000) | (e as u32).wrapping_shl(23) | ((m as u32) << (23 - lm))
+    }
+
+    #[test]
+    fn float_conversion_matches_the_loop() {
+        let mut r = rng(13);
+        for lm in 0..=23 {
+            for c in [-128i8, -5, 0, 4, 60, 120, 127] {
+                for _ in 0..3000 {
+                    let h = (r() as i32) >> (r() % 32);
+                    assert_eq!(int_to_float_bits(h, c, lm), pixel2float_reference(h, c, lm), "{h} {c} {lm}");
+                }
+                for h in [0, 1, -1, 2, 3, 1 << lm, (1 << lm) - 1, i32::MAX, i32::MIN, i32::MIN + 1] {
+                    assert_eq!(int_to_float_bits(h, c, lm), pixel2float_reference(h, c, lm), "{h} {c} {lm}");
+                }
+            }
+        }
     }
 }
