@@ -13,3 +13,5 @@ pub mod container;
 // Shared by the entropy decoder and the inverse transform as they land.
 #[allow(dead_code)]
 mod mb;
+pub mod output;
+pub mod transform;
