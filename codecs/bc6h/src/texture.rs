@@ -94,13 +94,6 @@ impl Bc6hTexture {
     }
 }
 
-/// The little-endian `u32` at `off`, or a truncation error.
-pub(crate) fn u32_at(d: &[u8], off: usize) -> Result<u32> {
-    d.get(off..off + 4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .ok_or_else(|| Error::truncated("the file header"))
-}
-
 /// Checks the declared size against `limits` and the mip count against the size; returns the
 /// number of levels to read (a declared 0 means 1).
 pub(crate) fn check_dims(width: u32, height: u32, levels: u64, limits: &Limits) -> Result<usize> {
