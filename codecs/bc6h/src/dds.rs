@@ -99,17 +99,28 @@ pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 
 /// Reads a BC6H DDS file (DX10 header, 2D texture, first array element, all mip levels).
 pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
-    let TextureHeader { width, height, signed, levels } = read_dds_header(data, limits)?;
+    let (header, levels) = dds_levels(data, limits)?;
+    let mut out = Vec::with_capacity(levels.len());
+    for level in levels {
+        limits.check_alloc(level.len() as u64, "a DDS mip level")?;
+        out.push(level.to_vec());
+    }
+    Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+}
+
+/// The header of a BC6H DDS file and its mip levels, borrowed from `data` (what decoding
+/// reads, without a copy); checked as [`read_dds`] checks them.
+pub fn dds_levels<'a>(data: &'a [u8], limits: &Limits) -> Result<(TextureHeader, Vec<&'a [u8]>)> {
+    let header = read_dds_header(data, limits)?;
+    let TextureHeader { width, height, levels, .. } = header;
     let mut r = ByteReader::le(data).at(DDS_DATA_OFFSET as u64);
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {
         let (w, h) = level_size(width, height, i);
         let n = surface_bytes(w, h).ok_or_else(|| Error::invalid("DDS level size overflows"))?;
-        let level = r.bytes(n as u64, format_args!("DDS mip level {i} ({w}x{h})"))?;
-        limits.check_alloc(n as u64, "a DDS mip level")?;
-        out.push(level.to_vec());
+        out.push(r.bytes(n as u64, format_args!("DDS mip level {i} ({w}x{h})"))?);
     }
-    Ok(Bc6hTexture { width, height, signed, levels: out })
+    Ok((header, out))
 }
 
 /// Writes a BC6H DDS file (DDS_HEADER + DDS_HEADER_DXT10, 2D, one array element).

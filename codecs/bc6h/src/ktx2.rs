@@ -147,7 +147,20 @@ pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 
 /// Reads a BC6H KTX2 file (2D, one layer, one face, no supercompression, all mip levels).
 pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
-    let TextureHeader { width, height, signed, levels } = read_ktx2_header(data, limits)?;
+    let (header, levels) = ktx2_levels(data, limits)?;
+    let mut out = Vec::with_capacity(levels.len());
+    for level in levels {
+        limits.check_alloc(level.len() as u64, "a KTX2 mip level")?;
+        out.push(level.to_vec());
+    }
+    Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+}
+
+/// The header of a BC6H KTX2 file and its mip levels (level 0 first), borrowed from `data`
+/// (what decoding reads, without a copy); checked as [`read_ktx2`] checks them.
+pub fn ktx2_levels<'a>(data: &'a [u8], limits: &Limits) -> Result<(TextureHeader, Vec<&'a [u8]>)> {
+    let header = read_ktx2_header(data, limits)?;
+    let TextureHeader { width, height, levels, .. } = header;
     let file = ByteReader::le(data);
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {
@@ -160,11 +173,9 @@ pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
         if length != need as u64 {
             return Err(Error::invalid(format!("KTX2 level {i} ({w}x{h}) declares {length} bytes, expected {need}")));
         }
-        let level = file.bytes_at(offset, length, format_args!("KTX2 level {i} ({w}x{h})"))?;
-        limits.check_alloc(need as u64, "a KTX2 mip level")?;
-        out.push(level.to_vec());
+        out.push(file.bytes_at(offset, length, format_args!("KTX2 level {i} ({w}x{h})"))?);
     }
-    Ok(Bc6hTexture { width, height, signed, levels: out })
+    Ok((header, out))
 }
 
 fn align(v: usize, to: usize) -> usize {
