@@ -100,12 +100,7 @@ pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 /// Reads a BC6H DDS file (DX10 header, 2D texture, first array element, all mip levels).
 pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
     let (header, levels) = dds_levels(data, limits)?;
-    let mut out = Vec::with_capacity(levels.len());
-    for level in levels {
-        limits.check_alloc(level.len() as u64, "a DDS mip level")?;
-        out.push(level.to_vec());
-    }
-    Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+    Bc6hTexture::copied(header, &levels, limits)
 }
 
 /// The header of a BC6H DDS file and its mip levels, borrowed from `data` (what decoding

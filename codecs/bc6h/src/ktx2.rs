@@ -148,12 +148,7 @@ pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 /// Reads a BC6H KTX2 file (2D, one layer, one face, no supercompression, all mip levels).
 pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
     let (header, levels) = ktx2_levels(data, limits)?;
-    let mut out = Vec::with_capacity(levels.len());
-    for level in levels {
-        limits.check_alloc(level.len() as u64, "a KTX2 mip level")?;
-        out.push(level.to_vec());
-    }
-    Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+    Bc6hTexture::copied(header, &levels, limits)
 }
 
 /// The header of a BC6H KTX2 file and its mip levels (level 0 first), borrowed from `data`

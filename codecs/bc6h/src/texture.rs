@@ -51,6 +51,17 @@ pub fn full_mip_count(width: u32, height: u32) -> usize {
 }
 
 impl Bc6hTexture {
+    /// A texture holding copies of `levels` (as a file's reader found them), each checked
+    /// against the limits first.
+    pub(crate) fn copied(header: TextureHeader, levels: &[&[u8]], limits: &Limits) -> Result<Self> {
+        let mut out = Vec::with_capacity(levels.len());
+        for level in levels {
+            limits.check_alloc(level.len() as u64, "a BC6H mip level")?;
+            out.push(level.to_vec());
+        }
+        Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+    }
+
     /// Size of mip `level`.
     pub fn level_size(&self, level: usize) -> (u32, u32) {
         level_size(self.width, self.height, level)
