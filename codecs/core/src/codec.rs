@@ -104,6 +104,21 @@ pub fn decode_image<C: ImageCodec + ?Sized>(codec: &C, data: &[u8], options: &De
     sink.finish()
 }
 
+/// [`ImageCodec::encode_to`] for a codec whose streaming writer needs to seek
+/// ([`encode_to_seekable`](ImageCodec::encode_to_seekable)): the file is assembled in memory,
+/// then written to `out`.
+pub fn encode_via_seekable<C: ImageCodec + ?Sized>(
+    codec: &C,
+    image: &HdrImage,
+    settings: &EncodeSettings,
+    out: &mut dyn Write,
+) -> Result<EncodeReport> {
+    let mut file = std::io::Cursor::new(Vec::new());
+    let report = codec.encode_to_seekable(image, settings, &mut file)?;
+    out.write_all(file.get_ref())?;
+    Ok(report)
+}
+
 /// A writer that can also seek: what [`ImageCodec::encode_to_seekable`] writes into.
 pub trait WriteSeek: Write + std::io::Seek {}
 

@@ -39,8 +39,8 @@ pub mod tonemap;
 pub mod transfer;
 
 pub use codec::{
-    decode_image, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, VideoCodec,
-    VideoDecoder, VideoEncoder, WriteSeek,
+    decode_image, encode_via_seekable, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec,
+    ImageInfo, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};

@@ -505,10 +505,7 @@ impl ImageCodec for LogLuvTiffCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<EncodeReport> {
-        let mut file = std::io::Cursor::new(Vec::new());
-        let report = self.encode_to_seekable(image, settings, &mut file)?;
-        out.write_all(file.get_ref())?;
-        Ok(report)
+        hdrcodec_core::encode_via_seekable(self, image, settings, out)
     }
     fn encode_to_seekable(
         &self,
