@@ -123,26 +123,30 @@ pub fn encode_frames(
     settings: &EncodeSettings,
     tile_size: Option<u32>,
 ) -> Result<Vec<u8>> {
-    Ok(encode_frames_reporting(frames, payload_codec, settings, tile_size)?.0)
+    let mut out = Vec::new();
+    write_frames_reporting(frames, payload_codec, settings, tile_size, &mut out)?;
+    Ok(out)
 }
 
 /// At most this many different notes of the payload codec are kept (tiles clipped by
 /// different amounts say different sentences); the rest are counted.
 const MAX_TILE_NOTES: usize = 4;
 
-/// [`encode_frames`], with what the payload codec reported for the tiles (each distinct note
-/// once).
+/// [`encode_frames`] streamed into `out`, with what the payload codec reported for the tiles
+/// (each distinct note once). The tiles are encoded a few at a time, in parallel on the
+/// settings' pool, and written as soon as they are: only that batch of payloads is held.
 ///
 /// Each tile goes to the payload codec in colour it can record ([`for_payload`]): a payload that
 /// records primaries (OpenEXR, Radiance, LogLuv's XYZ, KTX2's set) records them, one that records
 /// none stores the samples as they are, and the header's COLR says what they are either way
 /// ([`decode_frames`] brings every tile back to it).
-fn encode_frames_reporting(
+fn write_frames_reporting(
     frames: &[HdrImage],
     payload_codec: &dyn ImageCodec,
     settings: &EncodeSettings,
     tile_size: Option<u32>,
-) -> Result<(Vec<u8>, Vec<String>)> {
+    out: &mut dyn std::io::Write,
+) -> Result<Vec<String>> {
     let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
     if let Some(f) = frames
         .iter()
@@ -168,11 +172,7 @@ fn encode_frames_reporting(
     }
     let tiles: Vec<(usize, DataHeader)> =
         frames.iter().enumerate().flat_map(|(i, _)| head.frame_tiles(i as u32).map(move |t| (i, t))).collect();
-    let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = settings.pool.map(tiles.len(), |k| {
-        let (i, t) = &tiles[k];
-        encode_tile(&frames[*i], t, payload_codec, settings)
-    });
-    let mut w = Writer::new(Vec::new(), &head)?;
+    let mut w = Writer::new(out, &head)?;
     w.write_color(&first.color)?;
     if let Some(h) = &first.color.hdr10 {
         w.write_hdr10(h)?;
@@ -181,24 +181,32 @@ fn encode_frames_reporting(
         w.write_meta(&first.metadata)?;
     }
     let (mut notes, mut more) = (Vec::new(), Vec::new());
-    for ((_, t), p) in tiles.iter().zip(payloads) {
-        let (bytes, tile_notes) = p?;
-        w.write_data(t, &bytes)?;
-        for n in tile_notes {
-            if notes.contains(&n) || more.contains(&n) {
-                continue;
-            }
-            if notes.len() < MAX_TILE_NOTES {
-                notes.push(n);
-            } else {
-                more.push(n);
+    let batch = settings.pool.threads().max(1) * 2;
+    for group in tiles.chunks(batch) {
+        let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = settings.pool.map(group.len(), |k| {
+            let (i, t) = &group[k];
+            encode_tile(&frames[*i], t, payload_codec, settings)
+        });
+        for ((_, t), p) in group.iter().zip(payloads) {
+            let (bytes, tile_notes) = p?;
+            w.write_data(t, &bytes)?;
+            for n in tile_notes {
+                if notes.contains(&n) || more.contains(&n) {
+                    continue;
+                }
+                if notes.len() < MAX_TILE_NOTES {
+                    notes.push(n);
+                } else {
+                    more.push(n);
+                }
             }
         }
     }
     if !more.is_empty() {
         notes.push(format!("{} more notes of the {} payload on other tiles", more.len(), payload_codec.name()));
     }
-    Ok((w.finish()?, notes))
+    w.finish()?;
+    Ok(notes)
 }
 
 /// Encodes the tile `t` of `frame` with the payload codec, in colour the payload can record
@@ -490,8 +498,7 @@ impl ImageCodec for HdrcCodec {
     ) -> Result<hdrcodec_core::EncodeReport> {
         let p = self.payload_settings(settings)?;
         let (codec, inner, tile) = (p.codec, p.settings, p.tile);
-        let (bytes, notes) = encode_frames_reporting(std::slice::from_ref(image), codec.as_ref(), &inner, tile)?;
-        out.write_all(&bytes)?;
+        let notes = write_frames_reporting(std::slice::from_ref(image), codec.as_ref(), &inner, tile, out)?;
         let mut report = hdrcodec_core::EncodeReport::new();
         for n in notes {
             report.note(format!("{} payload: {n}", codec.name()));
@@ -669,8 +676,14 @@ mod tests {
         // 8 tiles of 2x1 pixels (6 samples), tile k with min(k, 6) samples above 1.
         let samples: Vec<f32> = (0..16 * 3).map(|i| if i % 6 < i / 6 { 2.0 } else { 0.5 }).collect();
         let img = HdrImage::new(16, 1, Channels::Rgb, samples, ColorInfo::default()).unwrap();
-        let (_, notes) =
-            encode_frames_reporting(std::slice::from_ref(&img), &Noisy, &EncodeSettings::default(), Some(2)).unwrap();
+        let notes = write_frames_reporting(
+            std::slice::from_ref(&img),
+            &Noisy,
+            &EncodeSettings::default(),
+            Some(2),
+            &mut Vec::new(),
+        )
+        .unwrap();
         let want = [
             "0 samples above 1",
             "the same sentence from every tile",
