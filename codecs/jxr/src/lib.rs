@@ -9,5 +9,15 @@
 
 #![forbid(unsafe_code)]
 
+mod bits;
 pub mod container;
-mod mb;
+pub mod decoder;
+pub mod header;
+mod macroblock;
+pub mod mb;
+mod predict;
+mod quant;
+mod tiles;
+mod vlc;
+
+pub use decoder::{decode_coefficients, file_layout, Coefficients, FileLayout, PlaneCoeffs};
