@@ -55,6 +55,41 @@ impl PlaneCoeffs {
     }
 }
 
+/// The starting value of [`PlaneCoeffs::digest`] (FNV-1a's offset basis).
+pub const DIGEST_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+impl PlaneCoeffs {
+    /// A 64-bit FNV-1a digest of the coefficients that exist (each channel's DC, its LP
+    /// coefficients and its HP blocks: fewer for 4:2:0 and 4:2:2 chroma), macroblocks in
+    /// raster order, channels in order, each as 4 little-endian bytes, continuing from `state`
+    /// ([`DIGEST_START`] for the first plane). For comparing decoders coefficient for
+    /// coefficient (the tests compare it with the reference software's).
+    pub fn digest(&self, mut state: u64) -> u64 {
+        for y in 0..self.mb_height() {
+            for x in 0..self.mb_width() {
+                for ch in 0..self.channels {
+                    let m = self.mb(ch, x, y);
+                    let (lp, blocks) = crate::quant::channel_shape(self.fmt, ch);
+                    for v in m[..lp].iter().chain(&m[16..16 + 15 * blocks]) {
+                        for b in v.to_le_bytes() {
+                            state = (state ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+                        }
+                    }
+                }
+            }
+        }
+        state
+    }
+}
+
+impl Coefficients {
+    /// [`PlaneCoeffs::digest`] of the primary plane, then of the interleaved alpha plane.
+    pub fn digest(&self, state: u64) -> u64 {
+        let state = self.primary.digest(state);
+        self.alpha.as_ref().map_or(state, |a| a.digest(state))
+    }
+}
+
 /// Everything entropy decoding gives the inverse transform: the headers and the coefficients
 /// of the primary plane and of the alpha plane, if interleaved.
 #[derive(Debug)]
@@ -90,6 +125,15 @@ pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coeff
         for tx in 0..tcols {
             total = total.saturating_add(tiles::tile_bytes(&cs, tx, ty));
         }
+    }
+    // Every macroblock takes at least one bit of the codestream (its DC flags): a short
+    // stream declaring a large image is truncated, whatever the limits allow.
+    let mbs = u64::from(cs.image.mb_width) * u64::from(cs.image.mb_height);
+    if mbs > data.len() as u64 * 8 {
+        return Err(Error::truncated(format!(
+            "the JPEG XR codestream ({} bytes cannot hold {mbs} macroblocks)",
+            data.len()
+        )));
     }
     let charge = limits.charge(total, "the JPEG XR coefficients")?;
     let decoded = options.pool.map(tcols * trows, |t| tiles::decode_tile(&cs, data, t % tcols, t / tcols));
@@ -184,4 +228,102 @@ pub fn file_layout(file: &[u8]) -> Result<FileLayout> {
     };
     let pixel_format = guid.ok_or_else(|| Error::invalid("JPEG XR: the IFD has no pixel format"))?;
     Ok(FileLayout { image, alpha, pixel_format })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::Limits;
+
+    fn testdata(name: &str) -> Vec<u8> {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
+        std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    }
+
+    fn hash(c: &Coefficients) -> u64 {
+        c.digest(DIGEST_START)
+    }
+
+    fn coefficients(file: &[u8], pool: hdrcodec_core::ThreadPool) -> Result<Coefficients> {
+        let layout = file_layout(file)?;
+        decode_coefficients(&file[layout.image], &DecodeOptions::new(Limits::default()).with_pool(pool))
+    }
+
+    /// The coefficients T.835 reads into its inverse transform, hashed (testdata/README.md).
+    const T835: [(&str, u64); 4] = [
+        ("tiny_alpha_sp.jxr", 0xd4e4_baf3_bdb2_f132),
+        ("tiny_tiles.jxr", 0xde2a_d77b_1d54_43bc),
+        ("tiny_420_sp.jxr", 0xa046_70f4_d286_fe34),
+        ("tiny_422.jxr", 0xb6ff_17cc_b011_8afa),
+    ];
+
+    #[test]
+    fn coefficients_match_t835() {
+        for (name, want) in T835 {
+            let c = coefficients(&testdata(name), hdrcodec_core::ThreadPool::single()).unwrap();
+            assert_eq!(hash(&c), want, "{name}");
+        }
+    }
+
+    #[test]
+    fn tiles_decode_the_same_in_parallel() {
+        let file = testdata("tiny_tiles.jxr");
+        let c = coefficients(&file, hdrcodec_core::ThreadPool::new(2).unwrap()).unwrap();
+        assert_eq!(
+            (c.codestream.image.tile_widths.clone(), c.codestream.image.tile_heights.clone()),
+            (vec![1, 2], vec![1, 1, 1])
+        );
+        assert_eq!(hash(&c), T835[1].1);
+    }
+
+    /// Every truncation and a few hundred byte changes of each stream: an error or
+    /// coefficients, never a panic, within a small allocation budget.
+    #[test]
+    fn truncated_and_corrupted_streams_never_panic() {
+        let limits = Limits::default().with_max_alloc_bytes(64 << 20);
+        for (name, _) in T835 {
+            let file = testdata(name);
+            let range = file_layout(&file).unwrap().image;
+            let cs = &file[range];
+            for n in 0..cs.len() {
+                let _ = decode_coefficients(&cs[..n], &DecodeOptions::new(limits.clone()));
+            }
+            let mut state = 0x9E37_79B9_7F4A_7C15u64 ^ cs.len() as u64;
+            let mut next = || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state
+            };
+            let mut bad = cs.to_vec();
+            for _ in 0..300 {
+                bad.copy_from_slice(cs);
+                for _ in 0..1 + next() % 3 {
+                    let at = (next() % cs.len() as u64) as usize;
+                    bad[at] ^= 1 << (next() % 8);
+                }
+                let _ = decode_coefficients(&bad, &DecodeOptions::new(limits.clone()));
+            }
+            let _ = file_layout(&file[..file.len() / 2]);
+        }
+    }
+
+    #[test]
+    fn huge_declared_sizes_are_refused_before_allocating() {
+        let file = testdata("tiny_422.jxr");
+        let range = file_layout(&file).unwrap().image;
+        let mut cs = file[range].to_vec();
+        assert!(header::parse(&cs).unwrap().image.short_header);
+        // WMPHOTO (8 bytes) and 4 bytes of version and flags, then WIDTH_MINUS1 and
+        // HEIGHT_MINUS1 (16 bits each): 16384 x 16384.
+        cs[12..16].copy_from_slice(&[0x3F, 0xFF, 0x3F, 0xFF]);
+        let limits = Limits::default().with_max_alloc_bytes(1 << 20);
+        // A million macroblocks cannot fit in a few hundred bytes.
+        let err = decode_coefficients(&cs, &DecodeOptions::new(limits.clone())).unwrap_err();
+        assert!(matches!(err, Error::Truncated { .. }), "{err}");
+        // With enough (padding) bytes, the budget refuses the coefficients.
+        cs.resize(cs.len() + (1 << 18), 0);
+        let err = decode_coefficients(&cs, &DecodeOptions::new(limits)).unwrap_err();
+        assert!(matches!(err, Error::LimitExceeded { .. }), "{err}");
+    }
 }
