@@ -2,7 +2,7 @@
 # Installs the reference implementations the validation tests compare against
 # (see ../shared/REFERENCES.md): Debian's OpenImageIO, OpenEXR, libtiff, jxrlib,
 # libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs,
-# and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
+# GNU time (peak memory in scripts/memory-bench.sh), and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
 # Idempotent: re-running it on a prepared machine takes a few seconds.
 set -euo pipefail
 
@@ -11,7 +11,7 @@ venv="${HDRCODEC_VENV:-$here/.venv}"
 
 packages=(openimageio-tools python3-openimageio python3-numpy openexr libtiff-tools libtiff-dev
           libjxr-tools libjxl-tools libavif-bin ffmpeg dav1d pfstools pkg-config
-          fonts-dejavu-core)
+          fonts-dejavu-core time)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -37,5 +37,11 @@ HDRCODEC_CPU=scalar cargo test --workspace --lib \
     --test damage --test limits --test roundtrip --test seek --test spec \
     --test rgbe_oiio --test bc6h_decode --test bc6h_encode
 
+# Peak resident memory of info and convert for every format, on a 3 MP generated image: each
+# must stay within decoded image + input file + 64 MB (issue 10; the README has the 13 MP table).
+step "peak memory (scripts/memory-bench.sh --check)"
+cargo build --quiet -p hdrcodec-cli --bin hdrcodec
+HDRCODEC_BIN=target/debug/hdrcodec bash scripts/memory-bench.sh --check 2048 1536
+
 step "fuzz smoke run"
 bash scripts/fuzz-smoke.sh

@@ -426,15 +426,108 @@ pub struct LuminanceStats {
 impl LuminanceStats {
     /// The statistics of `image`.
     pub fn of(image: &HdrImage) -> Self {
-        let (mut min, mut max, mut sum, mut count) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize);
-        for y in luminance_iter(image).filter(|v| v.is_finite()) {
-            min = min.min(y);
-            max = max.max(y);
-            sum += y;
-            count += 1;
+        ImageStats::of(image).luminance
+    }
+}
+
+/// What `hdrcodec info` measures on the pixels: luminance statistics and the CTA-861.3 light
+/// levels of one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageStats {
+    /// Luminance in cd/m² (in the image's primaries, BT.709 when it records none).
+    pub luminance: LuminanceStats,
+    /// MaxCLL of the frame, cd/m² ([`crate::core::hdr10::max_cll_nits`]).
+    pub max_cll_nits: f64,
+    /// MaxFALL of the frame, cd/m² ([`crate::core::hdr10::frame_average_light_level`]).
+    pub frame_average_nits: f64,
+}
+
+impl ImageStats {
+    /// The statistics of a decoded image.
+    pub fn of(image: &HdrImage) -> Self {
+        let mut info = ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone());
+        info.metadata = image.metadata.clone();
+        let mut sink = StatsSink::new();
+        use crate::core::sink::RowSink;
+        // Infallible: the rows are whole and inside the image the sink was started with.
+        let measured = sink.start(&info).and_then(|()| sink.put_rows(0, image.samples()));
+        debug_assert!(measured.is_ok());
+        sink.stats()
+    }
+}
+
+/// A [`RowSink`](crate::core::sink::RowSink) that keeps nothing of the image: it measures
+/// [`ImageStats`] as the rows go by, so that `info` decodes a file of any size in the memory of
+/// a band of rows ([`ImageCodec::decode_rows`]).
+#[derive(Clone, Debug, Default)]
+pub struct StatsSink {
+    info: Option<ImageInfo>,
+    weights: [f64; 3],
+    nits: f64,
+    min: f64,
+    max: f64,
+    sum: f64,
+    finite: u64,
+    non_finite_samples: usize,
+    max_light: f64,
+    light_sum: f64,
+    pixels: u64,
+}
+
+impl StatsSink {
+    /// A sink that has seen nothing yet.
+    pub fn new() -> Self {
+        StatsSink { min: f64::INFINITY, max: f64::NEG_INFINITY, ..Default::default() }
+    }
+
+    /// What the decoder announced (size, channels, colour, metadata), once started.
+    pub fn info(&self) -> Option<&ImageInfo> {
+        self.info.as_ref()
+    }
+
+    /// The statistics of the rows seen so far.
+    pub fn stats(&self) -> ImageStats {
+        let per_pixel = |sum: f64| if self.pixels == 0 { 0.0 } else { sum / self.pixels as f64 * self.nits };
+        ImageStats {
+            luminance: LuminanceStats {
+                min: self.min,
+                max: self.max,
+                mean: self.sum / self.finite.max(1) as f64,
+                non_finite_samples: self.non_finite_samples,
+            },
+            max_cll_nits: self.max_light * self.nits,
+            frame_average_nits: per_pixel(self.light_sum),
         }
-        let non_finite_samples = image.samples().iter().filter(|v| !v.is_finite()).count();
-        LuminanceStats { min, max, mean: sum / count.max(1) as f64, non_finite_samples }
+    }
+}
+
+impl crate::core::sink::RowSink for StatsSink {
+    fn start(&mut self, info: &ImageInfo) -> Result<()> {
+        self.weights = crate::core::color::luminance_weights(&info.color.primaries);
+        self.nits = f64::from(info.color.nits_per_unit);
+        self.info = Some(info.clone());
+        Ok(())
+    }
+
+    fn put_rows(&mut self, _y: u32, samples: &[f32]) -> Result<()> {
+        let n = self.info.as_ref().map_or(3, |i| i.channels.count());
+        let [wr, wg, wb] = self.weights;
+        for px in samples.chunks_exact(n) {
+            let rgb = [px[0], px[1], px[2]];
+            let y = self.nits * (wr * f64::from(rgb[0]) + wg * f64::from(rgb[1]) + wb * f64::from(rgb[2]));
+            if y.is_finite() {
+                self.min = self.min.min(y);
+                self.max = self.max.max(y);
+                self.sum += y;
+                self.finite += 1;
+            }
+            self.non_finite_samples += px.iter().filter(|v| !v.is_finite()).count();
+            let light = crate::core::hdr10::max_component(rgb);
+            self.max_light = self.max_light.max(light);
+            self.light_sum += light;
+            self.pixels += 1;
+        }
+        Ok(())
     }
 }
 

@@ -1,7 +1,7 @@
 //! The commands of the `hdrcodec` binary. Each returns `Err` with a one-line reason; `main`
 //! prints it as `hdrcodec: <reason>` and exits non-zero.
 
-use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, HdrImage, Limits, Result, ThreadPool, VideoCodec};
+use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, Limits, Result, ThreadPool, VideoCodec};
 use hdrcodec_cli::bench;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
@@ -143,34 +143,32 @@ fn note(text: &str) {
     eprintln!("hdrcodec: note: {line}");
 }
 
-/// One pass over the image, no per-pixel side arrays (`info` holds only the decoded image).
-fn luminance_stats(image: &HdrImage) -> (f64, f64, f64, usize) {
-    let s = hdrcodec::LuminanceStats::of(image);
-    (s.min, s.max, s.mean, s.non_finite_samples)
-}
-
 /// `hdrcodec info`: the header facts (size, channels, colour, stored format, frames) from the
-/// codec's header probe; the luminance statistics and metadata from a full decode.
+/// codec's header probe; the luminance statistics and metadata from a full decode into a
+/// [`hdrcodec::StatsSink`], which keeps nothing of the image (the decoder holds a band of rows).
 pub fn info(file: &Path, json: bool) -> Result<()> {
     let reg = hdrcodec::registry();
     let data = hdrcodec::read_file(file)?;
     let (codec, header) = reg.probe(file, &data, &Limits::default())?;
     // A sequence's statistics are its first frame's (decoded alone by the stream decoder).
-    let image = if header.frames > 1 && codec.name() == "hdrc" {
+    let (stats, metadata) = if header.frames > 1 && codec.name() == "hdrc" {
         let video = hdrcodec::container::HdrcVideoCodec::new(reg.codecs().to_vec());
         let mut frames = video.begin_decode(data.as_slice().into(), &DecodeOptions::new(Limits::default()))?;
-        frames.next_frame()?.ok_or_else(|| Error::invalid("the .hdrc sequence has no frame"))?
+        let image = frames.next_frame()?.ok_or_else(|| Error::invalid("the .hdrc sequence has no frame"))?;
+        (hdrcodec::ImageStats::of(&image), image.metadata)
     } else {
-        codec.decode(&data, &Limits::default())?
+        let mut sink = hdrcodec::StatsSink::new();
+        codec.decode_rows(&data, &DecodeOptions::new(Limits::default()), &mut sink)?;
+        let metadata = sink.info().map(|i| i.metadata.clone()).unwrap_or_default();
+        (sink.stats(), metadata)
     };
     let c = &header.color;
     let ch = c.primaries.chromaticities();
     // A file without primaries (PFM, DDS): luminance needs some, BT.709 is assumed and said.
     let assumed = (!c.primaries.is_specified()).then(|| c.primaries.or_bt709());
-    let (min, max, mean, nonfinite) = luminance_stats(&image);
+    let hdrcodec::LuminanceStats { min, max, mean, non_finite_samples: nonfinite } = stats.luminance;
     // CTA-861.3 light levels of this one frame (MaxFALL of a single frame is its average).
-    let measured_cll = hdrcodec::core::hdr10::max_cll_nits(&image);
-    let measured_fall = hdrcodec::core::hdr10::frame_average_light_level(&image);
+    let (measured_cll, measured_fall) = (stats.max_cll_nits, stats.frame_average_nits);
     let hdr10 = c.hdr10.map(|h| {
         json!({
             "mastering_display": h.mastering_display.map(|m| json!({
@@ -180,8 +178,8 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             "content_light_level": h.content_light_level.map(|l| json!({"max_cll": l.max_cll, "max_fall": l.max_fall})),
         })
     });
-    let metadata: Map<String, Value> =
-        image.metadata.iter().map(|(k, v)| (k.clone(), Value::String(v.clone()))).collect();
+    let metadata_json: Map<String, Value> =
+        metadata.iter().map(|(k, v)| (k.clone(), Value::String(v.clone()))).collect();
     if json {
         return print_json(&json!({
             "file": file.display().to_string(),
@@ -203,7 +201,7 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             "max_cll_measured_nits": num(measured_cll),
             "max_fall_measured_nits": num(measured_fall),
             "non_finite_samples": nonfinite,
-            "metadata": metadata,
+            "metadata": metadata_json,
         }));
     }
     println!("file:          {} ({} bytes, {})", file.display(), data.len(), codec.name());
@@ -248,10 +246,10 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             }
         }
     }
-    if image.metadata.is_empty() {
+    if metadata.is_empty() {
         println!("metadata:      none");
     }
-    for (k, v) in &image.metadata {
+    for (k, v) in &metadata {
         let short: String = v.chars().take(60).collect();
         let more = if v.chars().count() > 60 { "..." } else { "" };
         println!("metadata:      {k} = {}{more}", short.replace(['\n', '\r'], " "));

@@ -62,11 +62,12 @@ pub(crate) fn check_signature(data: &[u8]) -> Result<()> {
     }))
 }
 
-/// What a reader checks of a parsed HEAD before using it: the image against `limits` (before
-/// anything of its size is allocated), and that the `room` bytes after HEAD can hold a DATA
-/// chunk of at least 32 bytes per tile, which also bounds every tile count.
+/// What a reader checks of a parsed HEAD before using it: the dimensions against `limits`
+/// (the frame's bytes are charged by whoever allocates it: a decode into a caller's buffer
+/// allocates none), and that the `room` bytes after HEAD can hold a DATA chunk of at least 32
+/// bytes per tile, which also bounds every tile count.
 pub(crate) fn check_head(h: &Head, limits: &Limits, room: u64) -> Result<()> {
-    check_image(limits, h.width, h.height, h.channels)?;
+    limits.check_dimensions(u64::from(h.width), u64::from(h.height))?;
     check_room(h, room)
 }
 

@@ -6,6 +6,7 @@ use crate::raw::{RawF16Codec, RawF32Codec};
 use crate::reader::{in_chunk, DataRef, HeadInfo, Reader};
 use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
+use hdrcodec_core::sink::{fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo,
     Limits, Result,
@@ -221,15 +222,32 @@ pub fn decode_image<'c>(
     options: &DecodeOptions,
     resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
 ) -> Result<HdrImage> {
+    let mut sink = ImageSink::new(&options.limits);
+    decode_image_rows(data, options, resolve, &mut sink)?;
+    sink.finish()
+}
+
+/// [`decode_image`] into `sink`, one row of tiles at a time.
+pub fn decode_image_rows<'c>(
+    data: &[u8],
+    options: &DecodeOptions,
+    resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
     let r = Reader::new(data, &options.limits)?;
-    if r.head().frames != 1 {
+    let h = *r.head();
+    if h.frames != 1 {
         return Err(Error::unsupported(format!(
             "the .hdrc file holds {} frames; decode it as a frame sequence",
-            r.head().frames
+            h.frames
         )));
     }
-    let mut v = decode_reader(&r, options, resolve)?;
-    Ok(v.remove(0))
+    let codec = resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
+    let mut info =
+        ImageInfo::new(h.width, h.height, h.channels, r.color_info()).with_format(stored_format(codec.name(), &h));
+    info.metadata = r.metadata().to_vec();
+    let refs: Vec<_> = r.frame_tiles(0).copied().collect();
+    decode_frame_rows(&h, 0, &refs, codec, options, &info, sink)
 }
 
 /// Decodes every frame of a `.hdrc` file. The tiles of each frame are decoded in parallel on
@@ -291,14 +309,37 @@ pub(crate) fn decode_frame(
     color: &ColorInfo,
     metadata: &[(String, String)],
 ) -> Result<HdrImage> {
+    let mut info = ImageInfo::new(h.width, h.height, h.channels, color.clone());
+    info.metadata = metadata.to_vec();
+    let mut sink = ImageSink::new(&options.limits);
+    decode_frame_rows(h, f, refs, codec, options, &info, &mut sink)?;
+    sink.finish()
+}
+
+/// [`decode_frame`] into `sink`, one row of tiles at a time: the tiles of a row decode a few
+/// at a time and are copied into the row's band (in place when the sink allows it) as soon as
+/// they have decoded, so the peak is the sink's storage plus a row of tiles, not two frames.
+/// The sink is started (the frame allocated) only once the first tiles have decoded, so a
+/// file whose data cannot even deliver those costs nothing.
+pub(crate) fn decode_frame_rows(
+    h: &Head,
+    f: u32,
+    refs: &[DataRef<'_>],
+    codec: &dyn ImageCodec,
+    options: &DecodeOptions,
+    info: &ImageInfo,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    if refs.is_empty() {
+        return Err(Error::invalid(format!("frame {f} has no tiles")));
+    }
     let records_scale = codec.records_nits_per_unit();
     let c = h.channels.count();
-    // The tiles a few at a time, each copied into the frame as soon as it has decoded: the peak
-    // is the frame plus one batch of tiles, not two frames. The frame is allocated once the
-    // first batch has decoded, so a file whose data cannot even deliver that costs nothing.
-    let mut frame: Option<HdrImage> = None;
+    let row_len = h.width as usize * c;
     let batch = options.pool.threads().max(1) * 2;
-    for group in refs.chunks(batch) {
+    // Decodes a few tiles in parallel, each checked against its rectangle and brought into the
+    // header's channels and colour.
+    let decode_group = |group: &[DataRef<'_>]| -> Result<Vec<HdrImage>> {
         let tiles: Vec<Result<HdrImage>> = options.pool.map(group.len(), |k| {
             let d = &group[k];
             let t = d.header;
@@ -315,22 +356,52 @@ pub(crate) fn decode_frame(
             if (img.width(), img.height()) != (t.width, t.height) {
                 return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
             }
-            Ok(to_header_colour(img.with_channels(h.channels), color, records_scale))
+            Ok(to_header_colour(img.with_channels(h.channels), &info.color, records_scale))
         });
-        let tiles = tiles.into_iter().collect::<Result<Vec<_>>>()?;
-        let frame = frame.get_or_insert_with(|| HdrImage::zeroed(h.width, h.height, h.channels));
+        tiles.into_iter().collect()
+    };
+    // Copies decoded tiles into the band of their row of tiles.
+    let place = |band: &mut [f32], group: &[DataRef<'_>], tiles: Vec<HdrImage>| -> Result<()> {
         for (d, tile) in group.iter().zip(tiles) {
             let t = d.header;
             for row in 0..t.height {
-                let dst = &mut frame.row_mut(t.y + row)[t.x as usize * c..(t.x + t.width) as usize * c];
+                let at = row as usize * row_len + t.x as usize * c;
+                let dst = band.get_mut(at..at + t.width as usize * c).ok_or_else(|| {
+                    Error::invalid(format!("frame {f}: a tile at ({}, {}) lies outside the frame", t.x, t.y))
+                })?;
                 dst.copy_from_slice(tile.row(row));
             }
         }
+        Ok(())
+    };
+    let mut started = false;
+    let mut scratch = Scratch::new(&options.limits);
+    let mut rest = refs;
+    while let Some(first) = rest.first() {
+        let (y, tile_height) = (first.header.y, first.header.height);
+        let in_row = rest.iter().take_while(|d| d.header.y == y).count();
+        let (row_tiles, tail) = rest.split_at(in_row);
+        rest = tail;
+        if row_tiles.iter().any(|d| d.header.height != tile_height)
+            || y.checked_add(tile_height).is_none_or(|end| end > h.height)
+        {
+            return Err(Error::invalid(format!("frame {f}: the tiles at row {y} do not form a row of the grid")));
+        }
+        let (first_group, other_groups) = row_tiles.split_at(batch.min(row_tiles.len()));
+        let first_tiles = decode_group(first_group)?;
+        if !started {
+            sink.start(info)?;
+            started = true;
+        }
+        fill_rows(sink, y, tile_height, row_len, &mut scratch, |band| {
+            place(band, first_group, first_tiles)?;
+            for group in other_groups.chunks(batch) {
+                place(band, group, decode_group(group)?)?;
+            }
+            Ok(())
+        })?;
     }
-    let mut frame = frame.ok_or_else(|| Error::invalid(format!("frame {f} has no tiles")))?;
-    frame.color = color.clone();
-    frame.metadata = metadata.to_vec();
-    Ok(frame)
+    Ok(())
 }
 
 /// The `.hdrc` container as an [`ImageCodec`] (name `hdrc`, id `HDRC`, extension `hdrc`).
@@ -406,9 +477,10 @@ impl ImageCodec for HdrcCodec {
         Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        // The image is charged against the caller's budget for as long as the decode runs.
-        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
-        decode_image(data, options, &|id| self.resolve(id))
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        decode_image_rows(data, options, &|id| self.resolve(id), sink)
     }
     fn encode_to(
         &self,

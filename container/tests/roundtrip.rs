@@ -332,8 +332,11 @@ fn probe_reads_head_colr_and_hdrm_only() {
     assert_eq!(i.format, "raw-f32 payload, 6 tiles of 32x32");
     // Nothing of the image's size is needed.
     let tiny = Limits::default().with_max_alloc_bytes(1 << 10);
-    assert!(Reader::new(&file, &tiny).is_err());
     assert!(hdrcodec_container::probe(&file, &tiny).is_ok());
+    // Nor to index the tiles; decoding the frames is what needs room for them.
+    assert!(Reader::new(&file, &tiny).is_ok());
+    let resolve = |_| Some(&RawF32Codec as &dyn ImageCodec);
+    assert!(hdrcodec_container::decode_frames(&file, &tiny.clone().into(), &resolve).is_err());
     // A truncated file always lacks its END chunk: an error, never a panic.
     for n in 0..file.len() {
         assert!(hdrcodec_container::probe(&file[..n], &Limits::default()).is_err(), "{n}");

@@ -7,6 +7,7 @@ use crate::ktx2::{
     is_bc6h_ktx2, khr_df_primaries, read_ktx2, read_ktx2_header, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES,
 };
 use crate::texture::{full_mip_count, level_size, Bc6hTexture, TextureHeader};
+use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, ImageInfo,
     Limits, Result,
@@ -109,13 +110,30 @@ fn clip_note(image: &HdrImage, signed: bool) -> Option<String> {
 }
 
 /// Level 0 of `tex` as an image in `primaries`, block rows decoded on `options.pool`.
-fn to_image(tex: &Bc6hTexture, primaries: ColorPrimaries, options: &DecodeOptions) -> Result<HdrImage> {
+/// Decodes mip level 0 of `tex` into `sink`: in place in one pass when the sink allows it,
+/// else in bands of block rows (about 4 MB of rows), the block rows of a band in parallel on
+/// `options.pool`.
+fn texture_rows(tex: &Bc6hTexture, info: &ImageInfo, options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
     let (w, h) = (tex.width, tex.height);
-    let _charge = options.limits.charge_image(u64::from(w), u64::from(h), Channels::Rgb)?;
-    let mut samples = vec![0f32; w as usize * h as usize * 3];
     let level0 = tex.levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
-    decode_surface_into(w, h, level0, tex.signed, &options.pool, &mut samples)?;
-    HdrImage::new(w, h, Channels::Rgb, samples, texture_color(primaries))
+    let row_len = w as usize * 3;
+    sink.start(info)?;
+    // Whole block rows per band.
+    let band = if sink.rows_mut(0, h).is_some() { h } else { (band_rows(row_len, 4 << 20) / 4).max(1) * 4 };
+    let blocks_across = w.div_ceil(4) as usize;
+    let mut scratch = Scratch::new(&options.limits);
+    let mut y = 0;
+    while y < h {
+        let rows = band.min(h - y);
+        let first = (y / 4) as usize * blocks_across * 16;
+        let last = ((y + rows).div_ceil(4) as usize * blocks_across * 16).min(level0.len());
+        let blocks = level0.get(first..last).unwrap_or_default();
+        fill_rows(sink, y, rows, row_len, &mut scratch, |out| {
+            decode_surface_into(w, rows, blocks, tex.signed, &options.pool, out)
+        })?;
+        y += rows;
+    }
+    Ok(())
 }
 
 /// The colour of a decoded texture: the primaries its file records (DDS: none), at the
@@ -154,8 +172,12 @@ impl ImageCodec for Bc6hDdsCodec {
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         Ok(texture_info(&read_dds_header(data, limits)?, ColorPrimaries::Unspecified))
     }
-    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        to_image(&read_dds(data, &options.limits)?, ColorPrimaries::Unspecified, options)
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        let info = self.probe(data, &options.limits)?;
+        texture_rows(&read_dds(data, &options.limits)?, &info, options, sink)
     }
     fn encode_to(
         &self,
@@ -197,8 +219,12 @@ impl ImageCodec for Bc6hKtx2Codec {
     }
     /// The image carries the primaries the DFD names; 0 or a value without a named space of
     /// ours gives [`ColorPrimaries::Unspecified`].
-    fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        to_image(&read_ktx2(data, &options.limits)?, read_ktx2_primaries(data), options)
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        let info = self.probe(data, &options.limits)?;
+        texture_rows(&read_ktx2(data, &options.limits)?, &info, options, sink)
     }
     /// Records the image's primaries in the DFD. Primaries it cannot name (the facade converts
     /// before calling, but a direct caller or the container may not) are stored as they are

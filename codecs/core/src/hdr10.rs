@@ -34,9 +34,10 @@ pub struct Hdr10Metadata {
     pub content_light_level: Option<ContentLightLevel>,
 }
 
-/// The brightest component of a pixel, with NaN and negatives as 0.
+/// The brightest component of a pixel, with NaN and negatives as 0: the light level of a
+/// pixel in sample units (CTA-861.3 Annex A).
 #[inline]
-fn max_component(p: [f32; 3]) -> f64 {
+pub fn max_component(p: [f32; 3]) -> f64 {
     // f32::max returns the non-NaN operand, so NaN components drop out.
     p[0].max(p[1]).max(p[2]).max(0.0) as f64
 }

@@ -41,7 +41,9 @@ pub trait RowSink {
 
     /// Rows `y .. y + rows` as one mutable slice, when the sink stores them contiguously as
     /// `f32` (an [`HdrImage`], a caller's unpadded `f32` buffer): the decoder writes into it
-    /// directly. `None` (the provided answer) means: use [`put_rows`](Self::put_rows).
+    /// directly. `None` (the provided answer) means: use [`put_rows`](Self::put_rows). A
+    /// decoder may ask for all rows once, after `start`, to learn whether the sink is written
+    /// in place and size its batches accordingly.
     fn rows_mut(&mut self, y: u32, rows: u32) -> Option<&mut [f32]> {
         let _ = (y, rows);
         None
@@ -52,14 +54,14 @@ pub trait RowSink {
 }
 
 /// Hands `f` the rows `y .. y + rows` to fill: the sink's own storage when it offers it, else
-/// `scratch` (resized, kept by the caller for the next band), whose rows then go to
-/// [`RowSink::put_rows`]. `row_len` is the number of samples per row.
+/// `scratch` (kept by the caller for the next band, and charged to its limits only then), whose
+/// rows then go to [`RowSink::put_rows`]. `row_len` is the number of samples per row.
 pub fn fill_rows<F>(
     sink: &mut dyn RowSink,
     y: u32,
     rows: u32,
     row_len: usize,
-    scratch: &mut Vec<f32>,
+    scratch: &mut Scratch,
     f: F,
 ) -> Result<()>
 where
@@ -68,10 +70,36 @@ where
     if let Some(direct) = sink.rows_mut(y, rows) {
         return f(direct);
     }
-    scratch.clear();
-    scratch.resize(rows as usize * row_len, 0.0);
-    f(scratch)?;
-    sink.put_rows(y, scratch)
+    let band = scratch.get(rows as usize * row_len)?;
+    f(band)?;
+    sink.put_rows(y, band)
+}
+
+/// The band buffer [`fill_rows`] uses when a sink cannot be written in place, charged to the
+/// decoder's [`Limits`] for as long as it is held (nothing is allocated or charged while every
+/// band goes in place).
+#[derive(Debug)]
+pub struct Scratch {
+    buf: Vec<f32>,
+    limits: Limits,
+    charge: Option<Allocation>,
+}
+
+impl Scratch {
+    /// An empty buffer whose growth is charged to `limits`.
+    pub fn new(limits: &Limits) -> Self {
+        Scratch { buf: Vec::new(), limits: limits.clone(), charge: None }
+    }
+
+    /// `len` samples (zeroed when they are new), charged before they are allocated.
+    fn get(&mut self, len: usize) -> Result<&mut [f32]> {
+        if len > self.buf.len() {
+            self.charge = None;
+            self.charge = Some(self.limits.charge(len as u64 * 4, "a band of decoded rows")?);
+            self.buf.resize(len, 0.0);
+        }
+        Ok(&mut self.buf[..len])
+    }
 }
 
 /// The number of rows per band such that a band of `row_len` samples holds about
@@ -289,7 +317,8 @@ mod tests {
     fn image_sink_takes_rows_in_place_and_by_copy_in_any_order() {
         let mut sink = ImageSink::new(&Limits::default());
         sink.start(&info(2, 3).with_metadata("k", "v")).unwrap();
-        let mut scratch = Vec::new();
+        let limits = Limits::default();
+        let mut scratch = Scratch::new(&limits);
         fill_rows(&mut sink, 2, 1, 6, &mut scratch, |r| {
             r.fill(3.0);
             Ok(())
@@ -301,7 +330,8 @@ mod tests {
         assert_eq!(image.row(1), &[1.0; 6]);
         assert_eq!(image.row(2), &[3.0; 6]);
         assert_eq!(image.metadata_value("k"), Some("v"));
-        assert!(scratch.is_empty(), "written in place, no scratch needed");
+        assert!(scratch.buf.is_empty(), "written in place, no scratch needed");
+        assert_eq!(limits.in_use(), 0);
     }
 
     #[test]
@@ -322,7 +352,8 @@ mod tests {
         let mut sink = FrameSink::new(FrameBufMut::f32(&mut buf, 8));
         sink.start(&info(2, 2)).unwrap();
         assert!(sink.rows_mut(0, 1).is_none(), "padded: not contiguous");
-        let mut scratch = Vec::new();
+        let limits = Limits::default();
+        let mut scratch = Scratch::new(&limits);
         fill_rows(&mut sink, 0, 2, 6, &mut scratch, |r| {
             for (i, v) in r.iter_mut().enumerate() {
                 *v = i as f32;
@@ -330,6 +361,9 @@ mod tests {
             Ok(())
         })
         .unwrap();
+        assert_eq!(limits.in_use(), 48, "the band buffer is charged while held");
+        drop(scratch);
+        assert_eq!(limits.in_use(), 0);
         assert_eq!(&buf[..8], &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, -1.0, -1.0]);
         assert_eq!(&buf[8..], &[6.0, 7.0, 8.0, 9.0, 10.0, 11.0, -1.0, -1.0]);
     }

@@ -14,6 +14,7 @@ use exr::block::UncompressedBlock;
 use exr::meta::attribute::SampleType;
 use exr::meta::header::Header;
 use exr::meta::MetaData;
+use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result,
     ThreadPool,
@@ -45,7 +46,15 @@ pub fn probe_exr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
 
 /// [`decode_exr`] with the caller's threads: chunks decompress in parallel on `options.pool`.
 pub fn decode_exr_with(data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
-    guarded("reading the OpenEXR file", || decode_inner(data, &options.limits, &options.pool))
+    let mut sink = ImageSink::new(&options.limits);
+    decode_exr_rows(data, options, &mut sink)?;
+    sink.finish()
+}
+
+/// Decodes an OpenEXR file into `sink`, block row by block row (in place when the sink allows
+/// it); chunks decompress in parallel on `options.pool`, a batch of whole block rows at a time.
+pub fn decode_exr_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+    guarded("reading the OpenEXR file", || decode_inner(data, &options.limits, &options.pool, sink))
 }
 
 /// Runs `f`, turning a panic into an `Invalid` error that names `what` and the panic message.
@@ -135,7 +144,9 @@ fn probe_inner(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     if let exr::meta::BlockDescription::Tiles(t) = header.blocks {
         format += &format!(", tiles {}x{}", t.tile_size.x(), t.tile_size.y());
     }
-    Ok(ImageInfo::new(w as u32, h as u32, selection.channels, color_info(meta)).with_format(format))
+    let mut info = ImageInfo::new(w as u32, h as u32, selection.channels, color_info(meta)).with_format(format);
+    info.metadata = metadata(header);
+    Ok(info)
 }
 
 /// The name OpenEXR's tools print for a compression ("PIZ", "ZIP", "none").
@@ -154,13 +165,12 @@ fn type_name(t: SampleType) -> &'static str {
     }
 }
 
-fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool) -> Result<HdrImage> {
+fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn RowSink) -> Result<()> {
+    let info = probe_inner(data, limits)?;
     let reader = read_meta(data)?;
     let meta = reader.meta_data().clone();
     let (header, selection) = first_part(&meta)?;
     let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
-    limits.check_image(w, h, selection.channels)?;
-    check_offset_tables(&meta, data)?;
     // A block never exceeds the data window, whatever tile size the header declares.
     let block = header.max_block_pixel_size();
     let block_pixels = (block.width() as u64).min(w) * (block.height() as u64).min(h);
@@ -187,51 +197,87 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool) -> Result<HdrIm
         if held > data.len() {
             return Err(Error::invalid("OpenEXR: the offset tables point at the same chunks more than once"));
         }
-        list.push(chunk);
+        // Where the block lies in the data window (checked again on the decompressed block).
+        let at = header
+            .get_block_data_indices(&chunk.compressed_block)
+            .and_then(|tile| header.get_block_data_window_pixel_coordinates(tile))
+            .map_err(map_err)?
+            .position;
+        list.push(((at.y(), at.x()), chunk));
     }
-    let chunks = list;
-    if chunks.len() != expected {
+    if list.len() != expected {
         return Err(Error::truncated("the OpenEXR chunks"));
     }
+    // Top to bottom, so that the rows are delivered in whole bands (files written with a
+    // decreasing or random line order hold the same chunks in another order).
+    list.sort_by_key(|(key, _)| *key);
 
     let (w, h) = (w as usize, h as usize);
     let n = selection.channels.count();
-    let mut samples = vec![0.0f32; w * h * n];
+    let row_len = w * n;
+    sink.start(&info)?;
+    // A batch of whole block rows: up to `BATCH` chunks when the sink takes them in place, at
+    // most about 4 MB of rows when they need a scratch buffer (and always one block row).
+    let in_place = sink.rows_mut(0, h as u32).is_some();
+    let batch_rows = if in_place { h } else { band_rows(row_len, 4 << 20) as usize };
+    let mut scratch = Scratch::new(limits);
     let mut covered = 0usize;
+    let mut next_row = 0usize;
     let mut seen = std::collections::HashSet::new();
     // Large files decompress on the pool; small ones (most fuzz inputs) stay on this thread.
-    let parallel = pool.is_parallel() && chunks.len() > 2 && data.len() > 1 << 16;
-    let mut iter = chunks.into_iter();
-    loop {
-        let batch: Vec<Chunk> = iter.by_ref().take(batch_len).collect();
-        if batch.is_empty() {
-            break;
-        }
+    let parallel = pool.is_parallel() && list.len() > 2 && data.len() > 1 << 16;
+    let mut iter = list.into_iter().peekable();
+    while iter.peek().is_some() {
         let decompress = |c: Chunk| {
             guarded("decompressing a chunk", || UncompressedBlock::decompress_chunk(c, &meta, false).map_err(map_err))
         };
-        let blocks: Vec<Result<UncompressedBlock>> = if parallel {
-            pool.install(|| batch.into_par_iter().map(decompress).collect())
-        } else {
-            batch.into_iter().map(decompress).collect()
-        };
-        for block in blocks {
-            let block = block?;
-            let idx = block.index;
-            if !seen.insert((idx.pixel_position.x(), idx.pixel_position.y())) {
-                return Err(Error::invalid("OpenEXR: two chunks hold the same block"));
+        // Chunks up to `batch_len` within `batch_rows`, then on to the end of the last block
+        // row begun.
+        let first_y = iter.peek().map_or(0, |((y, _), _)| i64::from(*y));
+        let mut batch: Vec<((i32, i32), Chunk)> = Vec::with_capacity(batch_len);
+        while batch.len() < batch_len {
+            match iter.next_if(|((y, _), _)| ((i64::from(*y) - first_y) as usize) < batch_rows) {
+                Some(c) => batch.push(c),
+                None => break,
             }
-            copy_block(&block, header, &selection, w, h, &mut samples)?;
-            covered += idx.pixel_size.area();
         }
+        let last_y = batch.last().map_or(0, |((y, _), _)| *y);
+        while let Some(c) = iter.next_if(|((y, _), _)| *y == last_y) {
+            batch.push(c);
+        }
+        let batch = batch.into_iter().map(|(_, c)| c);
+        let blocks: Vec<Result<UncompressedBlock>> = if parallel {
+            pool.install(|| batch.collect::<Vec<_>>().into_par_iter().map(decompress).collect())
+        } else {
+            batch.map(decompress).collect()
+        };
+        let blocks = blocks.into_iter().collect::<Result<Vec<_>>>()?;
+        let top = blocks.iter().map(|b| b.index.pixel_position.y()).min().unwrap_or(0);
+        let bottom = blocks.iter().map(|b| b.index.pixel_position.y() + b.index.pixel_size.y()).max().unwrap_or(0);
+        if top != next_row || bottom > h {
+            return Err(Error::invalid(format!(
+                "OpenEXR: the chunks do not tile the data window (rows {top}..{bottom} after row {next_row})"
+            )));
+        }
+        fill_rows(sink, top as u32, (bottom - top) as u32, row_len, &mut scratch, |band| {
+            for block in &blocks {
+                let idx = block.index;
+                if !seen.insert((idx.pixel_position.x(), idx.pixel_position.y())) {
+                    return Err(Error::invalid("OpenEXR: two chunks hold the same block"));
+                }
+                copy_block(block, header, &selection, w, top, band)?;
+                covered += idx.pixel_size.area();
+            }
+            Ok(())
+        })?;
+        // Every pixel of the band must have come from a chunk (checked for the whole window
+        // at the end; a band with a hole fails there).
+        next_row = bottom;
     }
-    if covered != w * h {
+    if covered != w * h || next_row != h {
         return Err(Error::invalid(format!("OpenEXR: the chunks cover {covered} of {} pixels", w * h)));
     }
-
-    let mut image = HdrImage::new(w as u32, h as u32, selection.channels, samples, color_info(&meta))?;
-    set_metadata(&mut image, header);
-    Ok(image)
+    Ok(())
 }
 
 /// Picks R, G, B (and A) by name, case-insensitively, from the channels without a layer
@@ -297,20 +343,21 @@ fn copy_block(
     header: &Header,
     sel: &Selection,
     w: usize,
-    h: usize,
+    top: usize,
     out: &mut [f32],
 ) -> Result<()> {
     let idx = block.index;
-    let (bx, by) = (idx.pixel_position.x(), idx.pixel_position.y());
-    let (bw, bh) = (idx.pixel_size.x(), idx.pixel_size.y());
-    if bx + bw > w || by + bh > h {
+    let (bx, bw, bh) = (idx.pixel_position.x(), idx.pixel_size.x(), idx.pixel_size.y());
+    let n = sel.channels.count();
+    // Rows of `out` (a band starting at image row `top`).
+    let by = idx.pixel_position.y().wrapping_sub(top);
+    if bx + bw > w || by.saturating_add(bh) > out.len() / (w * n).max(1) {
         return Err(Error::invalid("OpenEXR: a chunk lies outside the data window"));
     }
     let line = bw * header.channels.bytes_per_pixel;
     if block.data.len() != line * bh {
         return Err(Error::invalid("OpenEXR: a decompressed chunk has the wrong size"));
     }
-    let n = sel.channels.count();
     for (row, src_line) in block.data.chunks_exact(line).enumerate() {
         let dst = &mut out[((by + row) * w + bx) * n..((by + row) * w + bx + bw) * n];
         for (c, s) in sel.sources.iter().enumerate() {
@@ -381,8 +428,9 @@ fn color_info(meta: &MetaData) -> ColorInfo {
     color
 }
 
-/// Records what `hdrcodec info` shows and what the pixels alone do not say.
-fn set_metadata(image: &mut HdrImage, header: &Header) {
+/// What `hdrcodec info` shows and the pixels alone do not say.
+fn metadata(header: &Header) -> Vec<(String, String)> {
+    let mut image = HdrImage::zeroed(0, 0, Channels::Rgb);
     image.set_metadata("exr.compression", compression_name(header.compression));
     let types: Vec<&str> = header.channels.list.iter().map(|c| type_name(c.sample_type)).collect();
     let mut dedup = types.clone();
@@ -401,4 +449,5 @@ fn set_metadata(image: &mut HdrImage, header: &Header) {
     if let exr::meta::BlockDescription::Tiles(t) = header.blocks {
         image.set_metadata("exr.tiles", format!("{}x{}", t.tile_size.x(), t.tile_size.y()));
     }
+    image.metadata
 }

@@ -35,7 +35,7 @@ mod encode;
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
 
-pub use decode::{decode_exr, decode_exr_with, probe_exr};
+pub use decode::{decode_exr, decode_exr_rows, decode_exr_with, probe_exr};
 pub use encode::encode_exr;
 
 use exr::compression::Compression;
@@ -253,9 +253,15 @@ impl ImageCodec for ExrCodec {
         probe_exr(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        // The image is charged against the caller's budget for as long as the decode runs.
-        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
         decode_exr_with(data, options)
+    }
+    fn decode_rows(
+        &self,
+        data: &[u8],
+        options: &hdrcodec_core::DecodeOptions,
+        sink: &mut dyn hdrcodec_core::sink::RowSink,
+    ) -> Result<()> {
+        decode_exr_rows(data, options, sink)
     }
     fn encode_to(
         &self,

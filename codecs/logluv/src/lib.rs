@@ -34,6 +34,7 @@ pub mod tiff;
 pub mod uvgrid;
 
 use hdrcodec_core::color::{mat_inverse, mat_to_f32, Mat3};
+use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
     Result,
@@ -223,36 +224,90 @@ pub fn probe(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<Image
 
 /// Decodes a LogLuv TIFF to an RGB image in `opts.primaries`.
 pub fn decode(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<HdrImage> {
-    raster_to_image(&read_tiff(data, limits)?, opts)
+    let mut sink = ImageSink::new(limits);
+    decode_rows(data, limits, opts, &mut sink)?;
+    sink.finish()
+}
+
+/// Decodes a LogLuv TIFF into `sink`, one band of rows at a time: each row is read from its
+/// strip and converted straight into the sink (in place when the sink allows it), so nothing
+/// of the image's size is held besides the sink's own storage.
+pub fn decode_rows(data: &[u8], limits: &Limits, opts: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+    let info = probe(data, limits, opts)?;
+    let mut rows = tiff::StripRows::new(data)?;
+    let (width, height, encoding) = (rows.info.width, rows.info.height, rows.info.encoding);
+    let to_rgb = WordsToRgb::new(encoding, opts)?;
+    let row_len = width as usize * 3;
+    let band = band_rows(row_len, 1 << 20).min(height);
+    let _words = limits.charge(u64::from(width) * 4, "a row of LogLuv words")?;
+    sink.start(&info)?;
+    let mut words = vec![0u32; width as usize];
+    let mut scratch = Scratch::new(limits);
+    let mut y = 0;
+    while y < height {
+        let n = band.min(height - y);
+        fill_rows(sink, y, n, row_len, &mut scratch, |out| {
+            for row in out.chunks_exact_mut(row_len) {
+                rows.next_row(&mut words)?;
+                to_rgb.convert(&words, row);
+            }
+            Ok(())
+        })?;
+        y += n;
+    }
+    Ok(())
 }
 
 /// Converts encoded words to an RGB image in `opts.primaries`.
 pub fn raster_to_image(raster: &LogLuvRaster, opts: &DecodeOptions) -> Result<HdrImage> {
-    let t = Tables::get();
-    let mut samples = Vec::with_capacity(raster.words.len() * 3);
-    match raster.encoding {
-        Encoding::LogL16 => samples.extend(raster.words.iter().flat_map(|&p| [t.l16(p as u16); 3])),
-        enc => {
-            let m = mat_to_f32(
+    let mut samples = vec![0.0; raster.words.len() * 3];
+    WordsToRgb::new(raster.encoding, opts)?.convert(&raster.words, &mut samples);
+    HdrImage::new(raster.width, raster.height, Channels::Rgb, samples, decoded_color(raster.stonits, opts))
+}
+
+/// Encoded words → RGB samples in the decode options' primaries (through CIE XYZ).
+struct WordsToRgb {
+    encoding: Encoding,
+    /// XYZ → RGB, or `None` when the primaries are XYZ itself.
+    matrix: Option<[[f32; 3]; 3]>,
+    tables: &'static Tables,
+}
+
+impl WordsToRgb {
+    fn new(encoding: Encoding, opts: &DecodeOptions) -> Result<Self> {
+        let matrix = if encoding == Encoding::LogL16 || opts.primaries == ColorPrimaries::Xyz {
+            None
+        } else {
+            Some(mat_to_f32(
                 &mat_inverse(&rgb_to_xyz(&opts.primaries)?)
                     .ok_or_else(|| Error::invalid("singular RGB to XYZ matrix"))?,
-            );
-            let identity = opts.primaries == ColorPrimaries::Xyz;
-            let mut push = |xyz: [f32; 3]| {
-                if identity {
-                    samples.extend_from_slice(&xyz);
-                } else {
-                    samples.extend(m.iter().map(|r| r[0] * xyz[0] + r[1] * xyz[1] + r[2] * xyz[2]));
+            ))
+        };
+        Ok(WordsToRgb { encoding, matrix, tables: Tables::get() })
+    }
+
+    /// Converts `words` into `out` (3 samples per word).
+    fn convert(&self, words: &[u32], out: &mut [f32]) {
+        let t = self.tables;
+        let pixels = words.iter().zip(out.chunks_exact_mut(3));
+        match self.encoding {
+            Encoding::LogL16 => pixels.for_each(|(&p, o)| o.fill(t.l16(p as u16))),
+            enc => {
+                let decode = |p: u32| if enc == Encoding::LogLuv24 { t.luv24(p) } else { t.luv32(p) };
+                for (&p, o) in pixels {
+                    let xyz = decode(p);
+                    match &self.matrix {
+                        None => o.copy_from_slice(&xyz),
+                        Some(m) => {
+                            for (o, r) in o.iter_mut().zip(m) {
+                                *o = r[0] * xyz[0] + r[1] * xyz[1] + r[2] * xyz[2];
+                            }
+                        }
+                    }
                 }
-            };
-            if enc == Encoding::LogLuv24 {
-                raster.words.iter().for_each(|&p| push(t.luv24(p)));
-            } else {
-                raster.words.iter().for_each(|&p| push(t.luv32(p)));
             }
         }
     }
-    HdrImage::new(raster.width, raster.height, Channels::Rgb, samples, decoded_color(raster.stonits, opts))
 }
 
 /// Converts an image (any primaries; alpha is dropped) to encoded words via CIE XYZ, with
@@ -383,9 +438,10 @@ impl ImageCodec for LogLuvTiffCodec {
         probe(data, limits, &DecodeOptions::default())
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        // The image is charged against the caller's budget for as long as the decode runs.
-        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
-        decode(data, &options.limits, &DecodeOptions::default())
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        decode_rows(data, &options.limits, &DecodeOptions::default(), sink)
     }
     fn encode_to(
         &self,

@@ -7,7 +7,7 @@
 
 use crate::rle;
 use crate::{Encoding, LogLuvRaster};
-use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::tiff::{self as core_tiff, tag, Entry, IfdWriter, Tiff, MAGIC_TIFF};
 use hdrcodec_core::{Error, Limits, Result};
 
@@ -146,53 +146,89 @@ fn read_header(data: &[u8]) -> Result<(Tiff<'_>, Vec<Entry>, TiffInfo)> {
 
 /// Reads the first image of a LogLuv TIFF as its encoded words.
 pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
-    let (r, entries, TiffInfo { width, height, encoding, stonits }) = read_header(data)?;
-    let find = |t: u16| entries.iter().find(|e| e.tag == t);
-    let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
+    let mut rows = StripRows::new(data)?;
+    let TiffInfo { width, height, encoding, stonits } = rows.info;
     limits.check_image(u64::from(width), u64::from(height), hdrcodec_core::Channels::Rgb)?;
     let pixels = u64::from(width) * u64::from(height);
     limits.check_alloc(pixels * 4, "the LogLuv pixel words")?;
-    let rows_per_strip =
-        find(tag::ROWS_PER_STRIP).map(|e| e.first_u32(&r)).transpose()?.unwrap_or(u32::MAX).clamp(1, height);
-    let strips = height.div_ceil(rows_per_strip) as usize;
-    // At most `strips` values each (bounded by the checked height), read lazily from the file.
-    let offsets: Vec<u32> = required(tag::STRIP_OFFSETS, "StripOffsets")?.uints(&r)?.take(strips).collect();
-    let counts: Vec<u32> = required(tag::STRIP_BYTE_COUNTS, "StripByteCounts")?.uints(&r)?.take(strips).collect();
-    if offsets.len() < strips || counts.len() < strips {
-        return Err(Error::invalid(format!(
-            "the TIFF lists {} strip offsets and {} byte counts for {strips} strips",
-            offsets.len(),
-            counts.len()
-        )));
+    let mut words = vec![0u32; pixels as usize];
+    for row in words.chunks_mut(width as usize) {
+        rows.next_row(row)?;
+    }
+    Ok(LogLuvRaster { width, height, encoding, words, stonits })
+}
+
+/// The rows of a LogLuv TIFF's first image as encoded words, read one at a time from the
+/// strips (nothing of the image's size is held).
+pub struct StripRows<'a> {
+    /// What the IFD says of the image.
+    pub info: TiffInfo,
+    file: ByteReader<'a>,
+    rows_per_strip: u32,
+    offsets: Vec<u32>,
+    counts: Vec<u32>,
+    /// The next row to read.
+    row: u32,
+    /// The strip holding `row` and the position in it.
+    strip: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> StripRows<'a> {
+    /// Reads the IFD and the strip tables (at most one entry per strip of the checked height).
+    pub fn new(data: &'a [u8]) -> Result<Self> {
+        let (r, entries, info) = read_header(data)?;
+        let find = |t: u16| entries.iter().find(|e| e.tag == t);
+        let required =
+            |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
+        let height = info.height;
+        let rows_per_strip =
+            find(tag::ROWS_PER_STRIP).map(|e| e.first_u32(&r)).transpose()?.unwrap_or(u32::MAX).clamp(1, height);
+        let strips = height.div_ceil(rows_per_strip) as usize;
+        // At most `strips` values each (bounded by the height), read lazily from the file.
+        let offsets: Vec<u32> = required(tag::STRIP_OFFSETS, "StripOffsets")?.uints(&r)?.take(strips).collect();
+        let counts: Vec<u32> = required(tag::STRIP_BYTE_COUNTS, "StripByteCounts")?.uints(&r)?.take(strips).collect();
+        if offsets.len() < strips || counts.len() < strips {
+            return Err(Error::invalid(format!(
+                "the TIFF lists {} strip offsets and {} byte counts for {strips} strips",
+                offsets.len(),
+                counts.len()
+            )));
+        }
+        Ok(StripRows { info, file: r.reader(), rows_per_strip, offsets, counts, row: 0, strip: &[], pos: 0 })
     }
 
-    let file = r.reader();
-    let w = width as usize;
-    let mut words = vec![0u32; pixels as usize];
-    for (s, rows) in words.chunks_mut(w * rows_per_strip as usize).enumerate() {
-        let strip = file.bytes_at(u64::from(offsets[s]), u64::from(counts[s]), &format!("strip {s}"))?;
-        let first_row = s as u32 * rows_per_strip;
-        match encoding {
+    /// Decodes the next row into `out` (`width` words).
+    pub fn next_row(&mut self, out: &mut [u32]) -> Result<()> {
+        let (row, w) = (self.row, self.info.width as usize);
+        if row >= self.info.height {
+            return Err(Error::invalid(format!("row {row} of an image {} rows high", self.info.height)));
+        }
+        let k = row % self.rows_per_strip;
+        if k == 0 {
+            let s = (row / self.rows_per_strip) as usize;
+            self.strip =
+                self.file.bytes_at(u64::from(self.offsets[s]), u64::from(self.counts[s]), &format!("strip {s}"))?;
+            self.pos = 0;
+        }
+        match self.info.encoding {
             Encoding::LogLuv24 => {
-                for (k, row) in rows.chunks_mut(w).enumerate() {
-                    let Some(src) = strip.get(k * 3 * w..(k + 1) * 3 * w) else {
-                        return Err(Error::truncated(format!("the SGILOG24 data of row {}", first_row + k as u32)));
-                    };
-                    for (p, b) in row.iter_mut().zip(src.chunks_exact(3)) {
-                        *p = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
-                    }
+                let k = k as usize;
+                let Some(src) = self.strip.get(k * 3 * w..(k + 1) * 3 * w) else {
+                    return Err(Error::truncated(format!("the SGILOG24 data of row {row}")));
+                };
+                for (p, b) in out.iter_mut().zip(src.chunks_exact(3)) {
+                    *p = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
                 }
             }
             Encoding::LogLuv32 | Encoding::LogL16 => {
-                let planes = if encoding == Encoding::LogL16 { 2 } else { 4 };
-                let mut pos = 0;
-                for (k, row) in rows.chunks_mut(w).enumerate() {
-                    rle::decode_row(strip, &mut pos, row, planes, first_row + k as u32)?;
-                }
+                let planes = if self.info.encoding == Encoding::LogL16 { 2 } else { 4 };
+                rle::decode_row(self.strip, &mut self.pos, out, planes, row)?;
             }
         }
+        self.row += 1;
+        Ok(())
     }
-    Ok(LogLuvRaster { width, height, encoding, words, stonits })
 }
 
 /// Writes a little-endian TIFF: header, the strips, then the IFD (tags in ascending order,

@@ -27,7 +27,7 @@
 
 #![forbid(unsafe_code)]
 
-use hdrcodec_core::sink::{band_rows, fill_rows, RowSink};
+use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
     Result,
@@ -171,8 +171,7 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
     let row_bytes = w * per_pixel * 4;
     let row_len = w * 3;
     let band = band_rows(row_len, 1 << 20);
-    let _scratch_charge = limits.charge(u64::from(band.min(h.height)) * row_len as u64 * 4, "a band of PFM rows")?;
-    let mut scratch = Vec::new();
+    let mut scratch = Scratch::new(limits);
     let mut y = 0;
     while y < h.height {
         let rows = band.min(h.height - y);

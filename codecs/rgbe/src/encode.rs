@@ -141,6 +141,17 @@ fn write_flat(planes: &[u8], n: usize, stride: usize, out: &mut Vec<u8>) {
 
 /// Encodes a whole image.
 pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(image.pixel_count() * 4 + 256);
+    write(image, opts, &mut out)?;
+    Ok(out)
+}
+
+/// Bytes of scanlines gathered before they are written out.
+const WRITE_BAND: usize = 1 << 20;
+
+/// [`encode`] streamed into `sink` in bands of scanlines of about 1 MB: nothing of the file's
+/// size is held.
+pub fn write(image: &HdrImage, opts: &RgbeEncodeOptions, sink: &mut dyn std::io::Write) -> Result<()> {
     let (w, h) = (image.width() as usize, image.height() as usize);
     if w == 0 || h == 0 {
         return Err(Error::invalid(format!("cannot write an empty {w}x{h} image as Radiance RGBE")));
@@ -172,7 +183,7 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
             <[f64; 3]>::try_from(v).ok()
         })
         .flatten();
-    let mut out = Vec::with_capacity(w * h * 4 + 256);
+    let mut out = Vec::with_capacity(WRITE_BAND + 4 * w + 256);
     header::write(
         &WriteHeader {
             format: opts.format,
@@ -194,7 +205,6 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
     let mut planes = vec![0u8; 4 * pstride];
     let mut eq = vec![0u64; rle::mask_words(w)];
     let line_bound = 4 + 4 * rle::plane_bound(w);
-    out.reserve(if rle { h * line_bound + rle::PAD } else { h * w * 4 });
     let mut xyz = Vec::new();
     for y in 0..h {
         let mut row = image.row(y as u32);
@@ -218,8 +228,13 @@ pub fn encode(image: &HdrImage, opts: &RgbeEncodeOptions) -> Result<Vec<u8>> {
         } else {
             write_flat(&planes, w, pstride, &mut out);
         }
+        if out.len() >= WRITE_BAND {
+            sink.write_all(&out)?;
+            out.clear();
+        }
     }
-    Ok(out)
+    sink.write_all(&out)?;
+    Ok(())
 }
 
 /// Converts one row of `n` pixels (`stride` samples each) into four byte planes (R, G, B, E)

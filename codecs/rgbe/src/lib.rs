@@ -222,9 +222,15 @@ impl ImageCodec for RgbeCodec {
         decode::probe(data, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-        // The image is charged against the caller's budget for as long as the decode runs.
-        let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
-        decode::decode(data, &options.limits, &self.decode)
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(
+        &self,
+        data: &[u8],
+        options: &hdrcodec_core::DecodeOptions,
+        sink: &mut dyn hdrcodec_core::sink::RowSink,
+    ) -> Result<()> {
+        decode::decode_rows(data, &options.limits, &self.decode, sink)
     }
     fn encode_to(
         &self,
@@ -233,7 +239,7 @@ impl ImageCodec for RgbeCodec {
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
         let options = RgbeEncodeOptions::from_settings(settings)?;
-        out.write_all(&encode::encode(image, &options)?)?;
+        encode::write(image, &options, out)?;
         let mut report = hdrcodec_core::EncodeReport::new();
         if !image.color.primaries.is_specified() {
             // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
