@@ -26,40 +26,41 @@ pub struct BitReader<'a> {
 impl<'a> BitReader<'a> {
     /// A reader at the first bit of `data`.
     pub fn new(data: &'a [u8]) -> Self {
-        let mut r = BitReader { data, pos: 0, buf: 0, avail: 0, padded: 0 };
-        r.refill();
-        r
+        BitReader { data, pos: 0, buf: 0, avail: 0, padded: 0 }
     }
 
-    /// Tops the buffer up to at least 57 bits.
+    /// Tops the buffer up to at least 56 bits: one unaligned 8-byte load while 8 bytes
+    /// remain (the bits of the loaded word past `avail` are the stream's next bits, so loads
+    /// may overlap), byte by byte with zero padding at the end.
     #[inline]
     fn refill(&mut self) {
-        if self.avail > 56 {
-            return;
-        }
         if let Some(chunk) = self.data.get(self.pos..self.pos + 8) {
             let mut word = [0u8; 8];
             word.copy_from_slice(chunk);
-            let w = u64::from_be_bytes(word);
-            self.buf |= w >> self.avail;
-            let bytes = (63 - self.avail) / 8;
-            self.pos += bytes as usize;
-            self.avail += bytes * 8;
+            self.buf |= u64::from_be_bytes(word) >> self.avail;
+            self.pos += ((63 - self.avail) >> 3) as usize;
+            // avail + 8 * ((63 - avail) / 8) for avail <= 56.
+            self.avail |= 56;
         } else {
-            while self.avail <= 56 {
-                let byte = match self.data.get(self.pos) {
-                    Some(&b) => {
-                        self.pos += 1;
-                        b
-                    }
-                    None => {
-                        self.padded += 8;
-                        0
-                    }
-                };
-                self.buf |= u64::from(byte) << (56 - self.avail);
-                self.avail += 8;
-            }
+            self.refill_tail();
+        }
+    }
+
+    #[cold]
+    fn refill_tail(&mut self) {
+        while self.avail <= 56 {
+            let byte = match self.data.get(self.pos) {
+                Some(&b) => {
+                    self.pos += 1;
+                    b
+                }
+                None => {
+                    self.padded += 8;
+                    0
+                }
+            };
+            self.buf |= u64::from(byte) << (56 - self.avail);
+            self.avail += 8;
         }
     }
 
@@ -67,7 +68,9 @@ impl<'a> BitReader<'a> {
     #[inline]
     pub fn peek(&mut self, n: u32) -> u32 {
         debug_assert!(n <= 32);
-        self.refill();
+        if self.avail < n {
+            self.refill();
+        }
         if n == 0 {
             0
         } else {
@@ -79,7 +82,8 @@ impl<'a> BitReader<'a> {
     #[inline]
     pub fn skip(&mut self, n: u32) {
         debug_assert!(n <= self.avail);
-        self.buf = if n >= 64 { 0 } else { self.buf << n };
+        // n <= 32 < 64: the shift is defined.
+        self.buf <<= n & 63;
         self.avail -= n;
     }
 
@@ -121,7 +125,7 @@ impl<'a> BitReader<'a> {
     pub fn align(&mut self) {
         let rem = (self.bit_pos() % 8) as u32;
         if rem != 0 {
-            self.refill();
+            self.peek(8);
             self.skip(8 - rem);
         }
     }

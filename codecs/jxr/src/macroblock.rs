@@ -142,11 +142,14 @@ impl PlaneDecoder {
     #[inline]
     fn run(r: &mut BitReader, max_run: i32) -> u32 {
         if max_run < 5 {
-            let mut run = 1;
-            while run < max_run && !r.bit() {
-                run += 1;
+            // 1, 01, 001, ... with the last code of max_run - 1 zeros.
+            if max_run <= 1 {
+                return max_run.max(0) as u32;
             }
-            return if max_run <= 0 { 0 } else { run as u32 };
+            let bits = (max_run - 1) as u32;
+            let zeros = (r.peek(bits) << (32 - bits)).leading_zeros().min(bits);
+            r.skip((zeros + 1).min(bits));
+            return zeros + 1;
         }
         const RUN_BIN: [usize; 15] = [0, 0, 0, 0, 0, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0];
         const FIXED: [u32; 15] = [0, 0, 1, 1, 3, 0, 0, 1, 1, 2, 0, 0, 0, 0, 1];
@@ -475,7 +478,7 @@ impl PlaneDecoder {
     #[allow(clippy::too_many_arguments)]
     pub fn hp(
         &mut self,
-        r: &mut BitReader,
+        reader: &mut BitReader,
         c: &mut [i32],
         cbp: &[u32],
         mode: u8,
@@ -488,6 +491,9 @@ impl PlaneDecoder {
             self.hp_ver.reset_totals();
         }
         let bits = self.model[BAND_HP].bits;
+        // A local copy of the reader stays in registers.
+        let mut local = reader.clone();
+        let r = &mut local;
         let mut lap_mean = [0i32; 2];
         let mut pairs = [RunLevel::default(); 16];
         for ch in 0..self.channels {
@@ -522,6 +528,7 @@ impl PlaneDecoder {
                 pattern >>= 1;
             }
         }
+        *reader = local;
         self.update_model(lap_mean, BAND_HP);
         if reset_context(mx, tile_w) {
             self.adapt(
@@ -544,22 +551,27 @@ impl PlaneDecoder {
         let o = ch * MB_COEFFS + hp(b, 1) - 1;
         for &k in &TRANSPOSE444[1..] {
             let coeff = &mut c[o + k];
-            let fine = r.read(n) as i32;
-            if *coeff > 0 {
-                *coeff = coeff.wrapping_add(fine.wrapping_shl(trim));
-            } else if *coeff < 0 {
-                *coeff = coeff.wrapping_sub(fine.wrapping_shl(trim));
-            } else if fine != 0 && r.bit() {
-                *coeff = fine.wrapping_neg().wrapping_shl(trim);
-            } else {
-                *coeff = fine.wrapping_shl(trim);
-            }
+            let cur = *coeff;
+            // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
+            // sign bit: peek both, consume what is there.
+            let v = r.peek(n + 1);
+            let fine = (v >> 1) as i32;
+            let zero = cur == 0;
+            let signed = zero && fine != 0;
+            r.skip(n + u32::from(signed));
+            // The sign to apply, as a mask: the coefficient's own, or the bit read.
+            let mask = if zero { -((signed && v & 1 != 0) as i32) } else { cur >> 31 };
+            let f = fine.wrapping_shl(trim);
+            *coeff = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
         }
     }
 
     /// MB_FLEXBITS (`_jxr_r_MB_FLEXBITS`): the flexbits of every block of a macroblock, from
     /// a FLEXBITS packet.
-    pub fn flex(&mut self, r: &mut BitReader, c: &mut [i32], model_bits: [u32; 2]) {
+    pub fn flex(&mut self, reader: &mut BitReader, c: &mut [i32], model_bits: [u32; 2]) {
+        // A local copy of the reader stays in registers.
+        let mut local = reader.clone();
+        let r = &mut local;
         for ch in 0..self.channels {
             let blocks = predict_blocks(self.fmt, ch);
             for block in 0..blocks {
@@ -567,6 +579,7 @@ impl PlaneDecoder {
                 self.block_flex(r, c, ch, b, model_bits[usize::from(ch > 0)]);
             }
         }
+        *reader = local;
     }
 }
 
