@@ -1,6 +1,7 @@
 //! hdrcodec-jxr against the JPEG XR references:
 //! - the three corpus `.jxr` files and a matrix of streams jxrlib's JxrEncApp writes from
-//!   corpus crops (half, float, RGBA with planar and interleaved alpha, 8- and 16-bit RGB;
+//!   corpus crops (half, float, RGBA with planar and interleaved alpha, 8- and 16-bit RGB,
+//!   16-bit fixed point, grey half and float;
 //!   overlap 0/1/2, spatial and frequency order, sequential packets, tiles, trimmed flexbits,
 //!   band truncation, 4:2:0, 4:2:2, Y-only, lossless and lossy) entropy-decode to exactly the
 //!   coefficients the ITU reference software T.835 feeds its inverse transform. T.835 cannot
@@ -58,9 +59,10 @@ def write_tiff(path, arr):
     h, w, n = arr.shape
     dt = arr.dtype
     data = np.ascontiguousarray(arr).astype(dt.newbyteorder('<')).tobytes()
+    kind = {'f': 3, 'i': 2}.get(dt.kind, 1)
     entries = [(256, 4, [w]), (257, 4, [h]), (258, 3, [dt.itemsize * 8] * n), (259, 3, [1]),
                (262, 3, [2 if n >= 3 else 1]), (273, 4, [0]), (277, 3, [n]), (278, 4, [h]),
-               (279, 4, [len(data)]), (284, 3, [1]), (339, 3, [3 if dt.kind == 'f' else 1] * n)]
+               (279, 4, [len(data)]), (284, 3, [1]), (339, 3, [kind] * n)]
     if n == 4: entries.append((338, 3, [2]))
     entries.sort()
     extra = 8 + 2 + 12 * len(entries) + 4
@@ -88,6 +90,9 @@ write_tiff('halfa_100x72.tif', np.concatenate([crop(72, 100), ramp(72, 100)], ax
 write_tiff('floata_100x72.tif', np.concatenate([crop(72, 100), ramp(72, 100)], axis=2).astype(np.float32))
 write_tiff('rgb8_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), 0, 1) ** (1/2.2) * 255).astype(np.uint8))
 write_tiff('rgb16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), 0, 1) * 65535).astype(np.uint16))
+write_tiff('grayh_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2]))
+write_tiff('grayf_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2].astype(np.float32)))
+write_tiff('fixed16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), -3, 3) * 8192).astype(np.int16))
 "#;
 
 /// The matrix: name, input crop, JxrEncApp options, T.835's digest.
@@ -126,6 +131,11 @@ const MATRIX: &[(&str, &str, &str, u64)] = &[
     ("r8_y", "rgb8_100x72", "-c 9 -d 0 -q 0.7", 0x3a83_6333_d257_7719),
     ("r8_lossless", "rgb8_100x72", "-c 9", 0x7ea5_248f_f0d1_7362),
     ("r16", "rgb16_100x72", "-c 10 -q 0.8", 0xc0f9_1500_34cc_a7fa),
+    ("g_half", "grayh_100x72", "-c 5 -q 0.7", 0x2fcf_28bc_bac7_6851),
+    ("g_float", "grayf_100x72", "-c 8 -q 0.9", 0x736f_2853_3b61_95af),
+    ("g_half_sp", "grayh_100x72", "-c 5 -q 0.5 -f -V 2 -H 2", 0x24ef_ef92_5a87_a8f7),
+    ("fx16", "fixed16_100x72", "-c 11 -q 0.8", 0xf99f_9d1e_a66b_b3d2),
+    ("fx16l", "fixed16_100x72", "-c 11", 0xbd11_85fc_15bd_1307),
 ];
 
 /// One generated stream: its name, T.835's digest, its path.

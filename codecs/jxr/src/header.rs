@@ -357,9 +357,8 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
     if !matches!(sub_version, 0 | 1 | 9) {
         return Err(Error::unsupported(format!("JPEG XR codestream sub-version {sub_version} (jxrlib reads 0, 1, 9)")));
     }
-    if sub_version == 0 {
-        return Err(Error::unsupported("HD Photo 1.0 codestream (sub-version 0, legacy transform)"));
-    }
+    // Sub-version 0 (HD Photo 1.0) codes coefficients the same way; only its inverse
+    // transform differs (jxrlib `strdec.c`: `cSubVersion` selects the transform alone).
     let tiling = r.bit();
     let frequency_mode = r.bit();
     let orientation = r.read(3) as u8;
