@@ -45,7 +45,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             best = best.min(t.elapsed());
             std::hint::black_box(c);
         }
-        println!("entropy decoding: best of {times}: {best:?}");
+        let h = hdrcodec_jxr::header::parse(&file[layout.image.clone()])?.image;
+        println!(
+            "entropy decoding: best of {times}: {best:?} ({}x{} tiles)",
+            h.tile_widths.len(),
+            h.tile_heights.len()
+        );
         return Ok(());
     }
     let c = decode_coefficients(&file[layout.image.clone()], &options)?;

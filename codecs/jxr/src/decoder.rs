@@ -1,11 +1,12 @@
 //! From a codestream to the dequantized, predicted coefficients of every macroblock: the
-//! headers, then every tile entropy-decoded (tiles in parallel on the caller's
-//! [`ThreadPool`](hdrcodec_core::ThreadPool)), each plane's coefficients held tile by tile.
+//! headers, then the macroblock rows of every tile column together ([`RowDecoder`]; the
+//! tile columns in parallel on the caller's [`ThreadPool`]), collected by
+//! [`decode_coefficients`] or consumed row by row.
 
 use crate::header::{self, ClrFmt, Codestream};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::tiles::{self, PlaneTile};
-use hdrcodec_core::{Allocation, DecodeOptions, Error, Result};
+use crate::tiles::{self, TileDecoder};
+use hdrcodec_core::{Allocation, DecodeOptions, Error, Result, ThreadPool};
 
 /// The coefficients of one plane (primary or alpha), for the inverse transform.
 #[derive(Debug)]
@@ -16,27 +17,21 @@ pub struct PlaneCoeffs {
     pub channels: usize,
     /// SCALED_FLAG of the plane.
     pub scaled: bool,
-    /// First macroblock column of each tile column, then the extended width in macroblocks.
-    pub tile_x0: Vec<u32>,
-    /// First macroblock row of each tile row, then the extended height in macroblocks.
-    pub tile_y0: Vec<u32>,
-    /// Tile column of each macroblock column.
-    col_of: Vec<u32>,
-    /// Tile row of each macroblock row.
-    row_of: Vec<u32>,
-    /// Tiles in raster order.
-    tiles: Vec<PlaneTile>,
+    mb_width: u32,
+    mb_height: u32,
+    /// Macroblocks in raster order, each `channels` arrays of [`MB_COEFFS`].
+    coeffs: Vec<i32>,
 }
 
 impl PlaneCoeffs {
     /// Width in macroblocks (of the extended image).
     pub fn mb_width(&self) -> u32 {
-        self.tile_x0.last().copied().unwrap_or(0)
+        self.mb_width
     }
 
     /// Height in macroblocks.
     pub fn mb_height(&self) -> u32 {
-        self.tile_y0.last().copied().unwrap_or(0)
+        self.mb_height
     }
 
     /// The coefficients of channel `ch` of macroblock (`x`, `y`), in the layout of
@@ -45,13 +40,10 @@ impl PlaneCoeffs {
     /// # Panics
     /// If the macroblock or channel is outside the plane.
     pub fn mb(&self, ch: usize, x: u32, y: u32) -> &MbCoeffs {
-        let (tx, ty) = (self.col_of[x as usize] as usize, self.row_of[y as usize] as usize);
-        let (x0, y0) = (self.tile_x0[tx], self.tile_y0[ty]);
-        let w = (self.tile_x0[tx + 1] - x0) as usize;
-        let i = (y - y0) as usize * w + (x - x0) as usize;
-        let tile = &self.tiles[ty * (self.tile_x0.len() - 1) + tx];
+        assert!(x < self.mb_width && ch < self.channels);
+        let i = y as usize * self.mb_width as usize + x as usize;
         let o = (i * self.channels + ch) * MB_COEFFS;
-        tile.coeffs[o..o + MB_COEFFS].try_into().expect("a macroblock is MB_COEFFS long")
+        self.coeffs[o..o + MB_COEFFS].try_into().expect("a macroblock is MB_COEFFS long")
     }
 }
 
@@ -103,31 +95,11 @@ pub struct Coefficients {
     _charge: Allocation,
 }
 
-fn index_of(starts: &[u32]) -> Vec<u32> {
-    let mut v = Vec::with_capacity(starts.last().copied().unwrap_or(0) as usize);
-    for (t, pair) in starts.windows(2).enumerate() {
-        v.extend(std::iter::repeat_n(t as u32, (pair[1] - pair[0]) as usize));
-    }
-    v
-}
-
-/// Decodes every tile of the codestream `data` (which starts with `WMPHOTO`) to
-/// coefficients. Checks the extended size against `options.limits` and charges the
-/// coefficients (4 bytes per coefficient, one 16×16 macroblock of 256 per channel) before
-/// allocating them.
-pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coefficients> {
-    let cs = header::parse(data)?;
-    let limits = &options.limits;
-    limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
-    let (tcols, trows) = (cs.image.tile_widths.len(), cs.image.tile_heights.len());
-    let mut total = 0u64;
-    for ty in 0..trows {
-        for tx in 0..tcols {
-            total = total.saturating_add(tiles::tile_bytes(&cs, tx, ty));
-        }
-    }
-    // Every macroblock takes at least one bit of the codestream (its DC flags): a short
-    // stream declaring a large image is truncated, whatever the limits allow.
+/// Checks what can be checked before allocating: the size against the limits, and that the
+/// codestream is long enough for its macroblocks (each takes at least one bit, its DC flags:
+/// a short stream declaring a large image is truncated, whatever the limits allow).
+fn check_size(cs: &Codestream, data: &[u8], options: &DecodeOptions) -> Result<()> {
+    options.limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
     let mbs = u64::from(cs.image.mb_width) * u64::from(cs.image.mb_height);
     if mbs > data.len() as u64 * 8 {
         return Err(Error::truncated(format!(
@@ -135,32 +107,150 @@ pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coeff
             data.len()
         )));
     }
-    let charge = limits.charge(total, "the JPEG XR coefficients")?;
-    let decoded = options.pool.map(tcols * trows, |t| tiles::decode_tile(&cs, data, t % tcols, t / tcols));
-    let mut primary = Vec::with_capacity(decoded.len());
-    let mut alpha = Vec::with_capacity(if cs.alpha.is_some() { decoded.len() } else { 0 });
-    for tile in decoded {
-        let mut planes = tile?.into_iter();
-        primary.push(planes.next().ok_or_else(|| Error::invalid("JPEG XR: a tile without planes"))?);
-        if let Some(a) = planes.next() {
-            alpha.push(a);
+    Ok(())
+}
+
+/// Decodes a codestream one macroblock row at a time, all tile columns together (in parallel
+/// on the caller's pool when there are several): the input of a band-by-band inverse
+/// transform. Holds two macroblock rows per tile column and plane.
+pub struct RowDecoder<'a> {
+    cs: &'a Codestream,
+    data: &'a [u8],
+    pool: ThreadPool,
+    /// The next tile row, the next macroblock row, and the rows left in the current tile row.
+    ty: usize,
+    my: u32,
+    left: u32,
+    /// The current tile row's decoders and their row buffers (one per plane).
+    tiles: Vec<(TileDecoder<'a>, Vec<Vec<i32>>)>,
+    _charge: Allocation,
+}
+
+impl<'a> RowDecoder<'a> {
+    /// Starts decoding `data`, whose headers are `cs` (from [`header::parse`]); charges its
+    /// working memory to `options.limits`.
+    pub fn new(cs: &'a Codestream, data: &'a [u8], options: &DecodeOptions) -> Result<Self> {
+        check_size(cs, data, options)?;
+        let bytes = (0..cs.image.tile_widths.len()).map(|tx| tiles::tile_bytes(cs, tx, 0) * 2).sum();
+        let charge = options.limits.charge(bytes, "the JPEG XR entropy decoder's rows")?;
+        Ok(RowDecoder {
+            cs,
+            data,
+            pool: options.pool.clone(),
+            ty: 0,
+            my: 0,
+            left: 0,
+            tiles: Vec::new(),
+            _charge: charge,
+        })
+    }
+
+    /// The next macroblock row (`None` after the last): for each plane (primary, then
+    /// alpha), `mb_width × channels` arrays of [`MB_COEFFS`], dequantized and predicted.
+    pub fn next_row(&mut self, out: &mut [Vec<i32>]) -> Result<Option<u32>> {
+        let (cs, data) = (self.cs, self.data);
+        let img = &cs.image;
+        if self.my >= img.mb_height {
+            return Ok(None);
+        }
+        let planes: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
+        if self.left == 0 {
+            let ty = self.ty;
+            self.tiles = (0..img.tile_widths.len())
+                .map(|tx| {
+                    let w = img.tile_widths[tx] as usize;
+                    let rows = planes.iter().map(|p| vec![0; w * p.channels * MB_COEFFS]).collect();
+                    Ok((TileDecoder::new(cs, data, tx, ty)?, rows))
+                })
+                .collect::<Result<_>>()?;
+            self.left = img.tile_heights[ty];
+            self.ty += 1;
+        }
+        let decode = |t: &mut (TileDecoder<'a>, Vec<Vec<i32>>)| {
+            let mut rows: Vec<&mut [i32]> = t.1.iter_mut().map(|r| &mut r[..]).collect();
+            t.0.next_row(&mut rows)
+        };
+        if self.tiles.len() > 1 && self.pool.is_parallel() {
+            self.pool.try_for_each_chunk_mut(&mut self.tiles, 1, |_, t| decode(&mut t[0]))?;
+        } else {
+            self.tiles.iter_mut().try_for_each(decode)?;
+        }
+        for (p, (o, hdr)) in out.iter_mut().zip(&planes).enumerate() {
+            o.clear();
+            o.reserve(img.mb_width as usize * hdr.channels * MB_COEFFS);
+            for (_, rows) in &self.tiles {
+                o.extend_from_slice(&rows[p]);
+            }
+        }
+        self.left -= 1;
+        self.my += 1;
+        Ok(Some(self.my - 1))
+    }
+}
+
+/// Decodes every macroblock of the codestream `data` (which starts with `WMPHOTO`) to
+/// coefficients: every tile in parallel on the caller's pool, each straight into its part of
+/// the planes. Checks the size against `options.limits` and charges the coefficients (4 bytes
+/// per coefficient, 256 per macroblock and channel) before allocating them.
+pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coefficients> {
+    let cs = header::parse(data)?;
+    check_size(&cs, data, options)?;
+    let img = &cs.image;
+    let mbs = u64::from(img.mb_width) * u64::from(img.mb_height);
+    let headers: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
+    let channels: usize = headers.iter().map(|h| h.channels).sum();
+    let charge = options.limits.charge(mbs * channels as u64 * MB_COEFFS as u64 * 4, "the JPEG XR coefficients")?;
+    let (cols, rows) = (img.tile_widths.len(), img.tile_heights.len());
+    let tile_bytes: u64 =
+        (0..rows).flat_map(|ty| (0..cols).map(move |tx| (tx, ty))).map(|(tx, ty)| tiles::tile_bytes(&cs, tx, ty)).sum();
+    let _work = options.limits.charge(tile_bytes, "the JPEG XR entropy decoder's rows")?;
+    let mut planes: Vec<PlaneCoeffs> = headers
+        .iter()
+        .map(|hdr| PlaneCoeffs {
+            fmt: hdr.clr_fmt,
+            channels: hdr.channels,
+            scaled: hdr.scaled,
+            mb_width: img.mb_width,
+            mb_height: img.mb_height,
+            coeffs: vec![0; mbs as usize * hdr.channels * MB_COEFFS],
+        })
+        .collect();
+    // Each tile's row segments of each plane: disjoint parts of the planes.
+    let mut segments: Vec<Vec<Vec<&mut [i32]>>> = (0..cols * rows).map(|_| Vec::new()).collect();
+    for plane in &mut planes {
+        let stride = plane.channels * MB_COEFFS;
+        let mut rest = &mut plane.coeffs[..];
+        for seg in &mut segments {
+            seg.push(Vec::new());
+        }
+        for (ty, &h) in img.tile_heights.iter().enumerate() {
+            for _ in 0..h {
+                for (tx, &w) in img.tile_widths.iter().enumerate() {
+                    let (row, tail) = std::mem::take(&mut rest).split_at_mut(w as usize * stride);
+                    segments[ty * cols + tx].last_mut().expect("a plane's segments").push(row);
+                    rest = tail;
+                }
+            }
         }
     }
-    let tile_x0 = cs.image.tile_x0();
-    let tile_y0 = cs.image.tile_y0();
-    let plane = |hdr: &header::PlaneHeader, tiles: Vec<PlaneTile>| PlaneCoeffs {
-        fmt: hdr.clr_fmt,
-        channels: hdr.channels,
-        scaled: hdr.scaled,
-        col_of: index_of(&tile_x0),
-        row_of: index_of(&tile_y0),
-        tile_x0: tile_x0.clone(),
-        tile_y0: tile_y0.clone(),
-        tiles,
+    let decode_tile = |t: usize, segs: &mut Vec<Vec<&mut [i32]>>| -> Result<()> {
+        let mut tile = TileDecoder::new(&cs, data, t % cols, t / cols)?;
+        let h = img.tile_heights[t / cols] as usize;
+        for r in 0..h {
+            let mut row: Vec<&mut [i32]> = segs.iter_mut().map(|p| &mut *p[r]).collect();
+            tile.next_row(&mut row)?;
+        }
+        Ok(())
     };
-    let primary = plane(&cs.primary, primary);
-    let alpha = cs.alpha.as_ref().map(|a| plane(a, alpha));
-    Ok(Coefficients { codestream: cs, primary, alpha, _charge: charge })
+    if segments.len() > 1 && options.pool.is_parallel() {
+        options.pool.try_for_each_chunk_mut(&mut segments, 1, |t, s| decode_tile(t, &mut s[0]))?;
+    } else {
+        segments.iter_mut().enumerate().try_for_each(|(t, s)| decode_tile(t, s))?;
+    }
+    drop(segments);
+    let mut planes = planes.into_iter();
+    let primary = planes.next().expect("the primary plane");
+    Ok(Coefficients { codestream: cs, primary, alpha: planes.next(), _charge: charge })
 }
 
 /// Where a `.jxr` file keeps its codestreams (T.832 Annex A; a minimal reading of the first
@@ -274,6 +364,33 @@ mod tests {
             (vec![1, 2], vec![1, 1, 1])
         );
         assert_eq!(hash(&c), T835[1].1);
+    }
+
+    /// The row decoder gives the same rows as the whole-image decode, tile rows included.
+    #[test]
+    fn row_decoder_gives_the_same_rows() {
+        for (name, _) in T835 {
+            let file = testdata(name);
+            let range = file_layout(&file).unwrap().image;
+            let cs_bytes = &file[range];
+            for pool in [hdrcodec_core::ThreadPool::single(), hdrcodec_core::ThreadPool::new(2).unwrap()] {
+                let options = DecodeOptions::new(Limits::default()).with_pool(pool);
+                let all = decode_coefficients(cs_bytes, &options).unwrap();
+                let cs = header::parse(cs_bytes).unwrap();
+                let mut rows = RowDecoder::new(&cs, cs_bytes, &options).unwrap();
+                let mut out = vec![Vec::new(); 1 + usize::from(cs.alpha.is_some())];
+                let mut n = 0;
+                while let Some(y) = rows.next_row(&mut out).unwrap() {
+                    assert_eq!(y, n);
+                    for (plane, o) in std::iter::once(&all.primary).chain(all.alpha.as_ref()).zip(&out) {
+                        let len = plane.mb_width() as usize * plane.channels * MB_COEFFS;
+                        assert_eq!(&plane.coeffs[y as usize * len..][..len], &o[..], "{name} row {y}");
+                    }
+                    n += 1;
+                }
+                assert_eq!(n, cs.image.mb_height);
+            }
+        }
     }
 
     /// Every truncation and a few hundred byte changes of each stream: an error or

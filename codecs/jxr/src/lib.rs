@@ -30,7 +30,7 @@ mod quant;
 mod tiles;
 mod vlc;
 
-pub use decoder::{decode_coefficients, file_layout, Coefficients, FileLayout, PlaneCoeffs};
+pub use decoder::{decode_coefficients, file_layout, Coefficients, FileLayout, PlaneCoeffs, RowDecoder};
 
 use hdrcodec_core::sink::RowSink;
 use hdrcodec_core::{

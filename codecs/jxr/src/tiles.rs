@@ -4,7 +4,9 @@
 //! `r_tile_frequency.c`; jxrlib `strdec.c: readPackets, readTileHeader*`).
 //!
 //! The adaptive coding state and every prediction stop at tile edges, so tiles decode
-//! independently of each other ([`decode_tile`] needs only the codestream).
+//! independently of each other. Inside a tile, decoding is serial in raster order; a
+//! [`TileDecoder`] gives one macroblock row at a time (in frequency order, each packet's
+//! reader advances by one row), holding only the row above for prediction.
 
 use crate::bits::BitReader;
 use crate::header::{read_qp_set, Bands, ClrFmt, Codestream, PlaneHeader, QpSet, QpSource};
@@ -13,14 +15,6 @@ use crate::mb::MB_COEFFS;
 use crate::predict;
 use crate::quant::{self, TileQp};
 use hdrcodec_core::{Error, Result};
-
-/// The coefficients of one plane of one tile: `w × h` macroblocks in raster order, each
-/// `channels` arrays of [`MB_COEFFS`] (the layout of [`crate::mb`]), dequantized and predicted.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct PlaneTile {
-    /// Coefficients.
-    pub coeffs: Vec<i32>,
-}
 
 /// Per-macroblock side information kept while a tile decodes.
 #[derive(Clone, Copy, Debug, Default)]
@@ -31,18 +25,22 @@ struct MbSide {
     hp_bits: [u32; 2],
 }
 
-/// One plane of a tile being decoded.
+/// One plane of a tile being decoded: its adaptive state, quantizers, and the two macroblock
+/// rows prediction needs (the current one and the one above), quantized.
 struct PlaneWork<'h> {
     hdr: &'h PlaneHeader,
     dec: PlaneDecoder,
     qp: TileQp,
-    coeffs: Vec<i32>,
-    side: Vec<MbSide>,
-    cbp: Vec<u32>,
+    /// Macroblocks per row.
+    w: usize,
+    /// Coefficient rows, the row `my` in slot `my % 2`.
+    rows: [Vec<i32>; 2],
+    side: [Vec<MbSide>; 2],
+    cbp: [Vec<u32>; 2],
 }
 
 impl<'h> PlaneWork<'h> {
-    fn new(hdr: &'h PlaneHeader, mbs: usize) -> Self {
+    fn new(hdr: &'h PlaneHeader, w: usize) -> Self {
         let uniform = |s: QpSource| match s {
             QpSource::Uniform(set) => set,
             QpSource::PerTile => QpSet::default(),
@@ -54,13 +52,15 @@ impl<'h> PlaneWork<'h> {
             lp_use_dc: false,
             hp_use_lp: false,
         };
+        let row = || vec![0; w * hdr.channels * MB_COEFFS];
         PlaneWork {
             hdr,
             dec: PlaneDecoder::new(hdr.clr_fmt, hdr.channels),
             qp,
-            coeffs: vec![0; mbs * hdr.channels * MB_COEFFS],
-            side: vec![MbSide::default(); mbs],
-            cbp: vec![0; mbs * hdr.channels],
+            w,
+            rows: [row(), row()],
+            side: [vec![MbSide::default(); w], vec![MbSide::default(); w]],
+            cbp: [vec![0; w * hdr.channels], vec![0; w * hdr.channels]],
         }
     }
 
@@ -68,16 +68,30 @@ impl<'h> PlaneWork<'h> {
         self.hdr.channels * MB_COEFFS
     }
 
-    /// MB_DC of macroblock `i` at column `mx` of a tile `w` wide.
-    fn dc(&mut self, r: &mut BitReader, i: usize, mx: usize, w: usize) {
-        let stride = self.stride();
-        self.dec.dc(r, &mut self.coeffs[i * stride..(i + 1) * stride], mx as u32, w as u32);
+    /// Clears the slot of row `my` before it is decoded.
+    fn start_row(&mut self, my: usize) {
+        let s = my % 2;
+        self.rows[s].fill(0);
+        self.side[s].fill(MbSide::default());
+        self.cbp[s].fill(0);
     }
 
-    /// MB_LP of macroblock `i`.
-    fn lp(&mut self, r: &mut BitReader, i: usize, mx: usize, w: usize) -> Result<()> {
+    /// The coefficients of macroblock `mx` of row `my` (all channels).
+    fn mb(&mut self, mx: usize, my: usize) -> &mut [i32] {
         let stride = self.stride();
-        self.dec.lp(r, &mut self.coeffs[i * stride..(i + 1) * stride], mx as u32, w as u32)
+        &mut self.rows[my % 2][mx * stride..(mx + 1) * stride]
+    }
+
+    /// MB_DC of macroblock (`mx`, `my`).
+    fn dc(&mut self, r: &mut BitReader, mx: usize, my: usize) {
+        let (stride, w) = (self.stride(), self.w as u32);
+        self.dec.dc(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w);
+    }
+
+    /// MB_LP of macroblock (`mx`, `my`).
+    fn lp(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
+        let (stride, w) = (self.stride(), self.w as u32);
+        self.dec.lp(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w)
     }
 
     /// TILE_HEADER_DC.
@@ -113,71 +127,85 @@ impl<'h> PlaneWork<'h> {
         }
     }
 
-    fn read_lp_index(&mut self, r: &mut BitReader, i: usize) -> Result<()> {
+    fn read_lp_index(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
         if self.hdr.bands.has_lp() && self.qp.lp.len() > 1 && !self.qp.lp_use_dc {
-            self.side[i].lp_qi = quant::read_qp_index(r, self.qp.lp.len())?;
+            self.side[my % 2][mx].lp_qi = quant::read_qp_index(r, self.qp.lp.len())?;
         }
         Ok(())
     }
 
-    fn read_hp_index(&mut self, r: &mut BitReader, i: usize) -> Result<()> {
+    fn read_hp_index(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
         if self.hdr.bands.has_hp() && self.qp.hp.len() > 1 {
-            self.side[i].hp_qi =
-                if self.qp.hp_use_lp { self.side[i].lp_qi } else { quant::read_qp_index(r, self.qp.hp.len())? };
+            let side = &mut self.side[my % 2][mx];
+            side.hp_qi = if self.qp.hp_use_lp { side.lp_qi } else { quant::read_qp_index(r, self.qp.hp.len())? };
         }
         Ok(())
     }
 
-    /// DC and LP prediction of macroblock (`mx`, `my`) of a tile `w` wide.
-    fn predict_dclp(&mut self, mx: usize, my: usize, w: usize) {
+    /// DC and LP prediction of macroblock (`mx`, `my`).
+    fn predict_dclp(&mut self, mx: usize, my: usize) {
         let stride = self.stride();
-        let i = my * w + mx;
-        let (before, rest) = self.coeffs.split_at_mut(i * stride);
+        let (s, t) = (my % 2, 1 - my % 2);
+        let [r0, r1] = &mut self.rows;
+        let (cur_row, prev_row) = if s == 0 { (r0, &*r1) } else { (r1, &*r0) };
+        let (before, rest) = cur_row.split_at_mut(mx * stride);
         let cur = &mut rest[..stride];
-        let at = |j: usize| &before[j * stride..(j + 1) * stride];
-        let left = (mx > 0).then(|| at(i - 1));
-        let top = (my > 0).then(|| at(i - w));
-        let top_left = (mx > 0 && my > 0).then(|| at(i - w - 1));
-        let q = self.side[i].lp_qi;
-        let same_left = mx > 0 && self.side[i - 1].lp_qi == q;
-        let same_top = my > 0 && self.side[i - w].lp_qi == q;
+        let left = (mx > 0).then(|| &before[(mx - 1) * stride..]);
+        let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
+        let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
+        let q = self.side[s][mx].lp_qi;
+        let same_left = mx > 0 && self.side[s][mx - 1].lp_qi == q;
+        let same_top = my > 0 && self.side[t][mx].lp_qi == q;
         predict::predict_dclp(self.hdr.clr_fmt, self.hdr.channels, cur, left, top, top_left, same_left, same_top);
     }
 
-    /// MB_CBP and MB_HP of macroblock `i`; with `flex_inline` the flexbits follow each block.
-    fn cbp_hp(&mut self, r: &mut BitReader, mx: usize, my: usize, w: usize, flex_inline: bool) -> Result<()> {
+    /// MB_CBP and MB_HP of macroblock (`mx`, `my`); with `flex_inline` the flexbits follow
+    /// each block.
+    fn cbp_hp(&mut self, r: &mut BitReader, mx: usize, my: usize, flex_inline: bool) -> Result<()> {
         let ch = self.hdr.channels;
-        let i = my * w + mx;
-        let (before, rest) = self.cbp.split_at_mut(i * ch);
-        let left = (mx > 0).then(|| &before[(i - 1) * ch..i * ch]);
-        let top = (my > 0).then(|| &before[(i - w) * ch..(i - w + 1) * ch]);
+        let s = my % 2;
+        let [c0, c1] = &mut self.cbp;
+        let (cur_row, prev_row) = if s == 0 { (c0, &*c1) } else { (c1, &*c0) };
+        let (before, rest) = cur_row.split_at_mut(mx * ch);
+        let left = (mx > 0).then(|| &before[(mx - 1) * ch..]);
+        let top = (my > 0).then(|| &prev_row[mx * ch..(mx + 1) * ch]);
         let cur_cbp = &mut rest[..ch];
         self.dec.cbp(r, left, top, cur_cbp)?;
         let stride = ch * MB_COEFFS;
-        let c = &mut self.coeffs[i * stride..(i + 1) * stride];
+        let c = &mut self.rows[s][mx * stride..(mx + 1) * stride];
         let mode = predict::hp_mode(self.hdr.clr_fmt, c);
-        let bits = self.dec.hp(r, c, cur_cbp, mode, mx as u32, w as u32, flex_inline)?;
-        self.side[i].hp_mode = mode;
-        self.side[i].hp_bits = bits;
+        let bits = self.dec.hp(r, c, cur_cbp, mode, mx as u32, self.w as u32, flex_inline)?;
+        self.side[s][mx].hp_mode = mode;
+        self.side[s][mx].hp_bits = bits;
         Ok(())
     }
 
-    /// HP prediction of macroblock `i` (after its flexbits).
-    fn predict_hp(&mut self, i: usize) {
+    /// FLEXBITS of macroblock (`mx`, `my`) from a FLEXBITS packet.
+    fn flex(&mut self, r: &mut BitReader, mx: usize, my: usize) {
         let stride = self.stride();
-        let c = &mut self.coeffs[i * stride..(i + 1) * stride];
+        let bits = self.side[my % 2][mx].hp_bits;
+        self.dec.flex(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], bits);
+    }
+
+    /// HP prediction of macroblock (`mx`, `my`) (after its flexbits).
+    fn predict_hp(&mut self, mx: usize, my: usize) {
         let fmt = self.hdr.clr_fmt;
         let channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { self.hdr.channels };
+        let mode = self.side[my % 2][mx].hp_mode;
+        let c = self.mb(mx, my);
         for ch in 0..channels {
-            predict::predict_hp(fmt, c, ch, self.side[i].hp_mode);
+            predict::predict_hp(fmt, c, ch, mode);
         }
     }
 
-    /// Dequantizes every macroblock of the tile.
-    fn dequantize(&mut self) -> Result<()> {
-        let stride = self.stride();
+    /// Row `my`, dequantized, into `out` (exactly a row long).
+    fn output_row(&self, my: usize, out: &mut [i32]) -> Result<()> {
+        let s = my % 2;
+        out.get_mut(..self.rows[s].len())
+            .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?
+            .copy_from_slice(&self.rows[s]);
         let (fmt, scaled) = (self.hdr.clr_fmt, self.hdr.scaled);
-        for (c, side) in self.coeffs.chunks_exact_mut(stride).zip(&self.side) {
+        for (c, side) in out.chunks_exact_mut(self.stride()).zip(&self.side[s]) {
             let lp = self.qp.lp.get(usize::from(side.lp_qi)).ok_or_else(|| Error::invalid("JPEG XR: LP QP index"))?;
             let hp = self.qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
             for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).enumerate() {
@@ -195,21 +223,18 @@ impl<'h> PlaneWork<'h> {
     }
 }
 
-/// Runs `f` on every macroblock of a tile `w` × `h` in raster order, each plane in turn
-/// (primary, then alpha), checking at the end of each row that the packet did not run out.
-fn each_mb<F>(planes: &mut [PlaneWork], r: &mut BitReader, w: usize, h: usize, what: &str, mut f: F) -> Result<()>
+/// Runs `f` on every macroblock of row `my` (`w` wide), each plane in turn (primary, then
+/// alpha), then checks that the packet did not run out.
+fn each_mb<F>(planes: &mut [PlaneWork], r: &mut BitReader, w: usize, my: usize, what: &str, mut f: F) -> Result<()>
 where
     F: FnMut(&mut PlaneWork, &mut BitReader, usize, usize) -> Result<()>,
 {
-    for my in 0..h {
-        for mx in 0..w {
-            for p in planes.iter_mut() {
-                f(p, r, mx, my)?;
-            }
+    for mx in 0..w {
+        for p in planes.iter_mut() {
+            f(p, r, mx, my)?;
         }
-        r.check(what)?;
     }
-    Ok(())
+    r.check(what)
 }
 
 /// Reads a packet's start code `00 00 01 xx` (`strict`: an error if it is wrong; jxrlib
@@ -230,133 +255,163 @@ pub fn tile_rect(cs: &Codestream, tx: usize, ty: usize) -> (u32, u32, u32, u32) 
     (x0, y0, cs.image.tile_widths[tx], cs.image.tile_heights[ty])
 }
 
-/// Entropy-decodes, predicts and dequantizes tile (`tx`, `ty`) of the codestream `data`;
-/// returns the primary plane's coefficients and the alpha plane's, if any. The caller has
-/// charged the memory (see [`tile_bytes`]).
-pub fn decode_tile(cs: &Codestream, data: &[u8], tx: usize, ty: usize) -> Result<Vec<PlaneTile>> {
-    let (_, _, w, h) = tile_rect(cs, tx, ty);
-    let (w, h) = (w as usize, h as usize);
-    let mbs = w * h;
-    let mut planes = vec![PlaneWork::new(&cs.primary, mbs)];
-    if let Some(a) = &cs.alpha {
-        planes.push(PlaneWork::new(a, mbs));
+/// Decodes one tile macroblock row at a time: entropy decoding, prediction and
+/// dequantization of tile (`tx`, `ty`). Its state (readers of its packets, adaptive
+/// contexts, the row above) is its own, so the tiles of a tile row decode independently.
+pub struct TileDecoder<'a> {
+    w: usize,
+    h: usize,
+    my: usize,
+    bands: Bands,
+    frequency: bool,
+    /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS (`None`: escaped).
+    readers: Vec<Option<BitReader<'a>>>,
+    planes: Vec<PlaneWork<'a>>,
+}
+
+impl<'a> TileDecoder<'a> {
+    /// Locates the tile's packets and reads their start codes and tile headers.
+    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+        let (_, _, w, h) = tile_rect(cs, tx, ty);
+        let (w, h) = (w as usize, h as usize);
+        let mut planes = vec![PlaneWork::new(&cs.primary, w)];
+        if let Some(a) = &cs.alpha {
+            planes.push(PlaneWork::new(a, w));
+        }
+        let tile = ty * cs.image.tile_widths.len() + tx;
+        let bands = cs.primary.bands;
+        let frequency = cs.image.frequency_mode;
+        let per_tile = if frequency { bands.count() } else { 1 };
+        let mut readers = Vec::with_capacity(per_tile);
+        for band in 0..per_tile {
+            let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
+            readers.push(match *entry {
+                Some(off) => {
+                    let mut r = BitReader::new(&data[off as usize..]);
+                    // jxrlib tolerates a bad FLEXBITS start code.
+                    start_code(&mut r, band < 3)?;
+                    Some(r)
+                }
+                None if band == 3 => None,
+                None => return Err(Error::invalid("JPEG XR: a tile packet is escaped in the index table")),
+            });
+        }
+        let trim_flag = cs.image.trim_flexbits;
+        if !frequency {
+            let r = readers[0].as_mut().expect("a spatial packet");
+            let trim = if trim_flag { r.read(4) } else { 0 };
+            for p in &mut planes {
+                p.dec.trim = trim;
+                p.header_dc(r);
+                p.header_lp(r);
+                p.header_hp(r);
+            }
+        } else {
+            for p in &mut planes {
+                p.header_dc(readers[0].as_mut().expect("a DC packet"));
+            }
+            if let Some(Some(r)) = readers.get_mut(1) {
+                planes.iter_mut().for_each(|p| p.header_lp(r));
+            }
+            if let Some(Some(r)) = readers.get_mut(2) {
+                planes.iter_mut().for_each(|p| p.header_hp(r));
+            }
+            if let Some(Some(r)) = readers.get_mut(3) {
+                let trim = if trim_flag { r.read(4) } else { 0 };
+                planes.iter_mut().for_each(|p| p.dec.trim = trim);
+            }
+        }
+        for (band, r) in readers.iter().enumerate() {
+            if let Some(r) = r {
+                r.check(if band == 0 { "a JPEG XR tile header" } else { "a JPEG XR packet header" })?;
+            }
+        }
+        Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes })
     }
-    let tile = ty * cs.image.tile_widths.len() + tx;
-    let bands = cs.primary.bands;
-    let per_tile = if cs.image.frequency_mode { bands.count() } else { 1 };
-    // The packet of `band`, after its start code (`None` when escaped in the index table).
-    let packet = |band: usize, strict: bool| -> Result<Option<BitReader<'_>>> {
-        let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
-        let Some(off) = *entry else { return Ok(None) };
-        let mut r = BitReader::new(&data[off as usize..]);
-        start_code(&mut r, strict)?;
-        Ok(Some(r))
-    };
-    let escaped = |what: &str| Error::invalid(format!("JPEG XR: the {what} packet of a tile is escaped"));
-    if !cs.image.frequency_mode {
-        let mut r = packet(0, true)?.ok_or_else(|| escaped("spatial"))?;
-        let trim = if cs.image.trim_flexbits { r.read(4) } else { 0 };
-        for p in &mut planes {
-            p.dec.trim = trim;
-            p.header_dc(&mut r);
-            p.header_lp(&mut r);
-            p.header_hp(&mut r);
+
+    /// Decodes the next macroblock row into `out` (one buffer per plane: primary, then
+    /// alpha; each exactly `width × channels` arrays of [`MB_COEFFS`] long), dequantized and
+    /// predicted. An error after the last row.
+    pub fn next_row(&mut self, out: &mut [&mut [i32]]) -> Result<()> {
+        let (w, my, bands) = (self.w, self.my, self.bands);
+        if my >= self.h {
+            return Err(Error::invalid("JPEG XR: a tile read past its last row (a bug in the decoder)"));
         }
-        each_mb(&mut planes, &mut r, w, h, "a JPEG XR tile", |p, r, mx, my| {
-            let i = my * w + mx;
-            p.read_lp_index(r, i)?;
-            p.read_hp_index(r, i)?;
-            p.dc(r, i, mx, w);
-            if p.hdr.bands.has_lp() {
-                p.lp(r, i, mx, w)?;
-            }
-            p.predict_dclp(mx, my, w);
-            if p.hdr.bands.has_hp() {
-                p.cbp_hp(r, mx, my, w, p.hdr.bands.has_flex())?;
-                p.predict_hp(i);
-            }
-            Ok(())
-        })?;
-    } else {
-        let mut r = packet(0, true)?.ok_or_else(|| escaped("DC"))?;
-        for p in &mut planes {
-            p.header_dc(&mut r);
+        for p in &mut self.planes {
+            p.start_row(my);
         }
-        each_mb(&mut planes, &mut r, w, h, "a JPEG XR DC packet", |p, r, mx, my| {
-            p.dc(r, my * w + mx, mx, w);
-            if !p.hdr.bands.has_lp() {
-                p.predict_dclp(mx, my, w);
-            }
-            Ok(())
-        })?;
-        if bands.has_lp() {
-            let mut r = packet(1, true)?.ok_or_else(|| escaped("LP"))?;
-            for p in &mut planes {
-                p.header_lp(&mut r);
-            }
-            each_mb(&mut planes, &mut r, w, h, "a JPEG XR LP packet", |p, r, mx, my| {
-                let i = my * w + mx;
-                p.read_lp_index(r, i)?;
-                p.lp(r, i, mx, w)?;
-                p.predict_dclp(mx, my, w);
-                Ok(())
-            })?;
-        }
-        if bands.has_hp() {
-            let mut r = packet(2, true)?.ok_or_else(|| escaped("HP"))?;
-            for p in &mut planes {
-                p.header_hp(&mut r);
-            }
-            each_mb(&mut planes, &mut r, w, h, "a JPEG XR HP packet", |p, r, mx, my| {
-                let i = my * w + mx;
-                p.read_hp_index(r, i)?;
-                p.cbp_hp(r, mx, my, w, false)?;
-                if bands == Bands::NoFlexbits {
-                    p.predict_hp(i);
+        let planes = &mut self.planes;
+        if !self.frequency {
+            let r = self.readers[0].as_mut().expect("a spatial packet");
+            each_mb(planes, r, w, my, "a JPEG XR tile", |p, r, mx, my| {
+                p.read_lp_index(r, mx, my)?;
+                p.read_hp_index(r, mx, my)?;
+                p.dc(r, mx, my);
+                if p.hdr.bands.has_lp() {
+                    p.lp(r, mx, my)?;
+                }
+                p.predict_dclp(mx, my);
+                if p.hdr.bands.has_hp() {
+                    p.cbp_hp(r, mx, my, p.hdr.bands.has_flex())?;
+                    p.predict_hp(mx, my);
                 }
                 Ok(())
             })?;
-        }
-        if bands.has_flex() {
-            // jxrlib tolerates a bad FLEXBITS start code; an escaped packet means no flexbits.
-            match packet(3, false)? {
-                Some(mut r) => {
-                    let trim = if cs.image.trim_flexbits { r.read(4) } else { 0 };
-                    for p in &mut planes {
-                        p.dec.trim = trim;
+        } else {
+            let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
+            let r = dc.as_mut().expect("a DC packet");
+            each_mb(planes, r, w, my, "a JPEG XR DC packet", |p, r, mx, my| {
+                p.dc(r, mx, my);
+                if !p.hdr.bands.has_lp() {
+                    p.predict_dclp(mx, my);
+                }
+                Ok(())
+            })?;
+            if let Some(Some(r)) = rest.get_mut(0) {
+                each_mb(planes, r, w, my, "a JPEG XR LP packet", |p, r, mx, my| {
+                    p.read_lp_index(r, mx, my)?;
+                    p.lp(r, mx, my)?;
+                    p.predict_dclp(mx, my);
+                    Ok(())
+                })?;
+            }
+            if let Some(Some(r)) = rest.get_mut(1) {
+                each_mb(planes, r, w, my, "a JPEG XR HP packet", |p, r, mx, my| {
+                    p.read_hp_index(r, mx, my)?;
+                    p.cbp_hp(r, mx, my, false)?;
+                    if bands == Bands::NoFlexbits {
+                        p.predict_hp(mx, my);
                     }
-                    each_mb(&mut planes, &mut r, w, h, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
-                        let i = my * w + mx;
-                        let bits = p.side[i].hp_bits;
-                        let stride = p.stride();
-                        p.dec.flex(r, &mut p.coeffs[i * stride..(i + 1) * stride], bits);
-                        p.predict_hp(i);
+                    Ok(())
+                })?;
+            }
+            if bands.has_flex() {
+                match rest.get_mut(2) {
+                    Some(Some(r)) => each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
+                        p.flex(r, mx, my);
+                        p.predict_hp(mx, my);
                         Ok(())
-                    })?;
-                }
-                None => {
-                    for p in &mut planes {
-                        for i in 0..mbs {
-                            p.predict_hp(i);
+                    })?,
+                    // An escaped FLEXBITS packet: no flexbits.
+                    _ => {
+                        for p in planes.iter_mut() {
+                            (0..w).for_each(|mx| p.predict_hp(mx, my));
                         }
                     }
                 }
             }
         }
+        for (p, o) in self.planes.iter().zip(out.iter_mut()) {
+            p.output_row(my, o)?;
+        }
+        self.my += 1;
+        Ok(())
     }
-    let mut out = Vec::with_capacity(planes.len());
-    for mut p in planes {
-        p.dequantize()?;
-        out.push(PlaneTile { coeffs: p.coeffs });
-    }
-    Ok(out)
 }
 
-/// Bytes [`decode_tile`] holds for tile (`tx`, `ty`) at its peak: the coefficients and the
-/// side information of every plane.
+/// Bytes a [`TileDecoder`] holds: two rows of coefficients and side information per plane.
 pub fn tile_bytes(cs: &Codestream, tx: usize, ty: usize) -> u64 {
-    let (_, _, w, h) = tile_rect(cs, tx, ty);
-    let mbs = u64::from(w) * u64::from(h);
+    let (_, _, w, _) = tile_rect(cs, tx, ty);
     let channels = cs.primary.channels + cs.alpha.as_ref().map_or(0, |a| a.channels);
-    mbs * (channels as u64 * (MB_COEFFS as u64 * 4 + 4) + 32)
+    2 * u64::from(w) * (channels as u64 * (MB_COEFFS as u64 * 4 + 4) + 32)
 }
