@@ -27,10 +27,9 @@ pub use hdrcodec_rgbe as rgbe;
 
 use crate::core::{
     ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
-    Result,
+    Result, WriteSeek,
 };
 use std::borrow::Cow;
-use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -350,8 +349,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// Lets `write` stream the content of `path` so that `path` either gets the whole content or is
 /// left untouched: the data goes (buffered) to a temporary file in the same directory, is flushed
 /// to disk (fsync) and renamed over `path` only when `write` succeeds; on any error the temporary
-/// file is removed. Nothing of the content is held in memory beyond the write buffer.
-pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<T>) -> Result<T> {
+/// file is removed. Nothing of the content is held in memory beyond the write buffer. `write`
+/// may seek (formats whose index precedes the data fill it in last).
+pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) -> Result<T>) -> Result<T> {
     let name = path
         .file_name()
         .and_then(|n| n.to_str())
@@ -392,7 +392,7 @@ pub fn encode_file(
     path: &Path,
 ) -> Result<Vec<String>> {
     let prepared = prepare_colour(codec, image, settings)?;
-    let report = write_atomic_with(path, |w| codec.encode_to(&prepared.image, &prepared.settings, w))?;
+    let report = write_atomic_with(path, |w| codec.encode_to_seekable(&prepared.image, &prepared.settings, w))?;
     let mut notes = prepared.notes;
     notes.extend(report.notes);
     Ok(notes)
@@ -535,6 +535,7 @@ impl crate::core::sink::RowSink for StatsSink {
 mod tests {
     use super::*;
     use crate::core::EncodeSettings;
+    use std::io::Write;
 
     /// A codec for registry tests: magic "FAKE", extensions fake / fk.
     struct Fake(&'static str, &'static [&'static str], &'static [u8]);

@@ -9,6 +9,10 @@
 //!   computed on a developer's machine with T.835 1.32 (mloskot/jxr-refsoft) built with a
 //!   print of the dequantized, predicted coefficients (`r_strip.c: dequantize_up_dclp`,
 //!   `IPCT_level2_up2`);
+//! - end to end (entropy decoding, the inverse transform, output formatting), every corpus
+//!   file and matrix stream decodes to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
+//!   which calls jxrlib, in the pixel format's own layout; the padded 128bppRGBFloat and the
+//!   fixed-point streams, which imagecodecs converts, are checked by the coefficient digests);
 //! - `probe` agrees with jxrlib (imagecodecs) on size and channels;
 //! - truncated and damaged corpus files give errors or images, never panics.
 
@@ -16,9 +20,10 @@ mod common;
 
 use hdrcodec_core::{DecodeOptions, ImageCodec, Limits};
 use hdrcodec_jxr::decoder::DIGEST_START;
-use hdrcodec_jxr::{decode_coefficients, file_layout, JxrCodec};
+use hdrcodec_jxr::{decode_coefficients, decode_raw, file_layout, JxrCodec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
 /// The digest of every plane of a file: primary, interleaved alpha, then planar alpha.
 fn digest(file: &[u8], pool: hdrcodec_core::ThreadPool) -> u64 {
@@ -141,9 +146,15 @@ const MATRIX: &[(&str, &str, &str, u64)] = &[
 /// One generated stream: its name, T.835's digest, its path.
 type Stream = (&'static str, u64, PathBuf);
 
-/// Generates the matrix's streams with JxrEncApp into a temporary directory; `None` (skip,
-/// or panic in CI) without the venv, JxrEncApp or the corpus.
+/// Generates the matrix's streams with JxrEncApp into a temporary directory, once per test
+/// run (the tests share them); `None` (skip, or panic in CI) without the venv, JxrEncApp or
+/// the corpus.
 fn matrix_streams() -> Option<(PathBuf, Vec<Stream>)> {
+    static STREAMS: OnceLock<Option<(PathBuf, Vec<Stream>)>> = OnceLock::new();
+    STREAMS.get_or_init(generate_matrix).clone()
+}
+
+fn generate_matrix() -> Option<(PathBuf, Vec<Stream>)> {
     let py = common::require(common::python(), "the reference venv (imagecodecs)")?;
     let enc = common::require(common::tool("JxrEncApp"), "JxrEncApp (Debian libjxr-tools)")?;
     let files = common::corpus_files("jxr", "jxr")?;
@@ -231,4 +242,49 @@ fn damaged_corpus_files_never_panic() {
             let _ = JxrCodec.decode(&file[..n], &limits);
         }
     }
+}
+
+/// Compares our raw samples of each file with jxrlib's (imagecodecs), in one Python run:
+/// returns the lines it prints, one per file ("name differing-samples").
+fn jxrlib_raw_diffs(py: &Path, pairs: &[(PathBuf, PathBuf)]) -> Vec<String> {
+    let script = r#"
+import imagecodecs, numpy as np, sys
+args = sys.argv[1:]
+for jxr, raw in zip(args[::2], args[1::2]):
+    ref = imagecodecs.jpegxr_decode(open(jxr, 'rb').read())
+    ours = open(raw, 'rb').read()
+    rb = ref.tobytes()
+    if len(rb) != len(ours):
+        print(jxr, 'size', len(rb), len(ours)); continue
+    u = 'u%d' % ref.dtype.itemsize
+    print(jxr, int((np.frombuffer(ours, dtype=u) != np.frombuffer(rb, dtype=u)).sum()))
+"#;
+    let args: Vec<&std::ffi::OsStr> = pairs.iter().flat_map(|(a, b)| [a.as_os_str(), b.as_os_str()]).collect();
+    let out = common::run_python(py, script, &args);
+    String::from_utf8(out.stdout).unwrap().lines().map(str::to_string).collect()
+}
+
+#[test]
+fn samples_match_jxrlib_end_to_end() {
+    let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    let Some((dir, streams)) = matrix_streams() else { return };
+    let options = DecodeOptions::new(Limits::default());
+    let mut pairs = Vec::new();
+    // imagecodecs converts these pixel formats (padded float, fixed point) on the way out.
+    let converted = ["f_q09", "f_lossless", "fx16", "fx16l"];
+    let inputs = files
+        .iter()
+        .cloned()
+        .chain(streams.iter().filter(|(name, _, _)| !converted.contains(name)).map(|(_, _, path)| path.clone()));
+    for path in inputs {
+        let raw = decode_raw(&std::fs::read(&path).unwrap(), &options).unwrap();
+        let raw_path = dir.join(format!("{}.ours.raw", path.file_name().unwrap().to_string_lossy()));
+        std::fs::write(&raw_path, raw).unwrap();
+        pairs.push((path, raw_path));
+    }
+    let lines = jxrlib_raw_diffs(&py, &pairs);
+    assert_eq!(lines.len(), pairs.len(), "{lines:?}");
+    let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
+    assert!(bad.is_empty(), "samples differ from jxrlib's:\n{bad:?}");
 }

@@ -75,6 +75,18 @@ pub trait ImageCodec: Send + Sync {
     fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
         self.decode_with(data, &DecodeOptions::new(limits.clone()))
     }
+    /// [`encode_to`](Self::encode_to) into a writer that can also seek (a file): formats whose
+    /// index precedes the data it points at (OpenEXR's offset table, TIFF's IFD offset) fill it
+    /// in by seeking back, instead of holding the encoded file whole. The provided version is
+    /// `encode_to`.
+    fn encode_to_seekable(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn WriteSeek,
+    ) -> Result<EncodeReport> {
+        self.encode_to(image, settings, out)
+    }
     /// Encodes an image to a whole file in memory.
     fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
         let mut out = Vec::new();
@@ -91,6 +103,11 @@ pub fn decode_image<C: ImageCodec + ?Sized>(codec: &C, data: &[u8], options: &De
     codec.decode_rows(data, options, &mut sink)?;
     sink.finish()
 }
+
+/// A writer that can also seek: what [`ImageCodec::encode_to_seekable`] writes into.
+pub trait WriteSeek: Write + std::io::Seek {}
+
+impl<T: Write + std::io::Seek + ?Sized> WriteSeek for T {}
 
 /// Which colour signalling a format's files carry.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -40,7 +40,7 @@ pub mod transfer;
 
 pub use codec::{
     decode_image, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, VideoCodec,
-    VideoDecoder, VideoEncoder,
+    VideoDecoder, VideoEncoder, WriteSeek,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};

@@ -1,18 +1,21 @@
-//! Writing: one scan-line part. `exr` builds the header and cuts the image into uncompressed
-//! blocks; the blocks are compressed here, on rayon's pool (as in decoding, a panic inside
+//! Writing: one scan-line part. The blocks are cut straight from the image (no per-channel copy
+//! of it), compressed here a batch at a time on rayon's pool (as in decoding, a panic inside
 //! `exr` then reaches the caller instead of aborting `exr`'s own pool), and written in order with
-//! `exr`'s chunk writer. The compressed chunks are those `exr`'s image writer would produce,
-//! except for the B44 chunks described at [`b44_overflows`].
+//! `exr`'s chunk writer, which fills in the offset table by seeking back. The header and the
+//! compressed chunks are those `exr`'s image writer would produce, except for the B44 chunks
+//! described at [`b44_overflows`].
 
 use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
 use exr::block::writer::ChunksWriter;
+use exr::block::BlockIndex;
 use exr::block::UncompressedBlock;
 use exr::compression::Compression;
-use exr::image::write::layers::{LayersWriter, WritableLayers};
-use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
 use exr::math::Vec2;
-use exr::meta::attribute::{Chromaticities as ExrChromaticities, IntegerBounds, LineOrder, SampleType};
-use exr::meta::header::{Header, LayerAttributes};
+use exr::meta::attribute::{
+    ChannelDescription, Chromaticities as ExrChromaticities, IntegerBounds, LineOrder, SampleType, Text,
+};
+use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
+use exr::meta::{BlockDescription, Headers};
 use exr::prelude::{f16, SmallVec};
 use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result, ThreadPool};
 use rayon::prelude::*;
@@ -25,59 +28,110 @@ use crate::{ExrEncodeOptions, ExrPixelType};
 /// once while keeping every core busy.
 const BATCH: usize = 32;
 
-type ExrImage = Image<Layer<AnyChannels<FlatSamples>>>;
-
 /// Encodes `image` as an OpenEXR file, compressing blocks in parallel on `pool` (on the calling
 /// thread for a single-threaded handle).
 pub fn encode_exr(image: &HdrImage, options: &ExrEncodeOptions, pool: &ThreadPool) -> Result<Vec<u8>> {
+    let mut out = Cursor::new(Vec::new());
+    write_exr(image, options, pool, &mut out)?;
+    Ok(out.into_inner())
+}
+
+/// [`encode_exr`] streamed into `out`: each batch of blocks is cut straight from the image,
+/// compressed and written, and the offset table, which precedes the chunks, is filled in by
+/// seeking back at the end. Nothing of the image's size is held besides the image.
+pub fn write_exr(
+    image: &HdrImage,
+    options: &ExrEncodeOptions,
+    pool: &ThreadPool,
+    out: &mut dyn hdrcodec_core::WriteSeek,
+) -> Result<()> {
     if image.width() == 0 || image.height() == 0 {
         return Err(Error::invalid(format!("cannot write an empty {}x{} image", image.width(), image.height())));
     }
-    let n = image.channels().count();
-    let names = ["R", "G", "B", "A"];
-    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (c, name) in names.iter().enumerate().take(n) {
-        let plane = image.samples().iter().skip(c).step_by(n);
-        let samples = match options.pixel {
-            ExrPixelType::Half => FlatSamples::F16(plane.map(|&v| f16::from_f32(v)).collect()),
-            ExrPixelType::Float => FlatSamples::F32(plane.copied().collect()),
-        };
-        list.push(AnyChannel::new(*name, samples));
-    }
+    let header = header_for(image, options);
+    // No `exr` compressor is known to panic on our data; the guard stays so that an unknown
+    // upstream bug becomes an error, not a crash of the caller.
+    guarded("writing an OpenEXR file", || write_blocks(image, options.pixel, header, pool, out))
+}
+
+/// The one scan-line header of the file: R, G, B (and A) as `exr`'s image writer names and
+/// sorts them, the compression, `whiteLuminance` and the chromaticities.
+fn header_for(image: &HdrImage, options: &ExrEncodeOptions) -> Header {
+    let sample_type = match options.pixel {
+        ExrPixelType::Half => SampleType::F16,
+        ExrPixelType::Float => SampleType::F32,
+    };
+    let mut channels: SmallVec<[ChannelDescription; 5]> = ["R", "G", "B", "A"]
+        .iter()
+        .take(image.channels().count())
+        .map(|n| ChannelDescription::named(*n, sample_type))
+        .collect();
+    // The file lists channels by name (A, B, G, R).
+    channels.sort_unstable_by(|a, b| a.name.cmp(&b.name));
+    let size = Vec2(image.width() as usize, image.height() as usize);
     let mut attributes = LayerAttributes::default();
     if image.color.nits_per_unit != 100.0 {
         attributes.white_luminance = Some(image.color.nits_per_unit);
     }
-    let encoding = Encoding {
-        compression: options.compression.to_exr(),
-        blocks: Blocks::ScanLines,
-        line_order: LineOrder::Increasing,
-    };
-    let size = Vec2(image.width() as usize, image.height() as usize);
-    let layer = Layer::new(size, attributes, encoding, AnyChannels::sort(list));
-    let mut exr_image = Image::from_layer(layer);
+    let mut shared = ImageAttributes::with_size(size);
     // Without the attribute OpenEXR means BT.709 primaries; unspecified samples are written that
     // way too (the attribute cannot say "unknown").
     if !matches!(image.color.primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified) {
         let c = image.color.primaries.chromaticities();
         let xy = |v: [f64; 2]| Vec2(v[0] as f32, v[1] as f32);
-        exr_image.attributes.chromaticities =
+        shared.chromaticities =
             Some(ExrChromaticities { red: xy(c.red), green: xy(c.green), blue: xy(c.blue), white: xy(c.white) });
     }
-    // No `exr` compressor is known to panic on our data; the guard stays so that an unknown
-    // upstream bug becomes an error, not a crash of the caller.
-    guarded("writing an OpenEXR file", || write_file(&exr_image, pool))
+    Header::new(Text::default(), size, channels)
+        .with_encoding(options.compression.to_exr(), BlockDescription::ScanLines, LineOrder::Increasing)
+        .with_attributes(attributes)
+        .with_shared_attributes(shared)
 }
 
-/// Writes `image` as `exr`'s `image.write().to_buffered(..)` does, compressing the blocks on
-/// `pool`.
-fn write_file(image: &ExrImage, pool: &ThreadPool) -> Result<Vec<u8>> {
-    let headers = image.layer_data.infer_headers(&image.attributes);
-    let layers = image.layer_data.create_writer(&headers);
-    let mut out = Cursor::new(Vec::new());
-    exr::block::write(&mut out, headers, true, |meta, chunk_writer| {
-        let mut blocks =
-            meta.collect_ordered_block_data(|index| layers.extract_uncompressed_block(&meta.headers, index));
+/// The uncompressed bytes of one block as `exr` lays them out: line by line, and in each line
+/// channel by channel in the header's order (A, B, G, R), little-endian.
+fn extract_block(image: &HdrImage, pixel: ExrPixelType, header: &Header, index: BlockIndex) -> Vec<u8> {
+    let n = image.channels().count();
+    let (x0, y0) = (index.pixel_position.x(), index.pixel_position.y());
+    let (bw, bh) = (index.pixel_size.x(), index.pixel_size.y());
+    // Interleaved sample offset of each listed channel (R 0, G 1, B 2, A 3).
+    let offsets: SmallVec<[usize; 4]> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| ["R", "G", "B", "A"].iter().position(|n| c.name.eq(n)).unwrap_or(0))
+        .collect();
+    let bytes = match pixel {
+        ExrPixelType::Half => 2,
+        ExrPixelType::Float => 4,
+    };
+    let mut data = Vec::with_capacity(bw * bh * offsets.len() * bytes);
+    for y in y0..y0 + bh {
+        let row = &image.row(y as u32)[x0 * n..(x0 + bw) * n];
+        for &c in &offsets {
+            let samples = row.iter().skip(c).step_by(n);
+            match pixel {
+                ExrPixelType::Half => samples.for_each(|&v| data.extend_from_slice(&f16::from_f32(v).to_le_bytes())),
+                ExrPixelType::Float => samples.for_each(|&v| data.extend_from_slice(&v.to_le_bytes())),
+            }
+        }
+    }
+    data
+}
+
+/// Writes the file as `exr`'s `image.write().to_buffered(..)` does, cutting and compressing
+/// the blocks a batch at a time on `pool`.
+fn write_blocks(
+    image: &HdrImage,
+    pixel: ExrPixelType,
+    header: Header,
+    pool: &ThreadPool,
+    out: &mut dyn hdrcodec_core::WriteSeek,
+) -> Result<()> {
+    let headers: Headers = SmallVec::from_elem(header, 1);
+    exr::block::write(out, headers, true, |meta, chunk_writer| {
+        let header = &meta.headers[0];
+        let mut blocks = meta.collect_ordered_block_data(|index| extract_block(image, pixel, header, index));
         let compress = |(i, block): (usize, UncompressedBlock)| compress_block(block, &meta.headers).map(|c| (i, c));
         loop {
             let batch: Vec<(usize, UncompressedBlock)> = blocks.by_ref().take(BATCH).collect();
@@ -95,8 +149,7 @@ fn write_file(image: &ExrImage, pool: &ThreadPool) -> Result<Vec<u8>> {
             }
         }
     })
-    .map_err(map_err)?;
-    Ok(out.into_inner())
+    .map_err(map_err)
 }
 
 /// Compresses one block with the header's compression, or stores it raw (see

@@ -36,7 +36,7 @@ mod encode;
 pub use exr;
 
 pub use decode::{decode_exr, decode_exr_rows, decode_exr_with, probe_exr};
-pub use encode::encode_exr;
+pub use encode::{encode_exr, write_exr};
 
 use exr::compression::Compression;
 use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Result};
@@ -263,14 +263,27 @@ impl ImageCodec for ExrCodec {
     ) -> Result<()> {
         decode_exr_rows(data, options, sink)
     }
+    /// Into a plain writer the file is assembled in memory first (the offset table precedes
+    /// the chunks); [`encode_to_seekable`](ImageCodec::encode_to_seekable) streams it.
     fn encode_to(
         &self,
         image: &HdrImage,
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
+        let mut file = std::io::Cursor::new(Vec::new());
+        let report = self.encode_to_seekable(image, settings, &mut file)?;
+        out.write_all(file.get_ref())?;
+        Ok(report)
+    }
+    fn encode_to_seekable(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn hdrcodec_core::WriteSeek,
+    ) -> Result<hdrcodec_core::EncodeReport> {
         let options = ExrEncodeOptions::from_settings(settings)?;
-        out.write_all(&encode_exr(image, &options, &settings.pool)?)?;
+        write_exr(image, &options, &settings.pool, out)?;
         let mut report = hdrcodec_core::EncodeReport::new();
         if !image.color.primaries.is_specified() {
             // Without a chromaticities attribute OpenEXR means BT.709; it cannot say "unknown".

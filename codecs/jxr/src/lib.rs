@@ -21,16 +21,19 @@
 mod bits;
 pub mod container;
 pub mod decoder;
-mod format;
 pub mod header;
 mod macroblock;
 pub mod mb;
+pub mod output;
 mod predict;
 mod quant;
+mod render;
 mod tiles;
+pub mod transform;
 mod vlc;
 
 pub use decoder::{decode_coefficients, file_layout, Coefficients, FileLayout, PlaneCoeffs, RowDecoder};
+pub use render::decode_raw;
 
 use hdrcodec_core::sink::RowSink;
 use hdrcodec_core::{
@@ -51,16 +54,15 @@ fn jxr_color() -> ColorInfo {
 /// description ("48bppRGBHalf, 1262x860, frequency order, OL1, 1x1 tiles"). Allocates
 /// nothing of the image's size.
 pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
-    let layout = file_layout(data)?;
-    let cs = header::parse(&data[layout.image.clone()])?;
+    let container = container::parse_container(data)?;
+    let cs = header::parse(container.image)?;
     limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
-    let format = format::lookup(&layout.pixel_format);
-    let alpha = format.map_or(cs.image.alpha_plane || layout.alpha.is_some(), |f| f.alpha);
-    let channels = if alpha { Channels::Rgba } else { Channels::Rgb };
-    let name = format.map_or("unknown pixel format", |f| f.name);
+    let format = container.pixel_format;
+    let channels = if format.alpha { Channels::Rgba } else { Channels::Rgb };
     let i = &cs.image;
     let description = format!(
-        "{name}, {}x{}, {} order, OL{}, {}x{} tiles{}",
+        "{}, {}x{}, {} order, OL{}, {}x{} tiles{}",
+        format.name,
         i.width,
         i.height,
         if i.frequency_mode { "frequency" } else { "spatial" },
@@ -99,14 +101,7 @@ impl ImageCodec for JxrCodec {
         hdrcodec_core::decode_image(self, data, options)
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-        let _info = probe_jxr(data, &options.limits)?;
-        let layout = file_layout(data)?;
-        let _coefficients = decode_coefficients(&data[layout.image], options)?;
-        let _ = sink;
-        Err(Error::unsupported(
-            "JPEG XR pixel reconstruction: the inverse transform and output formatting are not merged yet \
-             (entropy decoding to coefficients is; see hdrcodec_jxr::decode_coefficients)",
-        ))
+        render::decode_rows(data, options, sink, jxr_color())
     }
     /// The encoder is the next issue.
     fn encode_to(
