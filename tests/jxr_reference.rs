@@ -19,20 +19,21 @@
 mod common;
 
 use hdrcodec_core::{DecodeOptions, ImageCodec, Limits};
+use hdrcodec_jxr::container::parse_container;
 use hdrcodec_jxr::decoder::DIGEST_START;
-use hdrcodec_jxr::{decode_coefficients, decode_raw, file_layout, JxrCodec};
+use hdrcodec_jxr::{decode_coefficients, decode_raw, JxrCodec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
 /// The digest of every plane of a file: primary, interleaved alpha, then planar alpha.
 fn digest(file: &[u8], pool: hdrcodec_core::ThreadPool) -> u64 {
-    let layout = file_layout(file).unwrap();
+    let container = parse_container(file).unwrap();
     let options = DecodeOptions::new(Limits::default()).with_pool(pool);
-    let c = decode_coefficients(&file[layout.image.clone()], &options).unwrap();
+    let c = decode_coefficients(container.image, &options).unwrap();
     let mut state = c.digest(DIGEST_START);
-    if let Some(alpha) = layout.alpha {
-        state = decode_coefficients(&file[alpha], &options).unwrap().digest(state);
+    if let Some(alpha) = container.alpha {
+        state = decode_coefficients(alpha, &options).unwrap().digest(state);
     }
     state
 }
@@ -222,8 +223,7 @@ fn damaged_corpus_files_never_panic() {
     let limits = Limits::fuzzing();
     for path in &files {
         let file = std::fs::read(path).unwrap();
-        let range = file_layout(&file).unwrap().image;
-        let cs = &file[range];
+        let cs = parse_container(&file).unwrap().image;
         // Truncations at 40 points, and byte flips (the crate's unit tests sweep every byte of small streams).
         let step = (cs.len() / 40).max(1);
         for n in (0..cs.len()).step_by(step) {

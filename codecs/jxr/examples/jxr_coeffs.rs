@@ -3,7 +3,8 @@
 //! project's instrumented build of T.835 prints, for comparing the two decoders).
 
 use hdrcodec_core::{DecodeOptions, Limits};
-use hdrcodec_jxr::{decode_coefficients, file_layout, PlaneCoeffs};
+use hdrcodec_jxr::container::parse_container;
+use hdrcodec_jxr::{decode_coefficients, PlaneCoeffs};
 use std::io::Write;
 
 fn dump(out: &mut impl Write, plane: usize, p: &PlaneCoeffs) -> std::io::Result<()> {
@@ -32,7 +33,7 @@ fn dump(out: &mut impl Write, plane: usize, p: &PlaneCoeffs) -> std::io::Result<
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = std::env::args().nth(1).ok_or("usage: jxr_coeffs FILE.jxr")?;
     let file = std::fs::read(path)?;
-    let layout = file_layout(&file)?;
+    let container = parse_container(&file)?;
     // JXR_TIMES=n: time n decodes (the best one) and print nothing else.
     let times: usize = std::env::var("JXR_TIMES").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
     let threads: usize = std::env::var("JXR_THREADS").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
@@ -41,11 +42,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut best = std::time::Duration::MAX;
         for _ in 0..times {
             let t = std::time::Instant::now();
-            let c = decode_coefficients(&file[layout.image.clone()], &options)?;
+            let c = decode_coefficients(container.image, &options)?;
             best = best.min(t.elapsed());
             std::hint::black_box(c);
         }
-        let h = hdrcodec_jxr::header::parse(&file[layout.image.clone()])?.image;
+        let h = hdrcodec_jxr::header::parse(container.image)?.image;
         println!(
             "entropy decoding: best of {times}: {best:?} ({}x{} tiles)",
             h.tile_widths.len(),
@@ -53,15 +54,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         return Ok(());
     }
-    let c = decode_coefficients(&file[layout.image.clone()], &options)?;
+    let c = decode_coefficients(container.image, &options)?;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     dump(&mut out, 0, &c.primary)?;
     if let Some(a) = &c.alpha {
         dump(&mut out, 1, a)?;
     }
-    if let Some(range) = layout.alpha {
+    if let Some(alpha) = container.alpha {
         // A planar alpha codestream: plane 2.
-        let a = decode_coefficients(&file[range], &DecodeOptions::new(Limits::default()))?;
+        let a = decode_coefficients(alpha, &DecodeOptions::new(Limits::default()))?;
         dump(&mut out, 2, &a.primary)?;
     }
     Ok(())

@@ -253,73 +253,6 @@ pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coeff
     Ok(Coefficients { codestream: cs, primary, alpha: planes.next(), _charge: charge })
 }
 
-/// Where a `.jxr` file keeps its codestreams (T.832 Annex A; a minimal reading of the first
-/// IFD until the container module's full one is merged): the primary image's byte range, the
-/// planar alpha codestream's, and the pixel-format GUID.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct FileLayout {
-    /// Byte range of the primary codestream (IMAGE_OFFSET, IMAGE_BYTE_COUNT).
-    pub image: std::ops::Range<usize>,
-    /// Byte range of the planar alpha codestream (ALPHA_OFFSET, ALPHA_BYTE_COUNT clamped to
-    /// the file: jxrlib writes offset + length there).
-    pub alpha: Option<std::ops::Range<usize>>,
-    /// PIXEL_FORMAT, the 16 GUID bytes as stored.
-    pub pixel_format: [u8; 16],
-}
-
-/// Reads the first IFD of a `.jxr` file (`II\xBC\x01`, or `\x00` for HD Photo).
-pub fn file_layout(file: &[u8]) -> Result<FileLayout> {
-    let u16_at = |o: usize| file.get(o..o + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
-    let u32_at = |o: usize| file.get(o..o + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
-    if file.len() < 8 {
-        return Err(Error::truncated("the JPEG XR file header"));
-    }
-    if &file[..3] != b"II\xBC" || file[3] > 1 {
-        return Err(Error::invalid("not a JPEG XR file (no II BC 01 signature)"));
-    }
-    let ifd = u32_at(4).ok_or_else(|| Error::truncated("the JPEG XR file header"))? as usize;
-    let count = u16_at(ifd).ok_or_else(|| Error::truncated("the JPEG XR IFD"))? as usize;
-    let (mut image_off, mut image_len, mut alpha_off, mut alpha_len, mut guid) = (None, None, None, None, None);
-    for e in 0..count {
-        let at = ifd + 2 + 12 * e;
-        let (Some(tag), Some(typ), Some(n), Some(value)) = (u16_at(at), u16_at(at + 2), u32_at(at + 4), u32_at(at + 8))
-        else {
-            return Err(Error::truncated("the JPEG XR IFD"));
-        };
-        let value = match (typ, n) {
-            (3, 1) => value & 0xFFFF,
-            (1, 1) => value & 0xFF,
-            _ => value,
-        };
-        match tag {
-            0xBC01 if n == 16 => {
-                let o = value as usize;
-                guid = file.get(o..o + 16).map(|g| <[u8; 16]>::try_from(g).expect("16 bytes"));
-            }
-            0xBCC0 => image_off = Some(value as usize),
-            0xBCC1 => image_len = Some(value as usize),
-            0xBCC2 => alpha_off = Some(value as usize),
-            0xBCC3 => alpha_len = Some(value as usize),
-            _ => {}
-        }
-    }
-    let range = |off: Option<usize>, len: Option<usize>, what: &str| -> Result<std::ops::Range<usize>> {
-        let off = off.ok_or_else(|| Error::invalid(format!("JPEG XR: the IFD has no {what} offset")))?;
-        if off >= file.len() {
-            return Err(Error::truncated(format!("the JPEG XR file ({what} offset past its end)")));
-        }
-        let len = len.unwrap_or(usize::MAX).min(file.len() - off);
-        Ok(off..off + len)
-    };
-    let image = range(image_off, image_len, "image")?;
-    let alpha = match alpha_off {
-        Some(_) => Some(range(alpha_off, alpha_len, "alpha")?),
-        None => None,
-    };
-    let pixel_format = guid.ok_or_else(|| Error::invalid("JPEG XR: the IFD has no pixel format"))?;
-    Ok(FileLayout { image, alpha, pixel_format })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -335,8 +268,8 @@ mod tests {
     }
 
     fn coefficients(file: &[u8], pool: hdrcodec_core::ThreadPool) -> Result<Coefficients> {
-        let layout = file_layout(file)?;
-        decode_coefficients(&file[layout.image], &DecodeOptions::new(Limits::default()).with_pool(pool))
+        let container = crate::container::parse_container(file)?;
+        decode_coefficients(container.image, &DecodeOptions::new(Limits::default()).with_pool(pool))
     }
 
     /// The coefficients T.835 reads into its inverse transform, hashed (testdata/README.md).
@@ -371,8 +304,7 @@ mod tests {
     fn row_decoder_gives_the_same_rows() {
         for (name, _) in T835 {
             let file = testdata(name);
-            let range = file_layout(&file).unwrap().image;
-            let cs_bytes = &file[range];
+            let cs_bytes = crate::container::parse_container(&file).unwrap().image;
             for pool in [hdrcodec_core::ThreadPool::single(), hdrcodec_core::ThreadPool::new(2).unwrap()] {
                 let options = DecodeOptions::new(Limits::default()).with_pool(pool);
                 let all = decode_coefficients(cs_bytes, &options).unwrap();
@@ -400,8 +332,7 @@ mod tests {
         let limits = Limits::default().with_max_alloc_bytes(64 << 20);
         for (name, _) in T835 {
             let file = testdata(name);
-            let range = file_layout(&file).unwrap().image;
-            let cs = &file[range];
+            let cs = crate::container::parse_container(&file).unwrap().image;
             for n in 0..cs.len() {
                 let _ = decode_coefficients(&cs[..n], &DecodeOptions::new(limits.clone()));
             }
@@ -421,15 +352,14 @@ mod tests {
                 }
                 let _ = decode_coefficients(&bad, &DecodeOptions::new(limits.clone()));
             }
-            let _ = file_layout(&file[..file.len() / 2]);
+            let _ = crate::container::parse_container(&file[..file.len() / 2]);
         }
     }
 
     #[test]
     fn huge_declared_sizes_are_refused_before_allocating() {
         let file = testdata("tiny_422.jxr");
-        let range = file_layout(&file).unwrap().image;
-        let mut cs = file[range].to_vec();
+        let mut cs = crate::container::parse_container(&file).unwrap().image.to_vec();
         assert!(header::parse(&cs).unwrap().image.short_header);
         // WMPHOTO (8 bytes) and 4 bytes of version and flags, then WIDTH_MINUS1 and
         // HEIGHT_MINUS1 (16 bits each): 16384 x 16384.

@@ -32,7 +32,7 @@ mod tiles;
 pub mod transform;
 mod vlc;
 
-pub use decoder::{decode_coefficients, file_layout, Coefficients, FileLayout, PlaneCoeffs, RowDecoder};
+pub use decoder::{decode_coefficients, Coefficients, PlaneCoeffs, RowDecoder};
 pub use render::decode_raw;
 
 use hdrcodec_core::sink::RowSink;
