@@ -353,6 +353,17 @@ mod tests {
                 let _ = decode_coefficients(&bad, &DecodeOptions::new(limits.clone()));
             }
             let _ = crate::container::parse_container(&file[..file.len() / 2]);
+            // The whole decoder (container, transform, output) on damaged files.
+            let mut bad = file.clone();
+            for n in (0..file.len()).step_by(7) {
+                let _ = crate::render::decode_raw(&file[..n], &DecodeOptions::new(limits.clone()));
+            }
+            for _ in 0..200 {
+                bad.copy_from_slice(&file);
+                let at = (next() % file.len() as u64) as usize;
+                bad[at] ^= 1 << (next() % 8);
+                let _ = crate::render::decode_raw(&bad, &DecodeOptions::new(limits.clone()));
+            }
         }
     }
 
