@@ -1,7 +1,7 @@
 //! hdrcodec-jxr against the JPEG XR references:
 //! - the three corpus `.jxr` files and a matrix of streams jxrlib's JxrEncApp writes from
 //!   corpus crops (half, float, RGBA with planar and interleaved alpha, 8- and 16-bit RGB,
-//!   16-bit fixed point, grey half and float;
+//!   16- and 32-bit fixed point, 8/16-bit grey, grey half and float, BGR/BGRA, 565/555/101010;
 //!   overlap 0/1/2, spatial and frequency order, sequential packets, tiles, trimmed flexbits,
 //!   band truncation, 4:2:0, 4:2:2, Y-only, lossless and lossy) entropy-decode to exactly the
 //!   coefficients the ITU reference software T.835 feeds its inverse transform. T.835 cannot
@@ -11,8 +11,8 @@
 //!   `IPCT_level2_up2`);
 //! - end to end (entropy decoding, the inverse transform, output formatting), every corpus
 //!   file and matrix stream decodes to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
-//!   which calls jxrlib, in the pixel format's own layout; the padded 128bppRGBFloat and the
-//!   fixed-point streams, which imagecodecs converts, are checked by the coefficient digests);
+//!   which calls jxrlib, in the pixel format's own layout, or JxrDecApp's TIFF for the formats
+//!   imagecodecs converts: padded float, fixed point, 555/565/101010);
 //! - `probe` agrees with jxrlib (imagecodecs) on size and channels;
 //! - truncated and damaged corpus files give errors or images, never panics.
 
@@ -99,6 +99,13 @@ write_tiff('rgb16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), 0, 1) 
 write_tiff('grayh_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2]))
 write_tiff('grayf_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2].astype(np.float32)))
 write_tiff('fixed16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), -3, 3) * 8192).astype(np.int16))
+g8 = (np.clip(crop(72, 100).astype(np.float32), 0, 1) ** (1/2.2) * 255).astype(np.uint8)
+g16 = (np.clip(crop(72, 100).astype(np.float32), 0, 1) * 65535).astype(np.uint16)
+write_tiff('rgba8_100x72.tif', np.concatenate([g8, np.linspace(0, 255, 7200).reshape(72, 100, 1).astype(np.uint8)], axis=2))
+write_tiff('rgba16_100x72.tif', np.concatenate([g16, np.linspace(0, 65535, 7200).reshape(72, 100, 1).astype(np.uint16)], axis=2))
+write_tiff('fixed32_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), -100, 100) * (1 << 24)).astype(np.int32))
+write_tiff('gray8_100x72.tif', np.ascontiguousarray(g8[:, :, 1:2]))
+write_tiff('gray16_100x72.tif', np.ascontiguousarray(g16[:, :, 1:2]))
 "#;
 
 /// The matrix: name, input crop, JxrEncApp options, T.835's digest.
@@ -142,6 +149,16 @@ const MATRIX: &[(&str, &str, &str, u64)] = &[
     ("g_half_sp", "grayh_100x72", "-c 5 -q 0.5 -f -V 2 -H 2", 0x24ef_ef92_5a87_a8f7),
     ("fx16", "fixed16_100x72", "-c 11 -q 0.8", 0xf99f_9d1e_a66b_b3d2),
     ("fx16l", "fixed16_100x72", "-c 11", 0xbd11_85fc_15bd_1307),
+    ("bgra8", "rgba8_100x72", "-c 22 -q 0.8 -a 3 -Q 20", 0x00fa_2c00_dc7d_6486),
+    ("bgra8p", "rgba8_100x72", "-c 22 -q 0.8", 0x4885_1754_0845_3389),
+    ("rgba16", "rgba16_100x72", "-c 23 -q 0.7 -a 3", 0xb6e6_567f_75ea_1b42),
+    ("fx32", "fixed32_100x72", "-c 14 -q 0.9", 0x0c54_1fb0_89a6_228b),
+    ("gray8", "gray8_100x72", "-c 2 -q 0.6", 0x0b8a_6a69_30ef_84a4),
+    ("gray16", "gray16_100x72", "-c 3 -q 0.8", 0x47cc_5158_9db3_d8d7),
+    ("r565", "rgb8_100x72", "-c 30 -q 0.9", 0x71fb_ea79_1324_3ab2),
+    ("r555", "rgb8_100x72", "-c 29 -q 0.8", 0xd307_d6c3_50bf_df5c),
+    ("r101010", "rgb16_100x72", "-c 31 -q 0.8", 0x9ddd_fe04_cd69_9bf4),
+    ("bgr24", "rgb8_100x72", "-c 0 -q 0.7", 0xb351_316a_564f_8b2f),
 ];
 
 /// One generated stream: its name, T.835's digest, its path.
@@ -244,22 +261,58 @@ fn damaged_corpus_files_never_panic() {
     }
 }
 
-/// Compares our raw samples of each file with jxrlib's (imagecodecs), in one Python run:
-/// returns the lines it prints, one per file ("name differing-samples").
-fn jxrlib_raw_diffs(py: &Path, pairs: &[(PathBuf, PathBuf)]) -> Vec<String> {
+/// How a stream's samples are compared with jxrlib's: imagecodecs' array as it is, the same
+/// with our blue-first channels reordered, or the sample bytes of JxrDecApp's TIFF (the formats
+/// imagecodecs converts: padded float, fixed point, 555/565/101010; a padding channel of ours
+/// is dropped).
+fn check_mode(name: &str) -> &'static str {
+    match name {
+        "bgra8" | "bgra8p" | "bgr24" => "bgr",
+        "f_q09" | "f_lossless" | "fx16" | "fx16l" | "fx32" | "r565" | "r555" | "r101010" => "tif",
+        _ => "ic",
+    }
+}
+
+/// Compares our raw samples of each file with jxrlib's, in one Python run: returns the lines
+/// it prints, one per file ("path differing-samples").
+fn jxrlib_raw_diffs(py: &Path, dec: &Path, pairs: &[(PathBuf, PathBuf, &str)]) -> Vec<String> {
     let script = r#"
-import imagecodecs, numpy as np, sys
-args = sys.argv[1:]
-for jxr, raw in zip(args[::2], args[1::2]):
-    ref = imagecodecs.jpegxr_decode(open(jxr, 'rb').read())
+import imagecodecs, numpy as np, struct, subprocess, sys
+dec, args = sys.argv[1], sys.argv[2:]
+def tiff_samples(path):
+    b = open(path, 'rb').read()
+    off = struct.unpack('<I', b[4:8])[0]; n = struct.unpack('<H', b[off:off + 2])[0]
+    tags = {}
+    for i in range(n):
+        t, ty, c, v = struct.unpack('<HHII', b[off + 2 + 12 * i:off + 14 + 12 * i]); tags[t] = (ty, c, v)
+    def vals(t):
+        ty, c, v = tags[t]; size = 2 if ty == 3 else 4
+        if c * size <= 4: return [v & 0xffff if ty == 3 else v]
+        return list(struct.unpack('<%d%s' % (c, 'H' if ty == 3 else 'I'), b[v:v + c * size]))
+    data = b''.join(b[o:o + c] for o, c in zip(vals(273), vals(279)))
+    return tags[256][2], tags[257][2], tags[277][2] & 0xffff, data
+for jxr, raw, mode in zip(args[::3], args[1::3], args[2::3]):
     ours = open(raw, 'rb').read()
-    rb = ref.tobytes()
-    if len(rb) != len(ours):
-        print(jxr, 'size', len(rb), len(ours)); continue
-    u = 'u%d' % ref.dtype.itemsize
-    print(jxr, int((np.frombuffer(ours, dtype=u) != np.frombuffer(rb, dtype=u)).sum()))
+    if mode == 'tif':
+        subprocess.run([dec, '-i', jxr, '-o', raw + '.tif'], check=True, capture_output=True)
+        w, h, spp, ref = tiff_samples(raw + '.tif')
+        if len(ours) != len(ref) and len(ours) * spp == len(ref) * (spp + 1):
+            k = len(ours) // (w * h * (spp + 1))
+            ours = b''.join(ours[i:i + k * spp] for i in range(0, len(ours), k * (spp + 1)))
+        print(jxr, 'size' if len(ours) != len(ref) else sum(x != y for x, y in zip(ours, ref)))
+        continue
+    ref = imagecodecs.jpegxr_decode(open(jxr, 'rb').read())
+    if len(ref.tobytes()) != len(ours):
+        print(jxr, 'size'); continue
+    a = np.frombuffer(ours, dtype=ref.dtype).reshape(ref.shape)
+    if mode == 'bgr':
+        a = a[:, :, [2, 1, 0] + list(range(3, ref.shape[2]))]
+    print(jxr, int((a != ref).sum()))
 "#;
-    let args: Vec<&std::ffi::OsStr> = pairs.iter().flat_map(|(a, b)| [a.as_os_str(), b.as_os_str()]).collect();
+    let mut args: Vec<&std::ffi::OsStr> = vec![dec.as_os_str()];
+    for (jxr, raw, mode) in pairs {
+        args.extend([jxr.as_os_str(), raw.as_os_str(), std::ffi::OsStr::new(*mode)]);
+    }
     let out = common::run_python(py, script, &args);
     String::from_utf8(out.stdout).unwrap().lines().map(str::to_string).collect()
 }
@@ -267,23 +320,22 @@ for jxr, raw in zip(args[::2], args[1::2]):
 #[test]
 fn samples_match_jxrlib_end_to_end() {
     let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
+    let Some(dec) = common::require(common::tool("JxrDecApp"), "JxrDecApp (Debian libjxr-tools)") else { return };
     let Some(files) = common::corpus_files("jxr", "jxr") else { return };
     let Some((dir, streams)) = matrix_streams() else { return };
     let options = DecodeOptions::new(Limits::default());
     let mut pairs = Vec::new();
-    // imagecodecs converts these pixel formats (padded float, fixed point) on the way out.
-    let converted = ["f_q09", "f_lossless", "fx16", "fx16l"];
     let inputs = files
         .iter()
-        .cloned()
-        .chain(streams.iter().filter(|(name, _, _)| !converted.contains(name)).map(|(_, _, path)| path.clone()));
-    for path in inputs {
+        .map(|p| (p.clone(), "ic"))
+        .chain(streams.iter().map(|(name, _, path)| (path.clone(), check_mode(name))));
+    for (path, mode) in inputs {
         let raw = decode_raw(&std::fs::read(&path).unwrap(), &options).unwrap();
         let raw_path = dir.join(format!("{}.ours.raw", path.file_name().unwrap().to_string_lossy()));
         std::fs::write(&raw_path, raw).unwrap();
-        pairs.push((path, raw_path));
+        pairs.push((path, raw_path, mode));
     }
-    let lines = jxrlib_raw_diffs(&py, &pairs);
+    let lines = jxrlib_raw_diffs(&py, &dec, &pairs);
     assert_eq!(lines.len(), pairs.len(), "{lines:?}");
     let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
     assert!(bad.is_empty(), "samples differ from jxrlib's:\n{bad:?}");

@@ -117,7 +117,7 @@ impl PlaneDecoder {
     }
 
     /// ABSLEVEL_INDEX and the level it codes (`r_DECODE_ABS_LEVEL`).
-    #[inline]
+    #[inline(always)]
     fn abs_level(&mut self, r: &mut BitReader, v: V) -> u32 {
         let ctx = &mut self.vlc[v as usize];
         let index = vlc::decode(r, &vlc::ABS_LEVEL[ctx.table as usize]);
@@ -139,7 +139,7 @@ impl PlaneDecoder {
     }
 
     /// A run of zeros when at most `max_run` positions remain (`r_DECODE_RUN`).
-    #[inline]
+    #[inline(always)]
     fn run(r: &mut BitReader, max_run: i32) -> u32 {
         if max_run < 5 {
             // 1, 01, 001, ... with the last code of max_run - 1 zeros.
@@ -161,6 +161,7 @@ impl PlaneDecoder {
     /// One block of run-level symbols (`r_DECODE_BLOCK`), starting at coefficient position
     /// `location` (1 for LP and HP, 10 for 420 chroma LP, 2 for 422 chroma LP). Returns the
     /// number of pairs written to `out`.
+    #[inline(always)]
     fn block(
         &mut self,
         r: &mut BitReader,
