@@ -329,8 +329,9 @@ pub struct Codestream {
     /// The interleaved alpha plane's header, if any.
     pub alpha: Option<PlaneHeader>,
     /// Absolute byte offset (in the codestream) of each packet: one per tile in spatial mode,
-    /// one per tile and band (tile-major) in frequency mode; `None` for an escaped entry.
-    pub packets: Vec<Option<u64>>,
+    /// one per tile and band (tile-major) in frequency mode (an escaped entry is offset 0, as
+    /// jxrlib reads it).
+    pub packets: Vec<u64>,
     /// PROFILE_IDC and LEVEL_IDC of the first PROFILE_LEVEL_INFO entry, if present.
     pub profile_level: Option<(u8, u8)>,
     /// Size of the headers (offset of the first byte after them and SUBSEQUENT_BYTES).
@@ -474,10 +475,13 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
         }
         packets.reserve(entries);
         for _ in 0..entries {
-            packets.push(r.vlw_esc());
+            // jxrlib (`GetVLWordEsc`) and T.835 read an escaped entry as offset 0, and T.835's
+            // encoder writes offset 0 as the escape 0xFE. jxrlib writes 0xFF for an empty
+            // FLEXBITS packet, which is then read from offset 0 like the others.
+            packets.push(r.vlw_esc().unwrap_or(0));
         }
     } else {
-        packets.push(Some(0));
+        packets.push(0);
     }
     let subsequent = r.vlw_esc().unwrap_or(0);
     r.check("the JPEG XR index table")?;
@@ -490,7 +494,7 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
         .checked_add(subsequent)
         .filter(|&l| l <= data.len() as u64)
         .ok_or_else(|| Error::truncated("the JPEG XR codestream (SUBSEQUENT_BYTES runs past its end)"))?;
-    for p in packets.iter_mut().flatten() {
+    for p in &mut packets {
         *p = p
             .checked_add(header_len)
             .filter(|&o| o < data.len() as u64)
@@ -581,7 +585,7 @@ mod tests {
         let QpSource::Uniform(lp) = cs.primary.lp else { panic!() };
         assert_eq!(&lp.index[..3], &[9, 9, 9]);
         assert_eq!(cs.primary.hp, cs.primary.lp);
-        assert_eq!(cs.packets, vec![Some(cs.header_len)]);
+        assert_eq!(cs.packets, vec![cs.header_len]);
         assert_eq!(cs.image.tile_widths, vec![2]);
     }
 

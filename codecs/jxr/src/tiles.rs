@@ -264,8 +264,8 @@ pub struct TileDecoder<'a> {
     my: usize,
     bands: Bands,
     frequency: bool,
-    /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS (`None`: escaped).
-    readers: Vec<Option<BitReader<'a>>>,
+    /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS, as many as coded.
+    readers: Vec<BitReader<'a>>,
     planes: Vec<PlaneWork<'a>>,
 }
 
@@ -285,20 +285,14 @@ impl<'a> TileDecoder<'a> {
         let mut readers = Vec::with_capacity(per_tile);
         for band in 0..per_tile {
             let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
-            readers.push(match *entry {
-                Some(off) => {
-                    let mut r = BitReader::new(&data[off as usize..]);
-                    // jxrlib tolerates a bad FLEXBITS start code.
-                    start_code(&mut r, band < 3)?;
-                    Some(r)
-                }
-                None if band == 3 => None,
-                None => return Err(Error::invalid("JPEG XR: a tile packet is escaped in the index table")),
-            });
+            let mut r = BitReader::new(&data[*entry as usize..]);
+            // jxrlib tolerates a bad FLEXBITS start code.
+            start_code(&mut r, band < 3)?;
+            readers.push(r);
         }
         let trim_flag = cs.image.trim_flexbits;
         if !frequency {
-            let r = readers[0].as_mut().expect("a spatial packet");
+            let r = &mut readers[0];
             let trim = if trim_flag { r.read(4) } else { 0 };
             for p in &mut planes {
                 p.dec.trim = trim;
@@ -308,23 +302,21 @@ impl<'a> TileDecoder<'a> {
             }
         } else {
             for p in &mut planes {
-                p.header_dc(readers[0].as_mut().expect("a DC packet"));
+                p.header_dc(&mut readers[0]);
             }
-            if let Some(Some(r)) = readers.get_mut(1) {
+            if let Some(r) = readers.get_mut(1) {
                 planes.iter_mut().for_each(|p| p.header_lp(r));
             }
-            if let Some(Some(r)) = readers.get_mut(2) {
+            if let Some(r) = readers.get_mut(2) {
                 planes.iter_mut().for_each(|p| p.header_hp(r));
             }
-            if let Some(Some(r)) = readers.get_mut(3) {
+            if let Some(r) = readers.get_mut(3) {
                 let trim = if trim_flag { r.read(4) } else { 0 };
                 planes.iter_mut().for_each(|p| p.dec.trim = trim);
             }
         }
-        for (band, r) in readers.iter().enumerate() {
-            if let Some(r) = r {
-                r.check(if band == 0 { "a JPEG XR tile header" } else { "a JPEG XR packet header" })?;
-            }
+        for r in &readers {
+            r.check("a JPEG XR tile header")?;
         }
         Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes })
     }
@@ -342,7 +334,7 @@ impl<'a> TileDecoder<'a> {
         }
         let planes = &mut self.planes;
         if !self.frequency {
-            let r = self.readers[0].as_mut().expect("a spatial packet");
+            let r = &mut self.readers[0];
             each_mb(planes, r, w, my, "a JPEG XR tile", |p, r, mx, my| {
                 p.read_lp_index(r, mx, my)?;
                 p.read_hp_index(r, mx, my)?;
@@ -359,7 +351,7 @@ impl<'a> TileDecoder<'a> {
             })?;
         } else {
             let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
-            let r = dc.as_mut().expect("a DC packet");
+            let r = dc;
             each_mb(planes, r, w, my, "a JPEG XR DC packet", |p, r, mx, my| {
                 p.dc(r, mx, my);
                 if !p.hdr.bands.has_lp() {
@@ -367,7 +359,7 @@ impl<'a> TileDecoder<'a> {
                 }
                 Ok(())
             })?;
-            if let Some(Some(r)) = rest.get_mut(0) {
+            if let Some(r) = rest.get_mut(0) {
                 each_mb(planes, r, w, my, "a JPEG XR LP packet", |p, r, mx, my| {
                     p.read_lp_index(r, mx, my)?;
                     p.lp(r, mx, my)?;
@@ -375,7 +367,7 @@ impl<'a> TileDecoder<'a> {
                     Ok(())
                 })?;
             }
-            if let Some(Some(r)) = rest.get_mut(1) {
+            if let Some(r) = rest.get_mut(1) {
                 each_mb(planes, r, w, my, "a JPEG XR HP packet", |p, r, mx, my| {
                     p.read_hp_index(r, mx, my)?;
                     p.cbp_hp(r, mx, my, false)?;
@@ -385,20 +377,12 @@ impl<'a> TileDecoder<'a> {
                     Ok(())
                 })?;
             }
-            if bands.has_flex() {
-                match rest.get_mut(2) {
-                    Some(Some(r)) => each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
-                        p.flex(r, mx, my);
-                        p.predict_hp(mx, my);
-                        Ok(())
-                    })?,
-                    // An escaped FLEXBITS packet: no flexbits.
-                    _ => {
-                        for p in planes.iter_mut() {
-                            (0..w).for_each(|mx| p.predict_hp(mx, my));
-                        }
-                    }
-                }
+            if let Some(r) = rest.get_mut(2) {
+                each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
+                    p.flex(r, mx, my);
+                    p.predict_hp(mx, my);
+                    Ok(())
+                })?;
             }
         }
         for (p, o) in self.planes.iter().zip(out.iter_mut()) {
