@@ -280,6 +280,21 @@ mod tests {
         ("tiny_422.jxr", 0xb6ff_17cc_b011_8afa),
     ];
 
+    /// Streams T.835's encoder wrote (testdata/README.md), with T.835's coefficient digests.
+    const T835_WRITTEN: [(&str, u64); 3] = [
+        ("t835_qp_map.jxr", 0xf224_4214_b491_1af4),
+        ("t835_ncomponent5.jxr", 0x7b4d_12b7_f1d9_f9eb),
+        ("t835_ncomponent5_ol2.jxr", 0x4ea6_c787_3192_477c),
+    ];
+
+    #[test]
+    fn t835_written_streams_match_t835() {
+        for (name, want) in T835_WRITTEN {
+            let c = coefficients(&testdata(name), hdrcodec_core::ThreadPool::single()).unwrap();
+            assert_eq!(hash(&c), want, "{name}");
+        }
+    }
+
     #[test]
     fn coefficients_match_t835() {
         for (name, want) in T835 {

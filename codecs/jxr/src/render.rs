@@ -302,6 +302,7 @@ mod tests {
             ("t835_hard_2x3.jxr", 0x98c0_2dc3_32cc_91d2),
             ("t835_window.jxr", 0x9939_afc3_c4ad_8d00),
             ("t835_window_420.jxr", 0x6dad_2b1b_2362_3b77),
+            ("t835_qp_map.jxr", 0x45eb_d8d1_d290_0b95),
         ];
         for (name, want) in cases {
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
