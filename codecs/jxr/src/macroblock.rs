@@ -244,11 +244,13 @@ impl PlaneDecoder {
                 c[ch * MB_COEFFS] = self.dc_value(r, bits[usize::from(chroma)], chroma, coded);
             }
         } else {
+            // YONLY, YUVK and NCOMPONENT: every channel's level uses the luma DC table (T.835
+            // `_jxr_r_MB_DC`, jxrlib `m_pAHexpt[3]`); only the model bits are chroma's.
             for ch in 0..self.channels {
                 let chroma = ch > 0;
                 let coded = r.bit();
                 lap_mean[usize::from(chroma)] += i32::from(coded);
-                c[ch * MB_COEFFS] = self.dc_value(r, bits[usize::from(chroma)], chroma, coded);
+                c[ch * MB_COEFFS] = self.dc_value(r, bits[usize::from(chroma)], false, coded);
             }
         }
         self.update_model(lap_mean, BAND_DC);

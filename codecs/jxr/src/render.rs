@@ -117,7 +117,11 @@ fn decode_impl(
         img.red_blue_not_swapped,
         if format.alpha { alpha_params } else { None },
     )?;
-    let channels = Channels::from_count(out.linear_channels()?).ok_or_else(|| Error::unsupported("channels"))?;
+    // Linear RGB(A) rows for a sink; raw samples alone (decode_raw) for any format.
+    let channels = match (&sink, out.linear_channels()) {
+        (Some(_), n) => Channels::from_count(n?).ok_or_else(|| Error::unsupported("channels"))?,
+        (None, _) => Channels::Rgb,
+    };
     let info = ImageInfo::new(img.width, img.height, channels, color).with_format(format.name);
     let (width, height) = (img.width as usize, img.height as usize);
     let (mb_w, mb_h) = (img.mb_width as usize, img.mb_height as usize);
@@ -303,6 +307,8 @@ mod tests {
             ("t835_window.jxr", 0x9939_afc3_c4ad_8d00),
             ("t835_window_420.jxr", 0x6dad_2b1b_2362_3b77),
             ("t835_qp_map.jxr", 0x45eb_d8d1_d290_0b95),
+            // 32bppCMYK (YUVK), as JxrDecApp's TIFF holds it.
+            ("t835_cmyk.jxr", 0xddb1_23c6_b29a_8e24),
         ];
         for (name, want) in cases {
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
