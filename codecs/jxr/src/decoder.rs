@@ -281,7 +281,8 @@ mod tests {
     ];
 
     /// Streams T.835's encoder wrote (testdata/README.md), with T.835's coefficient digests.
-    const T835_WRITTEN: [(&str, u64); 4] = [
+    const T835_WRITTEN: [(&str, u64); 5] = [
+        ("t835_tile_qps.jxr", 0x5b2d_4590_ebf4_d5d8),
         ("t835_cmyk.jxr", 0x055b_88b4_b4cf_9d61),
         ("t835_qp_map.jxr", 0xf224_4214_b491_1af4),
         ("t835_ncomponent5.jxr", 0x7b4d_12b7_f1d9_f9eb),

@@ -307,6 +307,7 @@ mod tests {
             ("t835_window.jxr", 0x9939_afc3_c4ad_8d00),
             ("t835_window_420.jxr", 0x6dad_2b1b_2362_3b77),
             ("t835_qp_map.jxr", 0x45eb_d8d1_d290_0b95),
+            ("t835_tile_qps.jxr", 0x3516_de69_6aec_84bc),
             // 32bppCMYK (YUVK), as JxrDecApp's TIFF holds it.
             ("t835_cmyk.jxr", 0xddb1_23c6_b29a_8e24),
         ];
