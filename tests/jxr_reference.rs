@@ -159,6 +159,15 @@ const MATRIX: &[(&str, &str, &str, u64)] = &[
     ("r555", "rgb8_100x72", "-c 29 -q 0.8", 0xd307_d6c3_50bf_df5c),
     ("r101010", "rgb16_100x72", "-c 31 -q 0.8", 0x9ddd_fe04_cd69_9bf4),
     ("bgr24", "rgb8_100x72", "-c 0 -q 0.7", 0xb351_316a_564f_8b2f),
+    ("ha_s1", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 1", 0x1cd0_433f_b970_3d24),
+    ("ha_s2", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 2", 0xdc78_9e50_e9e8_b6ec),
+    ("ha_s3", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 3", 0xcb35_6393_0018_105e),
+    ("ha_trim", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -F 3", 0x1cd0_433f_b970_3d24),
+    ("ha_tiles", "halfa_100x72", "-c 25 -a 3 -q 0.6 -Q 20 -p -V 2 3 -H 2", 0x0e23_dfb4_dca8_0415),
+    ("ha_tiles_sp", "halfa_100x72", "-c 25 -a 3 -q 0.6 -Q 20 -f -U 2 2 -F 2", 0xbca7_fb81_2ec6_6d25),
+    ("r8_420_s2", "rgb8_100x72", "-c 9 -d 1 -q 0.5 -s 2", 0xfc65_1169_0070_c1a4),
+    ("r8_422_tr", "rgb8_100x72", "-c 9 -d 2 -q 0.9 -F 4 -f", 0x7638_b75b_ebd7_840c),
+    ("bgra_420", "rgba8_100x72", "-c 22 -d 1 -q 0.4 -a 3 -Q 40", 0x5643_9d3d_f010_5295),
 ];
 
 /// One generated stream: its name, T.835's digest, its path.
@@ -267,7 +276,7 @@ fn damaged_corpus_files_never_panic() {
 /// is dropped).
 fn check_mode(name: &str) -> &'static str {
     match name {
-        "bgra8" | "bgra8p" | "bgr24" => "bgr",
+        "bgra8" | "bgra8p" | "bgr24" | "bgra_420" => "bgr",
         "f_q09" | "f_lossless" | "fx16" | "fx16l" | "fx32" | "r565" | "r555" | "r101010" => "tif",
         _ => "ic",
     }
