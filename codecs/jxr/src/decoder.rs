@@ -5,7 +5,7 @@
 
 use crate::header::{self, ClrFmt, Codestream};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::tiles::{self, TileDecoder};
+use crate::tiles::{self, FlexStage, MbSide, TileDecoder};
 use hdrcodec_core::{Allocation, DecodeOptions, Error, Result, ThreadPool};
 
 /// The coefficients of one plane (primary or alpha), for the inverse transform.
@@ -122,7 +122,7 @@ pub struct RowDecoder<'a> {
     my: u32,
     left: u32,
     /// The current tile row's decoders and their row buffers (one per plane).
-    tiles: Vec<(TileDecoder<'a>, Vec<Vec<i32>>)>,
+    tiles: Vec<TileRow<'a>>,
     _charge: Allocation,
 }
 
@@ -148,6 +148,23 @@ impl<'a> RowDecoder<'a> {
     /// The next macroblock row (`None` after the last): for each plane (primary, then
     /// alpha), `mb_width × channels` arrays of [`MB_COEFFS`], dequantized and predicted.
     pub fn next_row(&mut self, out: &mut [Vec<i32>]) -> Result<Option<u32>> {
+        self.advance(out, None)
+    }
+
+    /// True when the codestream's flexbits are in packets of their own (frequency order with
+    /// flexbits): [`next_row_deferred`](Self::next_row_deferred) and a [`RowCompleter`] can
+    /// then decode them on another thread, a row behind.
+    pub(crate) fn can_defer_flex(cs: &Codestream) -> bool {
+        cs.image.frequency_mode && cs.primary.bands.has_flex()
+    }
+
+    /// The next row without its flexbits: quantized, before HP prediction, with the side
+    /// information (one per plane, `mb_width` long) that [`RowCompleter::complete`] needs.
+    pub(crate) fn next_row_deferred(&mut self, out: &mut [Vec<i32>], side: &mut [Vec<MbSide>]) -> Result<Option<u32>> {
+        self.advance(out, Some(side))
+    }
+
+    fn advance(&mut self, out: &mut [Vec<i32>], side: Option<&mut [Vec<MbSide>]>) -> Result<Option<u32>> {
         let (cs, data) = (self.cs, self.data);
         let img = &cs.image;
         if self.my >= img.mb_height {
@@ -160,15 +177,22 @@ impl<'a> RowDecoder<'a> {
                 .map(|tx| {
                     let w = img.tile_widths[tx] as usize;
                     let rows = planes.iter().map(|p| vec![0; w * p.channels * MB_COEFFS]).collect();
-                    Ok((TileDecoder::new(cs, data, tx, ty)?, rows))
+                    let sides = planes.iter().map(|_| vec![MbSide::default(); w]).collect();
+                    Ok((TileDecoder::new(cs, data, tx, ty)?, rows, sides))
                 })
                 .collect::<Result<_>>()?;
             self.left = img.tile_heights[ty];
             self.ty += 1;
         }
-        let decode = |t: &mut (TileDecoder<'a>, Vec<Vec<i32>>)| {
+        let deferred = side.is_some();
+        let decode = |t: &mut TileRow<'a>| {
             let mut rows: Vec<&mut [i32]> = t.1.iter_mut().map(|r| &mut r[..]).collect();
-            t.0.next_row(&mut rows)
+            if deferred {
+                let mut sides: Vec<&mut [MbSide]> = t.2.iter_mut().map(|s| &mut s[..]).collect();
+                t.0.next_row_deferred(&mut rows, &mut sides)
+            } else {
+                t.0.next_row(&mut rows)
+            }
         };
         if self.tiles.len() > 1 && self.pool.is_parallel() {
             self.pool.try_for_each_chunk_mut(&mut self.tiles, 1, |_, t| decode(&mut t[0]))?;
@@ -178,13 +202,72 @@ impl<'a> RowDecoder<'a> {
         for (p, (o, hdr)) in out.iter_mut().zip(&planes).enumerate() {
             o.clear();
             o.reserve(img.mb_width as usize * hdr.channels * MB_COEFFS);
-            for (_, rows) in &self.tiles {
+            for (_, rows, _) in &self.tiles {
                 o.extend_from_slice(&rows[p]);
+            }
+        }
+        if let Some(side) = side {
+            for (p, s) in side.iter_mut().enumerate().take(planes.len()) {
+                s.clear();
+                for (_, _, sides) in &self.tiles {
+                    s.extend_from_slice(&sides[p]);
+                }
             }
         }
         self.left -= 1;
         self.my += 1;
         Ok(Some(self.my - 1))
+    }
+}
+
+/// One tile column's decoder in a [`RowDecoder`], its row buffers and side buffers (per plane).
+type TileRow<'a> = (TileDecoder<'a>, Vec<Vec<i32>>, Vec<Vec<MbSide>>);
+
+/// The FLEXBITS half of a deferred [`RowDecoder`]: completes its rows (flexbits, HP
+/// prediction, dequantization), in order, tile column by tile column.
+pub(crate) struct RowCompleter<'a> {
+    cs: &'a Codestream,
+    data: &'a [u8],
+    ty: usize,
+    left: u32,
+    stages: Vec<FlexStage<'a>>,
+}
+
+impl<'a> RowCompleter<'a> {
+    /// The completer of the rows a deferred [`RowDecoder`] of the same codestream gives.
+    pub fn new(cs: &'a Codestream, data: &'a [u8]) -> Self {
+        RowCompleter { cs, data, ty: 0, left: 0, stages: Vec::new() }
+    }
+
+    /// Completes the next row (`out` and `side` as [`RowDecoder::next_row_deferred`] gave them).
+    pub fn complete(&mut self, out: &mut [Vec<i32>], side: &[Vec<MbSide>]) -> Result<()> {
+        let img = &self.cs.image;
+        if self.left == 0 {
+            let (cs, data, ty) = (self.cs, self.data, self.ty);
+            if ty >= img.tile_heights.len() {
+                return Err(Error::invalid("JPEG XR: rows past the image (a bug in the decoder)"));
+            }
+            self.stages =
+                (0..img.tile_widths.len()).map(|tx| FlexStage::new(cs, data, tx, ty)).collect::<Result<_>>()?;
+            self.left = img.tile_heights[ty];
+            self.ty += 1;
+        }
+        let strides: Vec<usize> =
+            std::iter::once(&self.cs.primary).chain(self.cs.alpha.as_ref()).map(|p| p.channels * MB_COEFFS).collect();
+        let mut x0 = 0usize;
+        for (stage, &w) in self.stages.iter_mut().zip(&img.tile_widths) {
+            let w = w as usize;
+            let mut rows: Vec<&mut [i32]> = out
+                .iter_mut()
+                .zip(&strides)
+                .map(|(o, &stride)| o.get_mut(x0 * stride..(x0 + w) * stride).unwrap_or_default())
+                .collect();
+            let sides: Vec<&[MbSide]> = side.iter().map(|s| s.get(x0..x0 + w).unwrap_or_default()).collect();
+            stage.complete_row(&mut rows, &sides)?;
+            x0 += w;
+        }
+        self.left -= 1;
+        Ok(())
     }
 }
 
@@ -340,6 +423,27 @@ mod tests {
                 assert_eq!(n, cs.image.mb_height);
             }
         }
+    }
+
+    /// The flexbits decoded apart (a deferred row decoder and its completer) give the same
+    /// rows as the decoder that does everything.
+    #[test]
+    fn deferred_flexbits_give_the_same_rows() {
+        let file = testdata("tiny_tiles.jxr");
+        let bytes = crate::container::parse_container(&file).unwrap().image;
+        let cs = header::parse(bytes).unwrap();
+        assert!(RowDecoder::can_defer_flex(&cs));
+        let options = DecodeOptions::new(Limits::default());
+        let mut whole = RowDecoder::new(&cs, bytes, &options).unwrap();
+        let mut first = RowDecoder::new(&cs, bytes, &options).unwrap();
+        let mut completer = RowCompleter::new(&cs, bytes);
+        let (mut a, mut b, mut side) = (vec![Vec::new()], vec![Vec::new()], vec![Vec::new()]);
+        while let Some(y) = whole.next_row(&mut a).unwrap() {
+            assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), Some(y));
+            completer.complete(&mut b, &side).unwrap();
+            assert_eq!(a, b, "row {y}");
+        }
+        assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), None);
     }
 
     /// Every truncation and a few hundred byte changes of each stream: an error or

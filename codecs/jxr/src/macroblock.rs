@@ -542,48 +542,53 @@ impl PlaneDecoder {
         Ok(bits)
     }
 
-    /// BLOCK_FLEXBITS (`r_BLOCK_FLEXBITS`): the refinement bits of all 15 HP coefficients of
-    /// block `b` of channel `ch`, coded or not.
+    /// BLOCK_FLEXBITS of block `b` of channel `ch` (see [`block_flex`]).
     #[inline]
     pub fn block_flex(&mut self, r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32) {
-        if self.trim >= model_bits {
-            return;
-        }
-        let n = model_bits - self.trim;
-        let trim = self.trim;
-        let o = ch * MB_COEFFS + hp(b, 1) - 1;
-        for &k in &TRANSPOSE444[1..] {
-            let coeff = &mut c[o + k];
-            let cur = *coeff;
-            // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
-            // sign bit: peek both, consume what is there.
-            let v = r.peek(n + 1);
-            let fine = (v >> 1) as i32;
-            let zero = cur == 0;
-            let signed = zero && fine != 0;
-            r.skip(n + u32::from(signed));
-            // The sign to apply, as a mask: the coefficient's own, or the bit read.
-            let mask = if zero { -((signed && v & 1 != 0) as i32) } else { cur >> 31 };
-            let f = fine.wrapping_shl(trim);
-            *coeff = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
-        }
+        block_flex(r, c, ch, b, model_bits, self.trim);
     }
+}
 
-    /// MB_FLEXBITS (`_jxr_r_MB_FLEXBITS`): the flexbits of every block of a macroblock, from
-    /// a FLEXBITS packet.
-    pub fn flex(&mut self, reader: &mut BitReader, c: &mut [i32], model_bits: [u32; 2]) {
-        // A local copy of the reader stays in registers.
-        let mut local = reader.clone();
-        let r = &mut local;
-        for ch in 0..self.channels {
-            let blocks = predict_blocks(self.fmt, ch);
-            for block in 0..blocks {
-                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
-                self.block_flex(r, c, ch, b, model_bits[usize::from(ch > 0)]);
-            }
-        }
-        *reader = local;
+/// BLOCK_FLEXBITS (`r_BLOCK_FLEXBITS`): the refinement bits of all 15 HP coefficients of block
+/// `b` of channel `ch`, coded or not, `model_bits − trim` each (none when trim ≥ model bits).
+#[inline]
+pub fn block_flex(r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32, trim: u32) {
+    if trim >= model_bits {
+        return;
     }
+    let n = model_bits - trim;
+    let o = ch * MB_COEFFS + hp(b, 1) - 1;
+    for &k in &TRANSPOSE444[1..] {
+        let coeff = &mut c[o + k];
+        let cur = *coeff;
+        // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
+        // sign bit: peek both, consume what is there.
+        let v = r.peek(n + 1);
+        let fine = (v >> 1) as i32;
+        let zero = cur == 0;
+        let signed = zero && fine != 0;
+        r.skip(n + u32::from(signed));
+        // The sign to apply, as a mask: the coefficient's own, or the bit read.
+        let mask = if zero { -((signed && v & 1 != 0) as i32) } else { cur >> 31 };
+        let f = fine.wrapping_shl(trim);
+        *coeff = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
+    }
+}
+
+/// MB_FLEXBITS (`_jxr_r_MB_FLEXBITS`): the flexbits of every block of a macroblock (`c`, all
+/// `channels`), from a FLEXBITS packet, with the HP model bits the macroblock was coded with.
+pub fn flex_mb(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: usize, trim: u32, model_bits: [u32; 2]) {
+    // A local copy of the reader stays in registers.
+    let mut local = reader.clone();
+    let r = &mut local;
+    for ch in 0..channels {
+        let blocks = predict_blocks(fmt, ch);
+        for block in 0..blocks {
+            let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
+            block_flex(r, c, ch, b, model_bits[usize::from(ch > 0)], trim);
+        }
+    }
+    *reader = local;
 }
 
 /// HP blocks of channel `ch`.

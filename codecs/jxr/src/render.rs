@@ -3,11 +3,12 @@
 //! formatting as jxrlib's (its raw samples), then the conversion to linear f32.
 
 use crate::container::{parse_container, OutputBitDepth, OutputColorFormat};
-use crate::decoder::RowDecoder;
+use crate::decoder::{RowCompleter, RowDecoder};
 use crate::header;
 use crate::header::ClrFmt;
 use crate::mb::MbCoeffs;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
+use crate::tiles::MbSide;
 use crate::transform::{self, HardEdges, OverlapMode, PlaneKind, TransformParams};
 use hdrcodec_core::sink::{fill_rows, RowSink, Scratch};
 use hdrcodec_core::{Channels, ColorInfo, DecodeOptions, Error, ImageInfo, Result};
@@ -168,32 +169,54 @@ fn decode_impl(
     // Coefficients of rows up to r1 + 3 for the band r0..r1 (the halo, and one more row for
     // 4:2:0 chroma). The next band's rows are entropy-decoded while this band transforms.
     let need = |r1: usize| (r1 + 3).min(mb_h);
+    // In frequency order with flexbits, the FLEXBITS packet is decoded with the transform
+    // (thread B), a band behind the DC, LP and HP packets (thread A).
+    let deferred = RowDecoder::can_defer_flex(&cs);
+    let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image));
     let mut decoded = need(band.min(mb_h));
-    let first = fetch(&mut prim_dec, alpha_dec.as_mut(), with_alpha, decoded)?;
-    push_rows(&mut win, awin.as_mut(), first);
+    let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded)?;
     for r0 in (0..mb_h).step_by(band) {
         let r1 = (r0 + band).min(mb_h);
         let next = need((r1 + band).min(mb_h));
-        let transform_all = || -> Result<(Vec<transform::Plane>, Option<transform::Plane>)> {
+        let rows_in = std::mem::take(&mut pending);
+        let (win_ref, awin_ref, completer_ref) = (&mut win, &mut awin, &mut completer);
+        let (prim_params, alpha_params) = (&prim_params, &alpha_params);
+        let transform_all = move || -> Result<(Vec<transform::Plane>, Option<transform::Plane>)> {
+            // The rows this band needs: completed (flexbits) and appended to the windows.
+            win_ref.drop_before(r0.saturating_sub(2), mb_w);
+            if let Some(a) = awin_ref.as_mut() {
+                a.drop_before(r0.saturating_sub(2), mb_w);
+            }
+            for mut row in rows_in {
+                if let Some(c) = completer_ref.as_mut() {
+                    c.complete(&mut row.planes, &row.side)?;
+                }
+                win_ref.push(&row.planes[0]);
+                if let Some(a) = awin_ref.as_mut() {
+                    let alpha = row.planar_alpha.as_deref().or(row.planes.get(1).map(|v| &v[..]));
+                    a.push(alpha.ok_or_else(|| Error::invalid("JPEG XR: an alpha row is missing (a bug)"))?);
+                }
+            }
+            let (win, awin) = (&*win_ref, &*awin_ref);
             let planes = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
-                    transform_band(&win, &prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end)
+                    transform_band(win, prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end)
                 })
                 .collect::<Result<_>>()?;
-            let alpha = awin
-                .as_ref()
-                .map(|a| transform_band(a, &alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1))
-                .transpose()?;
+            let alpha =
+                awin.as_ref().map(|a| transform_band(a, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1)).transpose()?;
             Ok((planes, alpha))
         };
         let count = next - decoded;
-        let mut fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), with_alpha, count);
+        let mut fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count);
         let (fetched, transformed) = if options.pool.is_parallel() && count > 0 {
             options.pool.install(|| rayon::join(fetch_next, transform_all))
         } else {
             (fetch_next(), transform_all())
         };
+        pending = fetched?;
+        decoded = next;
         let (planes, alpha_plane) = transformed?;
         // Output rows: the band's rows inside the window.
         let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
@@ -227,50 +250,44 @@ fn decode_impl(
                 None => render(&mut [])?,
             }
         }
-        // The next band needs rows from r1 - 2.
-        win.drop_before(r1.saturating_sub(2), mb_w);
-        if let Some(a) = &mut awin {
-            a.drop_before(r1.saturating_sub(2), mb_w);
-        }
-        push_rows(&mut win, awin.as_mut(), fetched?);
-        decoded = next;
     }
     Ok(())
 }
 
-/// One decoded macroblock row: the primary plane's and the alpha plane's.
-type DecodedRow = (Vec<i32>, Option<Vec<i32>>);
-
-/// Decodes the next `n` macroblock rows: the primary plane's, and the alpha plane's (from
-/// the primary's decoder when interleaved, else from the planar alpha decoder).
-fn fetch(prim: &mut RowDecoder, alpha: Option<&mut RowDecoder>, with_alpha: bool, n: usize) -> Result<Vec<DecodedRow>> {
-    let mut alpha = alpha;
-    let mut rows = Vec::with_capacity(n);
-    for _ in 0..n {
-        let mut buffers = vec![Vec::new(); 2];
-        prim.next_row(&mut buffers)?.ok_or_else(|| Error::invalid("JPEG XR: rows past the image (a bug)"))?;
-        let a = match alpha.as_deref_mut() {
-            Some(dec) => {
-                let mut b = vec![Vec::new()];
-                dec.next_row(&mut b)?.ok_or_else(|| Error::invalid("JPEG XR: alpha rows past the image"))?;
-                b.pop()
-            }
-            None => with_alpha.then(|| std::mem::take(&mut buffers[1])),
-        };
-        rows.push((std::mem::take(&mut buffers[0]), a));
-    }
-    Ok(rows)
+/// One macroblock row as the entropy decoders give it: the primary codestream's planes
+/// (primary, interleaved alpha), their side information when the flexbits are deferred, and
+/// the planar alpha codestream's row.
+struct Fetched {
+    planes: Vec<Vec<i32>>,
+    side: Vec<Vec<MbSide>>,
+    planar_alpha: Option<Vec<i32>>,
 }
 
-/// Appends decoded rows to the windows.
-fn push_rows(win: &mut Window, awin: Option<&mut Window>, rows: Vec<DecodedRow>) {
-    let mut awin = awin;
-    for (p, a) in rows {
-        win.push(&p);
-        if let (Some(w), Some(a)) = (awin.as_deref_mut(), a) {
-            w.push(&a);
+/// Decodes the next `n` macroblock rows (without their flexbits when `deferred`).
+fn fetch(prim: &mut RowDecoder, alpha: Option<&mut RowDecoder>, deferred: bool, n: usize) -> Result<Vec<Fetched>> {
+    let mut alpha = alpha;
+    let mut rows = Vec::with_capacity(n);
+    let past = || Error::invalid("JPEG XR: rows past the image (a bug in the decoder)");
+    for _ in 0..n {
+        let mut planes = vec![Vec::new(); 2];
+        let mut side = Vec::new();
+        if deferred {
+            side = vec![Vec::new(); 2];
+            prim.next_row_deferred(&mut planes, &mut side)?.ok_or_else(past)?;
+        } else {
+            prim.next_row(&mut planes)?.ok_or_else(past)?;
         }
+        let planar_alpha = match alpha.as_deref_mut() {
+            Some(dec) => {
+                let mut b = vec![Vec::new()];
+                dec.next_row(&mut b)?.ok_or_else(past)?;
+                b.pop()
+            }
+            None => None,
+        };
+        rows.push(Fetched { planes, side, planar_alpha });
     }
+    Ok(rows)
 }
 
 /// The samples of macroblock rows `rows` of channel `ch` of a plane, from its window.

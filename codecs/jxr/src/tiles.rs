@@ -10,15 +10,16 @@
 
 use crate::bits::BitReader;
 use crate::header::{read_qp_set, Bands, ClrFmt, Codestream, PlaneHeader, QpSet, QpSource};
-use crate::macroblock::PlaneDecoder;
+use crate::macroblock::{self, PlaneDecoder};
 use crate::mb::MB_COEFFS;
 use crate::predict;
 use crate::quant::{self, TileQp};
 use hdrcodec_core::{Error, Result};
 
-/// Per-macroblock side information kept while a tile decodes.
+/// Per-macroblock side information kept while a tile decodes (and handed to the FLEXBITS
+/// stage when it runs apart, see [`FlexStage`]).
 #[derive(Clone, Copy, Debug, Default)]
-struct MbSide {
+pub(crate) struct MbSide {
     lp_qi: u8,
     hp_qi: u8,
     hp_mode: u8,
@@ -184,43 +185,58 @@ impl<'h> PlaneWork<'h> {
     fn flex(&mut self, r: &mut BitReader, mx: usize, my: usize) {
         let stride = self.stride();
         let bits = self.side[my % 2][mx].hp_bits;
-        self.dec.flex(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], bits);
+        let (fmt, channels, trim) = (self.hdr.clr_fmt, self.hdr.channels, self.dec.trim);
+        macroblock::flex_mb(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], fmt, channels, trim, bits);
     }
 
     /// HP prediction of macroblock (`mx`, `my`) (after its flexbits).
     fn predict_hp(&mut self, mx: usize, my: usize) {
-        let fmt = self.hdr.clr_fmt;
-        let channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { self.hdr.channels };
+        let (fmt, channels) = (self.hdr.clr_fmt, self.hdr.channels);
         let mode = self.side[my % 2][mx].hp_mode;
-        let c = self.mb(mx, my);
-        for ch in 0..channels {
-            predict::predict_hp(fmt, c, ch, mode);
-        }
+        predict_hp_mb(fmt, channels, self.mb(mx, my), mode);
     }
 
-    /// Row `my`, dequantized, into `out` (exactly a row long).
-    fn output_row(&self, my: usize, out: &mut [i32]) -> Result<()> {
+    /// Row `my` into `out` (exactly a row long): dequantized, or (`quantized`) as it is, for
+    /// a FLEXBITS stage to complete.
+    fn output_row(&self, my: usize, out: &mut [i32], quantized: bool) -> Result<()> {
         let s = my % 2;
-        out.get_mut(..self.rows[s].len())
-            .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?
-            .copy_from_slice(&self.rows[s]);
-        let (fmt, scaled) = (self.hdr.clr_fmt, self.hdr.scaled);
-        for (c, side) in out.chunks_exact_mut(self.stride()).zip(&self.side[s]) {
-            let lp = self.qp.lp.get(usize::from(side.lp_qi)).ok_or_else(|| Error::invalid("JPEG XR: LP QP index"))?;
-            let hp = self.qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
-            for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).enumerate() {
-                let luma = ch == 0;
-                quant::dequantize(
-                    cc,
-                    quant::channel_shape(fmt, ch),
-                    quant::step(self.qp.dc.index[ch], scaled, luma),
-                    quant::step(lp.index[ch], scaled, luma),
-                    quant::step(hp.index[ch], scaled, true),
-                );
+        let out = out
+            .get_mut(..self.rows[s].len())
+            .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?;
+        out.copy_from_slice(&self.rows[s]);
+        if !quantized {
+            for (c, side) in out.chunks_exact_mut(self.stride()).zip(&self.side[s]) {
+                dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
             }
         }
         Ok(())
     }
+}
+
+/// HP prediction of one macroblock (`c`: all channels); for 420 and 422 the luma call also
+/// predicts the chroma channels.
+fn predict_hp_mb(fmt: ClrFmt, channels: usize, c: &mut [i32], mode: u8) {
+    let channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
+    for ch in 0..channels {
+        predict::predict_hp(fmt, c, ch, mode);
+    }
+}
+
+/// Dequantizes one macroblock (`c`: all channels) with the tile's quantizers.
+fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled: bool) -> Result<()> {
+    let lp = qp.lp.get(usize::from(side.lp_qi)).ok_or_else(|| Error::invalid("JPEG XR: LP QP index"))?;
+    let hp = qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
+    for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).enumerate() {
+        let luma = ch == 0;
+        quant::dequantize(
+            cc,
+            quant::channel_shape(fmt, ch),
+            quant::step(qp.dc.index[ch], scaled, luma),
+            quant::step(lp.index[ch], scaled, luma),
+            quant::step(hp.index[ch], scaled, true),
+        );
+    }
+    Ok(())
 }
 
 /// Runs `f` on every macroblock of row `my` (`w` wide), each plane in turn (primary, then
@@ -267,6 +283,8 @@ pub struct TileDecoder<'a> {
     /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS, as many as coded.
     readers: Vec<BitReader<'a>>,
     planes: Vec<PlaneWork<'a>>,
+    /// Leave the FLEXBITS packet, HP prediction and dequantization to a [`FlexStage`].
+    defer_flex: bool,
 }
 
 impl<'a> TileDecoder<'a> {
@@ -318,13 +336,34 @@ impl<'a> TileDecoder<'a> {
         for r in &readers {
             r.check("a JPEG XR tile header")?;
         }
-        Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes })
+        Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes, defer_flex: false })
     }
 
     /// Decodes the next macroblock row into `out` (one buffer per plane: primary, then
     /// alpha; each exactly `width × channels` arrays of [`MB_COEFFS`] long), dequantized and
     /// predicted. An error after the last row.
     pub fn next_row(&mut self, out: &mut [&mut [i32]]) -> Result<()> {
+        self.decode_row(out, None)
+    }
+
+    /// True when the codestream has a FLEXBITS packet that a [`FlexStage`] can decode apart
+    /// (frequency order with flexbits).
+    pub fn has_flex_packet(&self) -> bool {
+        self.readers.len() == 4
+    }
+
+    /// Decodes the next row without its FLEXBITS (which must be in a packet of their own):
+    /// `out` gets the row quantized, without HP prediction, and `side` (one per plane, a row
+    /// long) what [`FlexStage::complete_row`] needs.
+    pub(crate) fn next_row_deferred(&mut self, out: &mut [&mut [i32]], side: &mut [&mut [MbSide]]) -> Result<()> {
+        if !self.has_flex_packet() {
+            return Err(Error::invalid("JPEG XR: deferred flexbits without a FLEXBITS packet (a bug)"));
+        }
+        self.defer_flex = true;
+        self.decode_row(out, Some(side))
+    }
+
+    fn decode_row(&mut self, out: &mut [&mut [i32]], side: Option<&mut [&mut [MbSide]]>) -> Result<()> {
         let (w, my, bands) = (self.w, self.my, self.bands);
         if my >= self.h {
             return Err(Error::invalid("JPEG XR: a tile read past its last row (a bug in the decoder)"));
@@ -377,7 +416,7 @@ impl<'a> TileDecoder<'a> {
                     Ok(())
                 })?;
             }
-            if let Some(r) = rest.get_mut(2) {
+            if let Some(r) = rest.get_mut(2).filter(|_| !self.defer_flex) {
                 each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
                     p.flex(r, mx, my);
                     p.predict_hp(mx, my);
@@ -386,9 +425,68 @@ impl<'a> TileDecoder<'a> {
             }
         }
         for (p, o) in self.planes.iter().zip(out.iter_mut()) {
-            p.output_row(my, o)?;
+            p.output_row(my, o, self.defer_flex)?;
+        }
+        if let Some(side) = side {
+            for (p, s) in self.planes.iter().zip(side.iter_mut()) {
+                s.get_mut(..w)
+                    .ok_or_else(|| Error::invalid("JPEG XR: a short side buffer (a bug in the decoder)"))?
+                    .copy_from_slice(&p.side[my % 2]);
+            }
         }
         self.my += 1;
+        Ok(())
+    }
+}
+
+/// The FLEXBITS packet of a tile in frequency order, decoded apart from the other packets
+/// (so that it can run on another thread than the DC, LP and HP packets, a row behind them):
+/// completes the rows [`TileDecoder::next_row_deferred`] gives with their flexbits, HP
+/// prediction and dequantization.
+pub(crate) struct FlexStage<'a> {
+    w: usize,
+    reader: BitReader<'a>,
+    trim: u32,
+    /// Per plane: INTERNAL_CLR_FMT, channels, SCALED_FLAG and the tile's quantizers.
+    planes: Vec<(ClrFmt, usize, bool, TileQp)>,
+}
+
+impl<'a> FlexStage<'a> {
+    /// The FLEXBITS stage of tile (`tx`, `ty`) (the tile headers are read again for its
+    /// quantizers).
+    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+        let mut t = TileDecoder::new(cs, data, tx, ty)?;
+        let reader = t.readers.pop().filter(|_| t.readers.len() == 3).ok_or_else(|| {
+            Error::invalid("JPEG XR: a FLEXBITS stage without a FLEXBITS packet (a bug in the decoder)")
+        })?;
+        let trim = t.planes[0].dec.trim;
+        let planes = t.planes.iter().map(|p| (p.hdr.clr_fmt, p.hdr.channels, p.hdr.scaled, p.qp.clone())).collect();
+        Ok(FlexStage { w: t.w, reader, trim, planes })
+    }
+
+    /// Completes one row (per plane: the row, and its side information).
+    pub fn complete_row(&mut self, rows: &mut [&mut [i32]], side: &[&[MbSide]]) -> Result<()> {
+        if rows.len() < self.planes.len() || side.len() < self.planes.len() {
+            return Err(Error::invalid("JPEG XR: a FLEXBITS stage given too few planes (a bug)"));
+        }
+        for mx in 0..self.w {
+            for (i, (fmt, channels, _, _)) in self.planes.iter().enumerate() {
+                let stride = channels * MB_COEFFS;
+                let c = rows[i]
+                    .get_mut(mx * stride..(mx + 1) * stride)
+                    .ok_or_else(|| Error::invalid("JPEG XR: a short row (a bug)"))?;
+                let s = side[i].get(mx).ok_or_else(|| Error::invalid("JPEG XR: a short side row (a bug)"))?;
+                macroblock::flex_mb(&mut self.reader, c, *fmt, *channels, self.trim, s.hp_bits);
+                predict_hp_mb(*fmt, *channels, c, s.hp_mode);
+            }
+        }
+        self.reader.check("a JPEG XR FLEXBITS packet")?;
+        for (i, (fmt, channels, scaled, qp)) in self.planes.iter().enumerate() {
+            let stride = channels * MB_COEFFS;
+            for (c, s) in rows[i].chunks_exact_mut(stride).zip(side[i]) {
+                dequantize_mb(c, s, qp, *fmt, *scaled)?;
+            }
+        }
         Ok(())
     }
 }
