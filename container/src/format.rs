@@ -2,6 +2,7 @@
 //! signature, chunk types, and the payloads of HEAD, DATA, COLR, HDRM, INDX and META.
 //! All integers are big-endian, all floats IEEE 754 big-endian.
 
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::{
     Channels, Chromaticities, ColorInfo, ColorPrimaries, ContentLightLevel, Error, Hdr10Metadata, Limits,
     MasteringDisplay, Result,
@@ -196,37 +197,39 @@ impl Head {
         u64::from(self.frames).saturating_mul(self.tiles_per_frame())
     }
 
-    pub(crate) fn to_bytes(self) -> [u8; HEAD_LEN] {
-        let mut b = [0u8; HEAD_LEN];
-        b[0] = VERSION;
-        b[1] = self.channels.count() as u8;
-        b[2..6].copy_from_slice(&self.codec);
-        b[6..10].copy_from_slice(&self.width.to_be_bytes());
-        b[10..14].copy_from_slice(&self.height.to_be_bytes());
-        b[14..18].copy_from_slice(&self.frames.to_be_bytes());
-        b[18..22].copy_from_slice(&self.tile_width.to_be_bytes());
-        b[22..26].copy_from_slice(&self.tile_height.to_be_bytes());
-        b
+    pub(crate) fn to_bytes(self) -> Vec<u8> {
+        let mut w = payload_writer();
+        w.u8(VERSION);
+        w.u8(self.channels.count() as u8);
+        w.bytes(&self.codec);
+        for v in [self.width, self.height, self.frames, self.tile_width, self.tile_height] {
+            w.u32(v);
+        }
+        debug_assert_eq!(w.len(), HEAD_LEN);
+        w.into_vec()
     }
 
     pub(crate) fn parse(p: &[u8]) -> Result<Head> {
-        if p.first().is_some_and(|&v| v != VERSION) {
-            return Err(Error::unsupported(format!("format version {} (this reader knows version {VERSION})", p[0])));
-        }
-        let mut c = Cursor::exact(p, HEAD_LEN, "HEAD")?;
-        let _version = c.u8();
-        let channels = c.u8();
-        let channels = Channels::from_count(usize::from(channels))
-            .ok_or_else(|| Error::invalid(format!("{channels} channels (expected 3 or 4)")))?;
-        let head = Head {
-            codec: c.array(),
-            width: c.u32(),
-            height: c.u32(),
-            channels,
-            frames: c.u32(),
-            tile_width: c.u32(),
-            tile_height: c.u32(),
-        };
+        let head = read_payload(p, "the HEAD fields", |r| {
+            let version = r.u8("the format version")?;
+            if version != VERSION {
+                return Err(Error::unsupported(format!(
+                    "format version {version} (this reader knows version {VERSION})"
+                )));
+            }
+            let channels = r.u8("the channel count")?;
+            let channels = Channels::from_count(usize::from(channels))
+                .ok_or_else(|| Error::invalid(format!("{channels} channels (expected 3 or 4)")))?;
+            Ok(Head {
+                codec: r.array("the codec id")?,
+                width: r.u32("the width")?,
+                height: r.u32("the height")?,
+                channels,
+                frames: r.u32("the frame count")?,
+                tile_width: r.u32("the tile width")?,
+                tile_height: r.u32("the tile height")?,
+            })
+        })?;
         head.check()?;
         Ok(head)
     }
@@ -248,25 +251,28 @@ pub struct DataHeader {
 }
 
 impl DataHeader {
-    pub(crate) fn to_bytes(self) -> [u8; DATA_HEADER_LEN] {
-        let mut b = [0u8; DATA_HEADER_LEN];
-        for (i, v) in [self.frame, self.x, self.y, self.width, self.height].into_iter().enumerate() {
-            b[4 * i..4 * i + 4].copy_from_slice(&v.to_be_bytes());
+    pub(crate) fn to_bytes(self) -> Vec<u8> {
+        let mut w = payload_writer();
+        for v in [self.frame, self.x, self.y, self.width, self.height] {
+            w.u32(v);
         }
-        b
+        debug_assert_eq!(w.len(), DATA_HEADER_LEN);
+        w.into_vec()
     }
 
     /// Splits a DATA payload into its header and the codec payload.
     pub(crate) fn parse(p: &[u8]) -> Result<(DataHeader, &[u8])> {
-        if p.len() < DATA_HEADER_LEN {
-            return Err(Error::invalid(format!(
-                "payload of {} bytes, shorter than the {DATA_HEADER_LEN}-byte tile header",
-                p.len()
-            )));
-        }
-        let (h, rest) = p.split_at(DATA_HEADER_LEN);
-        let mut c = Cursor::new(h);
-        Ok((DataHeader { frame: c.u32(), x: c.u32(), y: c.u32(), width: c.u32(), height: c.u32() }, rest))
+        read_payload(p, "the tile", |r| {
+            let what = "the tile header";
+            let header = DataHeader {
+                frame: r.u32(what)?,
+                x: r.u32(what)?,
+                y: r.u32(what)?,
+                width: r.u32(what)?,
+                height: r.u32(what)?,
+            };
+            Ok((header, r.rest()))
+        })
     }
 
     /// The tile's position in the file's grid, as `frame * tiles_per_frame + row * columns + column`;
@@ -306,28 +312,33 @@ pub struct IndexEntry {
 }
 
 pub(crate) fn index_bytes(entries: &[IndexEntry]) -> Vec<u8> {
-    let mut b = Vec::with_capacity(4 + entries.len() * INDEX_ENTRY_LEN);
-    b.extend_from_slice(&(entries.len() as u32).to_be_bytes());
+    let mut w = ByteWriter::from_vec(Vec::with_capacity(4 + entries.len() * INDEX_ENTRY_LEN), ByteOrder::Big);
+    w.u32(entries.len() as u32);
     for e in entries {
-        b.extend_from_slice(&e.offset.to_be_bytes());
-        b.extend_from_slice(&e.frame.to_be_bytes());
-        b.extend_from_slice(&e.x.to_be_bytes());
-        b.extend_from_slice(&e.y.to_be_bytes());
+        w.u64(e.offset);
+        for v in [e.frame, e.x, e.y] {
+            w.u32(v);
+        }
     }
-    b
+    w.into_vec()
 }
 
 pub(crate) fn parse_index(p: &[u8]) -> Result<Vec<IndexEntry>> {
-    let mut c = Cursor::new(p);
-    let n = c.need(4).map(|_| c.u32())?;
-    if (p.len() - 4) as u64 != u64::from(n) * INDEX_ENTRY_LEN as u64 {
-        return Err(Error::invalid(format!(
-            "{n} entries need {} bytes, the payload has {}",
-            4 + u64::from(n) * 20,
-            p.len()
-        )));
-    }
-    Ok((0..n).map(|_| IndexEntry { offset: c.u64(), frame: c.u32(), x: c.u32(), y: c.u32() }).collect())
+    read_payload(p, "the last entry", |r| {
+        let n = r.u32("the entry count")?;
+        // Every entry must be there before any is stored.
+        r.check_remaining(
+            u64::from(n),
+            INDEX_ENTRY_LEN as u64,
+            format_args!("{n} entries of {INDEX_ENTRY_LEN} bytes"),
+        )?;
+        (0..n)
+            .map(|i| {
+                let what = format_args!("entry {i}");
+                Ok(IndexEntry { offset: r.u64(what)?, frame: r.u32(what)?, x: r.u32(what)?, y: r.u32(what)? })
+            })
+            .collect()
+    })
 }
 
 // The COLR chunk stores 1 + the index into this list; the order is part of the format.
@@ -335,10 +346,22 @@ const NAMED_PRIMARIES: [ColorPrimaries; 8] = ColorPrimaries::NAMED;
 /// The COLR primaries id of [`ColorPrimaries::Unspecified`].
 const UNSPECIFIED_ID: u8 = 255;
 
-fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
-    for x in v {
-        b.extend_from_slice(&x.to_be_bytes());
+fn put_f64s(w: &mut ByteWriter, v: &[f64]) {
+    for &x in v {
+        w.f64(x);
     }
+}
+
+/// `N` big-endian f64, each finite.
+fn finite_f64s<const N: usize>(r: &mut ByteReader<'_>, what: &str) -> Result<[f64; N]> {
+    let mut v = [0f64; N];
+    for x in &mut v {
+        *x = r.f64(what)?;
+        if !x.is_finite() {
+            return Err(Error::invalid(format!("non-finite value {x} in {what}")));
+        }
+    }
+    Ok(v)
 }
 
 fn chroma_values(c: &Chromaticities) -> [f64; 8] {
@@ -348,206 +371,221 @@ fn chroma_values(c: &Chromaticities) -> [f64; 8] {
 /// COLR: primaries id (0 = custom, followed by eight f64 chromaticities; 255 = unspecified),
 /// then `nits_per_unit` (f32).
 pub(crate) fn color_bytes(color: &ColorInfo) -> Vec<u8> {
-    let mut b = Vec::with_capacity(69);
+    let mut w = ByteWriter::from_vec(Vec::with_capacity(69), ByteOrder::Big);
     match color.primaries {
         ColorPrimaries::Custom(ch) => {
-            b.push(0);
-            put_f64s(&mut b, &chroma_values(&ch));
+            w.u8(0);
+            put_f64s(&mut w, &chroma_values(&ch));
         }
-        ColorPrimaries::Unspecified => b.push(UNSPECIFIED_ID),
+        ColorPrimaries::Unspecified => w.u8(UNSPECIFIED_ID),
         named => match NAMED_PRIMARIES.iter().position(|p| *p == named) {
-            Some(i) => b.push(i as u8 + 1),
+            Some(i) => w.u8(i as u8 + 1),
             // A space without a number of its own: its chromaticities.
             None => {
-                b.push(0);
-                put_f64s(&mut b, &chroma_values(&named.chromaticities()));
+                w.u8(0);
+                put_f64s(&mut w, &chroma_values(&named.chromaticities()));
             }
         },
     }
-    b.extend_from_slice(&color.nits_per_unit.to_be_bytes());
-    b
+    w.f32(color.nits_per_unit);
+    w.into_vec()
 }
 
 pub(crate) fn parse_color(p: &[u8]) -> Result<ColorInfo> {
-    let id = *p.first().ok_or_else(|| Error::invalid("empty payload"))?;
-    let primaries = match id {
-        0 => {
-            let mut c = Cursor::exact(p, 69, "COLR with custom primaries")?;
-            c.u8();
-            let v = c.finite_f64s::<8>()?;
-            ColorPrimaries::Custom(Chromaticities {
-                red: [v[0], v[1]],
-                green: [v[2], v[3]],
-                blue: [v[4], v[5]],
-                white: [v[6], v[7]],
-            })
+    read_payload(p, "nits_per_unit", |r| {
+        let id = r.u8("the primaries id")?;
+        let primaries = match id {
+            0 => {
+                let v = finite_f64s::<8>(r, "the custom chromaticities")?;
+                ColorPrimaries::Custom(Chromaticities {
+                    red: [v[0], v[1]],
+                    green: [v[2], v[3]],
+                    blue: [v[4], v[5]],
+                    white: [v[6], v[7]],
+                })
+            }
+            1..=8 => NAMED_PRIMARIES[usize::from(id - 1)],
+            UNSPECIFIED_ID => ColorPrimaries::Unspecified,
+            _ => return Err(Error::invalid(format!("unknown primaries id {id}"))),
+        };
+        let nits = r.f32("nits_per_unit")?;
+        if !(nits.is_finite() && nits > 0.0) {
+            return Err(Error::invalid(format!("nits_per_unit {nits} is not a positive number")));
         }
-        1..=8 => {
-            Cursor::exact(p, 5, "COLR with named primaries")?;
-            NAMED_PRIMARIES[usize::from(id - 1)]
-        }
-        UNSPECIFIED_ID => {
-            Cursor::exact(p, 5, "COLR with unspecified primaries")?;
-            ColorPrimaries::Unspecified
-        }
-        _ => return Err(Error::invalid(format!("unknown primaries id {id}"))),
-    };
-    let nits = f32::from_be_bytes([p[p.len() - 4], p[p.len() - 3], p[p.len() - 2], p[p.len() - 1]]);
-    if !(nits.is_finite() && nits > 0.0) {
-        return Err(Error::invalid(format!("nits_per_unit {nits} is not a positive number")));
-    }
-    Ok(ColorInfo { primaries, nits_per_unit: nits, hdr10: None })
+        Ok(ColorInfo { primaries, nits_per_unit: nits, hdr10: None })
+    })
 }
 
 /// HDRM: flags (bit 0 mastering display, bit 1 content light level), then those present.
 pub(crate) fn hdr10_bytes(m: &Hdr10Metadata) -> Vec<u8> {
-    let mut b = vec![u8::from(m.mastering_display.is_some()) | (u8::from(m.content_light_level.is_some()) << 1)];
+    let mut w = payload_writer();
+    w.u8(u8::from(m.mastering_display.is_some()) | (u8::from(m.content_light_level.is_some()) << 1));
     if let Some(d) = &m.mastering_display {
         let [r, g, bl] = d.primaries;
         put_f64s(
-            &mut b,
+            &mut w,
             &[r[0], r[1], g[0], g[1], bl[0], bl[1], d.white[0], d.white[1], d.max_luminance, d.min_luminance],
         );
     }
     if let Some(l) = &m.content_light_level {
-        b.extend_from_slice(&l.max_cll.to_be_bytes());
-        b.extend_from_slice(&l.max_fall.to_be_bytes());
+        w.u16(l.max_cll);
+        w.u16(l.max_fall);
     }
-    b
+    w.into_vec()
 }
 
 pub(crate) fn parse_hdr10(p: &[u8]) -> Result<Hdr10Metadata> {
-    let flags = *p.first().ok_or_else(|| Error::invalid("empty payload"))?;
-    if flags > 3 {
-        return Err(Error::invalid(format!("unknown flags 0x{flags:02X}")));
-    }
-    let (md, cll) = (flags & 1 != 0, flags & 2 != 0);
-    let mut c = Cursor::exact(p, 1 + if md { 80 } else { 0 } + if cll { 4 } else { 0 }, "HDRM with these flags")?;
-    c.u8();
-    let mastering_display = if md {
-        let v = c.finite_f64s::<10>()?;
-        Some(MasteringDisplay {
-            primaries: [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]]],
-            white: [v[6], v[7]],
-            max_luminance: v[8],
-            min_luminance: v[9],
-        })
-    } else {
-        None
-    };
-    let content_light_level = cll.then(|| ContentLightLevel { max_cll: c.u16(), max_fall: c.u16() });
-    Ok(Hdr10Metadata { mastering_display, content_light_level })
+    read_payload(p, "the fields its flags announce", |r| {
+        let flags = r.u8("the flags")?;
+        if flags > 3 {
+            return Err(Error::invalid(format!("unknown flags 0x{flags:02X}")));
+        }
+        let mastering_display = if flags & 1 != 0 {
+            let v = finite_f64s::<10>(r, "the mastering display")?;
+            Some(MasteringDisplay {
+                primaries: [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]]],
+                white: [v[6], v[7]],
+                max_luminance: v[8],
+                min_luminance: v[9],
+            })
+        } else {
+            None
+        };
+        let content_light_level = if flags & 2 != 0 {
+            let what = "the content light level";
+            Some(ContentLightLevel { max_cll: r.u16(what)?, max_fall: r.u16(what)? })
+        } else {
+            None
+        };
+        Ok(Hdr10Metadata { mastering_display, content_light_level })
+    })
 }
 
 /// META: pair count, then per pair a u32 length and UTF-8 bytes for the key, the same for the value.
 pub(crate) fn meta_bytes(pairs: &[(String, String)]) -> Result<Vec<u8>> {
-    let mut b = Vec::new();
-    b.extend_from_slice(
-        &u32::try_from(pairs.len()).map_err(|_| Error::invalid("too many metadata pairs"))?.to_be_bytes(),
-    );
+    let mut w = payload_writer();
+    w.u32(u32::try_from(pairs.len()).map_err(|_| Error::invalid("too many metadata pairs"))?);
     for (k, v) in pairs {
         if k.is_empty() {
             return Err(Error::invalid("a metadata key is empty"));
         }
         for s in [k, v] {
             let n = u32::try_from(s.len()).map_err(|_| Error::invalid("a metadata string is longer than 4 GiB"))?;
-            b.extend_from_slice(&n.to_be_bytes());
-            b.extend_from_slice(s.as_bytes());
+            w.u32(n);
+            w.bytes(s.as_bytes());
         }
     }
-    Ok(b)
+    Ok(w.into_vec())
 }
 
 pub(crate) fn parse_meta(p: &[u8]) -> Result<Vec<(String, String)>> {
-    let mut c = Cursor::new(p);
-    let n = c.need(4).map(|_| c.u32())?;
-    // No pre-allocation from the declared count: every pair needs at least 8 bytes of the payload.
-    let mut pairs = Vec::new();
-    for i in 0..n {
-        let mut s = [String::new(), String::new()];
-        for (j, part) in s.iter_mut().enumerate() {
-            let what = if j == 0 { "key" } else { "value" };
-            let len = c.need(4).map(|_| c.u32())? as usize;
-            let bytes =
-                c.take(len).map_err(|_| Error::invalid(format!("the {what} of pair {i} overruns the payload")))?;
-            *part = std::str::from_utf8(bytes)
-                .map_err(|_| Error::invalid(format!("the {what} of pair {i} is not UTF-8")))?
-                .to_string();
-        }
-        let [k, v] = s;
-        if k.is_empty() {
-            return Err(Error::invalid(format!("the key of pair {i} is empty")));
-        }
-        pairs.push((k, v));
-    }
-    if c.pos != p.len() {
-        return Err(Error::invalid(format!("{} bytes after the last pair", p.len() - c.pos)));
-    }
-    Ok(pairs)
-}
-
-/// Reads big-endian fields from a payload whose length was checked beforehand
-/// (the fixed-size readers panic on overrun, so every caller checks with `exact` or `need`).
-pub(crate) struct Cursor<'a> {
-    b: &'a [u8],
-    pos: usize,
-}
-
-impl<'a> Cursor<'a> {
-    pub(crate) fn new(b: &'a [u8]) -> Self {
-        Cursor { b, pos: 0 }
-    }
-
-    fn exact(b: &'a [u8], len: usize, what: &str) -> Result<Self> {
-        if b.len() != len {
-            return Err(Error::invalid(format!("payload of {} bytes ({what} has {len})", b.len())));
-        }
-        Ok(Cursor::new(b))
-    }
-
-    /// Checks that `n` more bytes remain (the fixed-size readers below then consume them).
-    fn need(&self, n: usize) -> Result<()> {
-        let left = self.b.len() - self.pos;
-        if left < n {
-            return Err(Error::invalid(format!("payload ends {} bytes too early", n - left)));
-        }
-        Ok(())
-    }
-
-    /// The next `n` bytes, consumed, or an error if fewer remain.
-    fn take(&mut self, n: usize) -> Result<&'a [u8]> {
-        self.need(n)?;
-        let s = &self.b[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(s)
-    }
-
-    fn array<const N: usize>(&mut self) -> [u8; N] {
-        let mut a = [0u8; N];
-        a.copy_from_slice(&self.b[self.pos..self.pos + N]);
-        self.pos += N;
-        a
-    }
-    fn u8(&mut self) -> u8 {
-        self.array::<1>()[0]
-    }
-    fn u16(&mut self) -> u16 {
-        u16::from_be_bytes(self.array())
-    }
-    pub(crate) fn u32(&mut self) -> u32 {
-        u32::from_be_bytes(self.array())
-    }
-    fn u64(&mut self) -> u64 {
-        u64::from_be_bytes(self.array())
-    }
-    fn finite_f64s<const N: usize>(&mut self) -> Result<[f64; N]> {
-        let mut v = [0f64; N];
-        for x in &mut v {
-            *x = f64::from_be_bytes(self.array());
-            if !x.is_finite() {
-                return Err(Error::invalid(format!("non-finite value {x}")));
+    read_payload(p, "the last pair", |r| {
+        let n = r.u32("the pair count")?;
+        // No pre-allocation from the declared count: every pair needs at least 8 bytes of the payload.
+        let mut pairs = Vec::new();
+        for i in 0..n {
+            let mut s = [String::new(), String::new()];
+            for (j, part) in s.iter_mut().enumerate() {
+                let what = if j == 0 { "key" } else { "value" };
+                let len = r.u32(format_args!("the length of the {what} of pair {i}"))?;
+                let bytes = r.bytes(u64::from(len), format_args!("the {what} of pair {i}"))?;
+                *part = std::str::from_utf8(bytes)
+                    .map_err(|_| Error::invalid(format!("the {what} of pair {i} is not UTF-8")))?
+                    .to_string();
             }
+            let [k, v] = s;
+            if k.is_empty() {
+                return Err(Error::invalid(format!("the key of pair {i} is empty")));
+            }
+            pairs.push((k, v));
         }
-        Ok(v)
+        Ok(pairs)
+    })
+}
+
+/// A big-endian writer for a chunk payload.
+fn payload_writer() -> ByteWriter {
+    ByteWriter::new(ByteOrder::Big)
+}
+
+/// Reads the big-endian fields of a chunk payload with `read`, which must use up the payload
+/// (`last` names what it ends with, for the message when bytes follow). A chunk's length is
+/// CRC-checked, so a payload that ends inside a field is an invalid chunk, not a truncated file.
+fn read_payload<'a, T>(p: &'a [u8], last: &str, read: impl FnOnce(&mut ByteReader<'a>) -> Result<T>) -> Result<T> {
+    let mut r = ByteReader::be(p);
+    let value = read(&mut r).map_err(|e| match e {
+        Error::Truncated { what } => Error::invalid(format!("the payload ends inside {what}")),
+        e => e,
+    })?;
+    match r.remaining() {
+        0 => Ok(value),
+        n => Err(Error::invalid(format!("{n} bytes after {last}, at the end of the {}-byte payload", p.len()))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn invalid(r: Result<impl std::fmt::Debug>, says: &str) {
+        match r {
+            Err(e @ Error::Invalid { .. }) => assert!(e.to_string().contains(says), "{e}"),
+            other => panic!("expected an invalid payload saying '{says}', got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_payload_shorter_or_longer_than_its_fields_is_invalid_and_named() {
+        let head = Head::new(*b"RF32", 5, 3, Channels::Rgb).with_tiles(2, 2).with_frames(4);
+        let b = head.to_bytes();
+        assert_eq!(Head::parse(&b).unwrap(), head);
+        for cut in 0..b.len() {
+            assert!(matches!(Head::parse(&b[..cut]), Err(Error::Invalid { .. })), "cut at {cut}");
+        }
+        invalid(Head::parse(&b[..20]), "the payload ends inside the tile width (bytes 18..22 of a 20-byte input)");
+        invalid(Head::parse(&[&b[..], &[0]].concat()), "1 bytes after the HEAD fields");
+        let mut v2 = b.clone();
+        v2[0] = 2;
+        assert!(matches!(Head::parse(&v2), Err(Error::Unsupported { .. })));
+
+        let tile = head.tile(3, 1, 1);
+        let data = [&tile.to_bytes()[..], b"payload"].concat();
+        assert_eq!(DataHeader::parse(&data).unwrap(), (tile, &b"payload"[..]));
+        invalid(DataHeader::parse(&data[..19]), "the payload ends inside the tile header");
+
+        let entries = [IndexEntry { offset: 1 << 40, frame: 1, x: 2, y: 3 }; 2];
+        let b = index_bytes(&entries);
+        assert_eq!(parse_index(&b).unwrap(), entries);
+        invalid(parse_index(&b[..2]), "the entry count");
+        invalid(parse_index(&b[..b.len() - 1]), "2 entries of 20 bytes");
+        invalid(parse_index(&[&b[..], &[0]].concat()), "1 bytes after the last entry");
+
+        let pairs = [("software".to_string(), "test".to_string()), ("k".to_string(), String::new())];
+        let b = meta_bytes(&pairs).unwrap();
+        assert_eq!(parse_meta(&b).unwrap(), pairs);
+        invalid(parse_meta(&b[..b.len() - 3]), "the length of the value of pair 1");
+        invalid(parse_meta(&b[..10]), "the key of pair 0");
+        invalid(parse_meta(&[&b[..], &[0]].concat()), "1 bytes after the last pair");
+
+        let color = ColorInfo {
+            primaries: ColorPrimaries::Custom(ColorPrimaries::Bt709.chromaticities()),
+            ..ColorInfo::default()
+        };
+        let b = color_bytes(&color);
+        assert_eq!((b.len(), parse_color(&b).unwrap()), (69, color));
+        invalid(parse_color(&[]), "the primaries id");
+        invalid(parse_color(&b[..68]), "nits_per_unit");
+        invalid(parse_color(&[1, 0, 0, 0]), "nits_per_unit");
+        invalid(parse_color(&[1, 0x42, 0xC8, 0, 0, 9]), "1 bytes after nits_per_unit");
+
+        let m = Hdr10Metadata {
+            mastering_display: None,
+            content_light_level: Some(ContentLightLevel { max_cll: 4000, max_fall: 300 }),
+        };
+        let b = hdr10_bytes(&m);
+        assert_eq!(parse_hdr10(&b).unwrap(), m);
+        invalid(parse_hdr10(&b[..4]), "the content light level");
+        invalid(parse_hdr10(&[3, 0]), "the mastering display");
+        invalid(parse_hdr10(&[&b[..], &[0]].concat()), "1 bytes after the fields its flags announce");
     }
 }

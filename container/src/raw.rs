@@ -14,6 +14,7 @@
 //! Colour information is not stored: inside `.hdrc` it lives in COLR/HDRM.
 
 use half::f16;
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
 };
@@ -69,43 +70,39 @@ impl Sample for RawF16Codec {
 
 fn encode<S: Sample>(image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
     settings.check_options(S::NAME, &[])?;
-    let mut out = Vec::with_capacity(HEADER_LEN + image.samples().len() * S::BYTES);
-    out.extend_from_slice(&S::ID);
-    out.extend_from_slice(&image.width().to_le_bytes());
-    out.extend_from_slice(&image.height().to_le_bytes());
-    out.push(image.channels().count() as u8);
+    let out = Vec::with_capacity(HEADER_LEN + image.samples().len() * S::BYTES);
+    let mut w = ByteWriter::from_vec(out, ByteOrder::Little);
+    w.bytes(&S::ID);
+    w.u32(image.width());
+    w.u32(image.height());
+    w.u8(image.channels().count() as u8);
+    let out = w.as_mut_vec();
     for &v in image.samples() {
-        S::put(v, &mut out);
+        S::put(v, out);
     }
-    Ok(out)
+    Ok(w.into_vec())
 }
 
 /// Parses the header, checks the size against the limits' dimensions and the payload's length
 /// against it; returns width, height, channels and the samples' bytes.
 fn header<'a, S: Sample>(data: &'a [u8], limits: &Limits) -> Result<(u32, u32, Channels, &'a [u8])> {
-    if data.len() < HEADER_LEN {
-        return Err(Error::truncated(format!("the {}-byte {} header", HEADER_LEN, S::NAME)));
-    }
-    if data[..4] != S::ID {
+    let mut r = ByteReader::le(data);
+    // The whole header is there before any of it is judged.
+    let mut h = r.sub(HEADER_LEN as u64, format_args!("the {HEADER_LEN}-byte {} header", S::NAME))?;
+    if h.array::<4>("the id")? != S::ID {
         return Err(Error::invalid(format!("not a {} payload (wrong id)", S::NAME)));
     }
-    let width = u32::from_le_bytes([data[4], data[5], data[6], data[7]]);
-    let height = u32::from_le_bytes([data[8], data[9], data[10], data[11]]);
-    let channels = Channels::from_count(usize::from(data[12]))
-        .ok_or_else(|| Error::invalid(format!("{} header: {} channels (expected 3 or 4)", S::NAME, data[12])))?;
+    let (width, height) = (h.u32("the width")?, h.u32("the height")?);
+    let count = h.u8("the channel count")?;
+    let channels = Channels::from_count(usize::from(count))
+        .ok_or_else(|| Error::invalid(format!("{} header: {count} channels (expected 3 or 4)", S::NAME)))?;
     limits.check_dimensions(u64::from(width), u64::from(height))?;
-    let body = &data[HEADER_LEN..];
     // Checked in u64 before any allocation: with `Limits::none()` the product may not fit.
-    let need = (u64::from(width) * u64::from(height)).saturating_mul((channels.count() * S::BYTES) as u64);
-    if (body.len() as u64) < need {
-        return Err(Error::truncated(format!(
-            "the {} samples of a {width}x{height} image ({need} bytes, {} present)",
-            S::NAME,
-            body.len()
-        )));
-    }
-    if body.len() as u64 > need {
-        return Err(Error::invalid(format!("{} bytes after the {} samples", body.len() as u64 - need, S::NAME)));
+    let what = format_args!("the {} samples of a {width}x{height} image", S::NAME);
+    let need = r.check_remaining(u64::from(width) * u64::from(height), (channels.count() * S::BYTES) as u64, what)?;
+    let body = r.bytes(need, what)?;
+    if r.remaining() > 0 {
+        return Err(Error::invalid(format!("{} bytes after the {} samples", r.remaining(), S::NAME)));
     }
     Ok((width, height, channels, body))
 }

@@ -1,7 +1,8 @@
 //! The validating reader over a file held in memory.
 
-use crate::crc::crc32c;
-use crate::format::{self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, MAX_CHUNK_LEN, SIGNATURE};
+use crate::crc::Crc32c;
+use crate::format::{self, type_name, DataHeader, Head, IndexEntry, MAX_CHUNK_LEN, SIGNATURE};
+use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::{ColorInfo, Error, Hdr10Metadata, Limits, Result};
 
 /// One DATA chunk of a file: its tile header and the codec payload, borrowed from the file.
@@ -71,35 +72,39 @@ struct Chunk<'a> {
     ctx: String,
 }
 
-/// Reads the chunk at `*pos` and moves `*pos` past it: checks its length against the bytes
-/// that remain, its CRC (of a DATA chunk only if `check_data_crc`) and its type's letters.
-fn next_chunk<'a>(data: &'a [u8], pos: &mut usize, counts: &mut Counts, check_data_crc: bool) -> Result<Chunk<'a>> {
-    let at = *pos;
-    let left = data.len() - at;
-    if left < 8 {
-        return Err(Error::truncated(format!("the chunk header at offset {at} (the file ends before the END chunk)")));
-    }
-    let len = u32::from_be_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]]);
-    let ty = [data[at + 4], data[at + 5], data[at + 6], data[at + 7]];
+/// Reads the chunk at the reader's position and moves past it: checks its length against the
+/// bytes that remain, its CRC (of a DATA chunk only if `check_data_crc`) and its type's letters.
+fn next_chunk<'a>(file: &mut ByteReader<'a>, counts: &mut Counts, check_data_crc: bool) -> Result<Chunk<'a>> {
+    let at = file.position();
+    let what = format_args!("the chunk header at offset {at} (the file ends before the END chunk)");
+    let len = file.u32(what)?;
+    let ty: [u8; 4] = file.array(what)?;
     let ctx = format!("{} chunk #{} at offset {at}", type_name(ty), counts.next(ty));
     if len > MAX_CHUNK_LEN {
         return Err(Error::invalid(format!("{ctx}: length {len} exceeds the {MAX_CHUNK_LEN}-byte maximum")));
     }
-    let len = len as usize;
-    if left < len + CHUNK_OVERHEAD {
-        return Err(Error::truncated(format!("{ctx} (the chunk needs {} bytes, {left} remain)", len + CHUNK_OVERHEAD)));
-    }
-    let body = &data[at + 4..at + 8 + len];
-    let stored = u32::from_be_bytes(data[at + 8 + len..at + 12 + len].try_into().expect("4 bytes"));
+    let payload = file.bytes(len.into(), format_args!("{ctx} (its {len}-byte payload)"))?;
+    let stored = file.u32(format_args!("{ctx} (its CRC)"))?;
+    let mut crc = Crc32c::new();
+    crc.update(&ty);
+    crc.update(payload);
     // Fuzzing builds skip the CRC so that mutations reach the parsers behind it.
-    if (check_data_crc || ty != format::DATA) && crc32c(body) != stored && !cfg!(fuzzing) {
+    if (check_data_crc || ty != format::DATA) && crc.finish() != stored && !cfg!(fuzzing) {
         return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
     }
     if !ty.iter().all(|b| b.is_ascii_alphabetic() || *b == b' ') || !ty[0].is_ascii_alphabetic() {
         return Err(Error::invalid(format!("{ctx}: the chunk type is not ASCII letters")));
     }
-    *pos += len + CHUNK_OVERHEAD;
-    Ok(Chunk { ty, payload: &body[4..], offset: at as u64, ctx })
+    Ok(Chunk { ty, payload, offset: at, ctx })
+}
+
+/// The index offset an END chunk's payload may hold.
+fn end_index_offset_in(payload: &[u8], ctx: &str) -> Result<Option<u64>> {
+    match payload.len() {
+        0 => Ok(None),
+        8 => ByteReader::be(payload).u64("the index offset").map(Some),
+        n => Err(Error::invalid(format!("{ctx}: payload of {n} bytes (expected 0 or 8)"))),
+    }
 }
 
 /// Parses the first chunk of a file, which must be HEAD.
@@ -127,17 +132,17 @@ pub struct HeadInfo {
 /// can still fail [`Reader::new`] on a damaged tile or a wrong tile grid.
 pub fn probe(data: &[u8], limits: &Limits) -> Result<HeadInfo> {
     format::check_signature(data)?;
-    let mut pos = SIGNATURE.len();
+    let mut file = ByteReader::be(data).at(SIGNATURE.len() as u64);
     let mut counts = Counts::default();
-    let Chunk { ty, payload, ctx, .. } = next_chunk(data, &mut pos, &mut counts, false)?;
+    let Chunk { ty, payload, ctx, .. } = next_chunk(&mut file, &mut counts, false)?;
     let head = first_head(ty, payload, &ctx)?;
     let checked = limits
         .check_dimensions(u64::from(head.width), u64::from(head.height))
-        .and_then(|()| format::check_room(&head, (data.len() - pos) as u64));
+        .and_then(|()| format::check_room(&head, file.remaining()));
     checked.map_err(|e| in_chunk(&ctx, e))?;
     let (mut color, mut hdr10) = (None, None);
     loop {
-        let Chunk { ty, payload, ctx, .. } = next_chunk(data, &mut pos, &mut counts, false)?;
+        let Chunk { ty, payload, ctx, .. } = next_chunk(&mut file, &mut counts, false)?;
         let dup = |ctx: &str| Error::invalid(format!("{ctx}: a second chunk of this type"));
         match ty {
             format::HEAD => return Err(dup(&ctx)),
@@ -146,8 +151,8 @@ pub fn probe(data: &[u8], limits: &Limits) -> Result<HeadInfo> {
             format::HDRM if hdr10.is_some() => return Err(dup(&ctx)),
             format::HDRM => hdr10 = Some(format::parse_hdr10(payload).map_err(|e| in_chunk(&ctx, e))?),
             format::END => {
-                if pos != data.len() {
-                    return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", data.len() - pos)));
+                if file.remaining() != 0 {
+                    return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", file.remaining())));
                 }
                 break;
             }
@@ -168,7 +173,7 @@ impl<'a> Reader<'a> {
     }
 
     fn chunks(data: &'a [u8], limits: &Limits) -> Result<Self> {
-        let mut pos = SIGNATURE.len();
+        let mut file = ByteReader::be(data).at(SIGNATURE.len() as u64);
         let mut counts = Counts::default();
         let mut head: Option<Head> = None;
         let mut r = Reader {
@@ -181,13 +186,12 @@ impl<'a> Reader<'a> {
             has_index: false,
         };
         let mut index: Option<(u64, Vec<IndexEntry>)> = None;
-        let mut end_index_offset: Option<u64> = None;
-        loop {
-            let Chunk { ty, payload, offset: chunk_offset, ctx } = next_chunk(data, &mut pos, &mut counts, true)?;
+        let end_index_offset = loop {
+            let Chunk { ty, payload, offset: chunk_offset, ctx } = next_chunk(&mut file, &mut counts, true)?;
             let Some(h) = head else {
                 let h = first_head(ty, payload, &ctx)?;
                 // The whole image must fit the limits before anything of its size is allocated.
-                format::check_head(&h, limits, (data.len() - pos) as u64).map_err(|e| in_chunk(&ctx, e))?;
+                format::check_head(&h, limits, file.remaining()).map_err(|e| in_chunk(&ctx, e))?;
                 head = Some(h);
                 r.head = h;
                 continue;
@@ -226,20 +230,16 @@ impl<'a> Reader<'a> {
                     index = Some((chunk_offset, format::parse_index(payload).map_err(|e| in_chunk(&ctx, e))?));
                 }
                 format::END => {
-                    match payload.len() {
-                        0 => {}
-                        8 => end_index_offset = Some(u64::from_be_bytes(payload.try_into().expect("8 bytes"))),
-                        n => return Err(Error::invalid(format!("{ctx}: payload of {n} bytes (expected 0 or 8)"))),
+                    let end_index_offset = end_index_offset_in(payload, &ctx)?;
+                    if file.remaining() != 0 {
+                        return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", file.remaining())));
                     }
-                    if pos != data.len() {
-                        return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", data.len() - pos)));
-                    }
-                    break;
+                    break end_index_offset;
                 }
                 t if t[0].is_ascii_lowercase() => {} // unknown ancillary chunk: skipped
                 _ => return Err(Error::unsupported(format!("{ctx}: unknown critical chunk type"))),
             }
-        }
+        };
         r.check_tiles()?;
         match (index, end_index_offset) {
             (Some((at, entries)), end) => {

@@ -6,6 +6,7 @@ use crate::format::{
     self, type_name, DataHeader, Head, IndexEntry, CHUNK_OVERHEAD, HEAD_LEN, MAX_CHUNK_LEN, SIGNATURE,
 };
 use crate::reader::in_chunk;
+use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::{Error, Limits, Result};
 use std::io::{Read, Seek, SeekFrom};
 
@@ -56,7 +57,7 @@ impl<R: Read + Seek> SeekReader<R> {
                 type_name(ty)
             )));
         }
-        let indx_at = u64::from_be_bytes(payload.try_into().expect("8 bytes"));
+        let indx_at = ByteReader::be(&payload).u64("the END chunk's index offset")?;
         let ctx = format!("INDX chunk #0 at offset {indx_at}");
         if indx_at < data_start || indx_at >= end_at {
             return Err(Error::invalid(format!(
@@ -153,8 +154,8 @@ fn read_chunk(
     if limit.saturating_sub(at) < CHUNK_OVERHEAD as u64 || read_up_to(r, &mut hdr)? < 8 {
         return Err(Error::truncated(ctx));
     }
-    let len = u32::from_be_bytes([hdr[0], hdr[1], hdr[2], hdr[3]]);
-    let ty = [hdr[4], hdr[5], hdr[6], hdr[7]];
+    let mut h = ByteReader::be(&hdr);
+    let (len, ty) = (h.u32(&ctx)?, h.array(&ctx)?);
     if expect_len.is_some_and(|e| e as u64 != u64::from(len)) || len > MAX_CHUNK_LEN {
         return Err(Error::invalid(format!("{ctx}: payload length {len}")));
     }
@@ -165,11 +166,13 @@ fn read_chunk(
     limits.check_alloc(u64::from(len), &ctx)?;
     let mut rest = vec![0u8; len as usize + 4];
     r.read_exact(&mut rest).map_err(|_| Error::truncated(ctx.clone()))?;
-    let (payload, crc) = rest.split_at(len as usize);
+    let mut r = ByteReader::be(&rest);
+    let payload = r.bytes(len.into(), &ctx)?;
+    let stored = r.u32(&ctx)?;
     let mut c = Crc32c::new();
     c.update(&ty);
     c.update(payload);
-    if c.finish() != u32::from_be_bytes([crc[0], crc[1], crc[2], crc[3]]) && !cfg!(fuzzing) {
+    if c.finish() != stored && !cfg!(fuzzing) {
         return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
     }
     rest.truncate(len as usize);

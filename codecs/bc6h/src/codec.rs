@@ -1,10 +1,10 @@
 //! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
 //! optional mip chains.
-use crate::dds::{is_bc6h_dds, read_dds, read_dds_header, write_dds};
+use crate::dds::{dds_levels, is_bc6h_dds, read_dds_header, write_dds};
 use crate::decode::decode_surface_into;
 use crate::encode::{encode_surface, EncodeOptions};
 use crate::ktx2::{
-    is_bc6h_ktx2, khr_df_primaries, read_ktx2, read_ktx2_header, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES,
+    is_bc6h_ktx2, khr_df_primaries, ktx2_levels, read_ktx2_header, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES,
 };
 use crate::texture::{full_mip_count, level_size, Bc6hTexture, TextureHeader};
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
@@ -113,9 +113,14 @@ fn clip_note(image: &HdrImage, signed: bool) -> Option<String> {
 /// Decodes mip level 0 of `tex` into `sink`: in place in one pass when the sink allows it,
 /// else in bands of block rows (about 4 MB of rows), the block rows of a band in parallel on
 /// `options.pool`.
-fn texture_rows(tex: &Bc6hTexture, info: &ImageInfo, options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-    let (w, h) = (tex.width, tex.height);
-    let level0 = tex.levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
+fn texture_rows(
+    (header, levels): (TextureHeader, Vec<&[u8]>),
+    info: &ImageInfo,
+    options: &DecodeOptions,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    let (w, h) = (header.width, header.height);
+    let level0 = levels.first().ok_or_else(|| hdrcodec_core::Error::invalid("the texture has no mip level"))?;
     let row_len = w as usize * 3;
     sink.start(info)?;
     // Whole block rows per band.
@@ -129,7 +134,7 @@ fn texture_rows(tex: &Bc6hTexture, info: &ImageInfo, options: &DecodeOptions, si
         let last = ((y + rows).div_ceil(4) as usize * blocks_across * 16).min(level0.len());
         let blocks = level0.get(first..last).unwrap_or_default();
         fill_rows(sink, y, rows, row_len, &mut scratch, |out| {
-            decode_surface_into(w, rows, blocks, tex.signed, &options.pool, out)
+            decode_surface_into(w, rows, blocks, header.signed, &options.pool, out)
         })?;
         y += rows;
     }
@@ -177,7 +182,7 @@ impl ImageCodec for Bc6hDdsCodec {
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         let info = self.probe(data, &options.limits)?;
-        texture_rows(&read_dds(data, &options.limits)?, &info, options, sink)
+        texture_rows(dds_levels(data, &options.limits)?, &info, options, sink)
     }
     fn encode_to(
         &self,
@@ -224,7 +229,7 @@ impl ImageCodec for Bc6hKtx2Codec {
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         let info = self.probe(data, &options.limits)?;
-        texture_rows(&read_ktx2(data, &options.limits)?, &info, options, sink)
+        texture_rows(ktx2_levels(data, &options.limits)?, &info, options, sink)
     }
     /// Records the image's primaries in the DFD. Primaries it cannot name (the facade converts
     /// before calling, but a direct caller or the container may not) are stored as they are

@@ -4,7 +4,8 @@
 //! `DXGI_FORMAT_BC6H_UF16` (95) and `DXGI_FORMAT_BC6H_SF16` (96). The parser checks every size
 //! against the data and the caller's [`Limits`] before allocating and never panics.
 use crate::decode::surface_bytes;
-use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture, TextureHeader};
+use crate::texture::{check_dims, level_size, Bc6hTexture, TextureHeader};
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::{Error, Limits, Result};
 
 /// `DXGI_FORMAT_BC6H_UF16`.
@@ -25,14 +26,19 @@ const DDSCAPS_TEXTURE: u32 = 0x1000;
 const DDSCAPS_MIPMAP: u32 = 0x40_0000;
 const DDS_RESOURCE_DIMENSION_TEXTURE2D: u32 = 3;
 const DDS_RESOURCE_MISC_TEXTURECUBE: u32 = 0x4;
+/// Offset of the FourCC in DDS_PIXELFORMAT.
+const DDS_FOURCC_OFFSET: u64 = 84;
+/// Offset of DDS_HEADER_DXT10 (its first field is the DXGI format).
+const DDS_DXT10_OFFSET: u64 = 4 + 124;
 /// Magic + DDS_HEADER (124) + DDS_HEADER_DXT10 (20).
 const DDS_DATA_OFFSET: usize = 4 + 124 + 20;
 
 /// True if `head` starts like a DDS file with a DX10 header and a BC6H format.
 pub fn is_bc6h_dds(head: &[u8]) -> bool {
+    let r = ByteReader::le(head);
     head.starts_with(DDS_MAGIC)
-        && head.get(84..88) == Some(b"DX10")
-        && matches!(u32_at(head, 128), Ok(DXGI_BC6H_UF16 | DXGI_BC6H_SF16))
+        && r.bytes_at(DDS_FOURCC_OFFSET, 4, "the DDS FourCC").is_ok_and(|f| f == b"DX10")
+        && matches!(r.at(DDS_DXT10_OFFSET).u32("the DXGI format"), Ok(DXGI_BC6H_UF16 | DXGI_BC6H_SF16))
 }
 
 /// Reads the header of a BC6H DDS file (DX10 header, 2D texture) and checks it as [`read_dds`]
@@ -41,22 +47,30 @@ pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
     if !data.starts_with(DDS_MAGIC) {
         return Err(if data.len() < 4 { Error::truncated("the DDS magic") } else { Error::invalid("not a DDS file") });
     }
-    if u32_at(data, 4)? != 124 {
+    // DDS_HEADER, after the magic: size, flags, height, width, pitch or linear size, depth,
+    // mip count, 11 reserved words, then DDS_PIXELFORMAT (size, flags, FourCC, ...).
+    let mut r = ByteReader::le(data).at(4);
+    if r.u32("the DDS header size")? != 124 {
         return Err(Error::invalid("DDS header size is not 124"));
     }
-    let flags = u32_at(data, 8)?;
-    let height = u32_at(data, 12)?;
-    let width = u32_at(data, 16)?;
-    let depth = u32_at(data, 24)?;
-    let mips = u32_at(data, 28)?;
-    let four_cc = data.get(84..88).ok_or_else(|| Error::truncated("the DDS pixel format"))?;
-    if u32_at(data, 80)? & DDPF_FOURCC == 0 || four_cc != b"DX10" {
+    let flags = r.u32("the DDS header flags")?;
+    let height = r.u32("the DDS height")?;
+    let width = r.u32("the DDS width")?;
+    r.skip(4, "the DDS pitch")?;
+    let depth = r.u32("the DDS depth")?;
+    let mips = r.u32("the DDS mip count")?;
+    r.skip(11 * 4 + 4, "the DDS header")?;
+    let pixel_format_flags = r.u32("the DDS pixel format")?;
+    let four_cc = r.bytes(4, "the DDS pixel format")?;
+    if pixel_format_flags & DDPF_FOURCC == 0 || four_cc != b"DX10" {
         return Err(Error::unsupported(format!(
             "DDS without a DX10 header (FourCC {:?}): BC6H needs DXGI_FORMAT 95 or 96",
             String::from_utf8_lossy(four_cc)
         )));
     }
-    let dxgi = u32_at(data, 128)?;
+    // DDS_HEADER_DXT10: DXGI format, resource dimension, misc flags, array size.
+    r.seek(DDS_DXT10_OFFSET);
+    let dxgi = r.u32("the DDS DXGI format")?;
     let signed = match dxgi {
         DXGI_BC6H_UF16 => false,
         DXGI_BC6H_SF16 => true,
@@ -66,9 +80,9 @@ pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
             )))
         }
     };
-    let dimension = u32_at(data, 132)?;
-    let misc = u32_at(data, 136)?;
-    let array_size = u32_at(data, 140)?;
+    let dimension = r.u32("the DDS resource dimension")?;
+    let misc = r.u32("the DDS misc flags")?;
+    let array_size = r.u32("the DDS array size")?;
     if dimension != DDS_RESOURCE_DIMENSION_TEXTURE2D || (flags & 0x80_0000 != 0 && depth > 1) {
         return Err(Error::unsupported(format!("DDS resource dimension {dimension}: only 2D textures are supported")));
     }
@@ -85,69 +99,66 @@ pub fn read_dds_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 
 /// Reads a BC6H DDS file (DX10 header, 2D texture, first array element, all mip levels).
 pub fn read_dds(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
-    let TextureHeader { width, height, signed, levels } = read_dds_header(data, limits)?;
-    let mut pos = DDS_DATA_OFFSET;
+    let (header, levels) = dds_levels(data, limits)?;
+    Bc6hTexture::copied(header, &levels, limits)
+}
+
+/// The header of a BC6H DDS file and its mip levels, borrowed from `data` (what decoding
+/// reads, without a copy); checked as [`read_dds`] checks them.
+pub fn dds_levels<'a>(data: &'a [u8], limits: &Limits) -> Result<(TextureHeader, Vec<&'a [u8]>)> {
+    let header = read_dds_header(data, limits)?;
+    let TextureHeader { width, height, levels, .. } = header;
+    let mut r = ByteReader::le(data).at(DDS_DATA_OFFSET as u64);
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {
         let (w, h) = level_size(width, height, i);
         let n = surface_bytes(w, h).ok_or_else(|| Error::invalid("DDS level size overflows"))?;
-        let level = data.get(pos..pos.saturating_add(n)).ok_or_else(|| {
-            Error::truncated(format!("DDS mip level {i} ({w}x{h}: {n} bytes at offset {pos}, file has {})", data.len()))
-        })?;
-        limits.check_alloc(n as u64, "a DDS mip level")?;
-        out.push(level.to_vec());
-        pos += n;
+        out.push(r.bytes(n as u64, format_args!("DDS mip level {i} ({w}x{h})"))?);
     }
-    Ok(Bc6hTexture { width, height, signed, levels: out })
+    Ok((header, out))
 }
 
 /// Writes a BC6H DDS file (DDS_HEADER + DDS_HEADER_DXT10, 2D, one array element).
 pub fn write_dds(tex: &Bc6hTexture) -> Result<Vec<u8>> {
     tex.validate()?;
     let total: usize = tex.levels.iter().map(Vec::len).sum();
-    let mut out = Vec::with_capacity(DDS_DATA_OFFSET + total);
-    let put = |v: u32, out: &mut Vec<u8>| out.extend_from_slice(&v.to_le_bytes());
-    out.extend_from_slice(DDS_MAGIC);
+    let mut w = ByteWriter::from_vec(Vec::with_capacity(DDS_DATA_OFFSET + total), ByteOrder::Little);
+    w.bytes(DDS_MAGIC);
     let mipmapped = tex.levels.len() > 1;
     let mut flags = DDSD_CAPS | DDSD_HEIGHT | DDSD_WIDTH | DDSD_PIXELFORMAT | DDSD_LINEARSIZE;
     if mipmapped {
         flags |= DDSD_MIPMAPCOUNT;
     }
-    put(124, &mut out);
-    put(flags, &mut out);
-    put(tex.height, &mut out);
-    put(tex.width, &mut out);
-    put(tex.levels[0].len() as u32, &mut out); // linear size of level 0
-    put(0, &mut out); // depth
-    put(tex.levels.len() as u32, &mut out);
-    for _ in 0..11 {
-        put(0, &mut out);
-    }
-    // DDS_PIXELFORMAT: size 32, FourCC "DX10".
-    put(32, &mut out);
-    put(DDPF_FOURCC, &mut out);
-    out.extend_from_slice(b"DX10");
-    for _ in 0..5 {
-        put(0, &mut out);
-    }
+    w.u32(124);
+    w.u32(flags);
+    w.u32(tex.height);
+    w.u32(tex.width);
+    w.u32(tex.levels[0].len() as u32); // linear size of level 0
+    w.u32(0); // depth
+    w.u32(tex.levels.len() as u32);
+    w.zeros(11 * 4); // reserved1
+                     // DDS_PIXELFORMAT: size 32, FourCC "DX10".
+    w.u32(32);
+    w.u32(DDPF_FOURCC);
+    w.bytes(b"DX10");
+    w.zeros(5 * 4); // bit count, masks
     let mut caps = DDSCAPS_TEXTURE;
     if mipmapped {
         caps |= DDSCAPS_COMPLEX | DDSCAPS_MIPMAP;
     }
-    put(caps, &mut out);
-    for _ in 0..4 {
-        put(0, &mut out); // caps2..4, reserved2
-    }
-    put(if tex.signed { DXGI_BC6H_SF16 } else { DXGI_BC6H_UF16 }, &mut out);
-    put(DDS_RESOURCE_DIMENSION_TEXTURE2D, &mut out);
-    put(0, &mut out); // misc flags
-    put(1, &mut out); // array size
-    put(0, &mut out); // misc flags 2: DDS_ALPHA_MODE_UNKNOWN
-    debug_assert_eq!(out.len(), DDS_DATA_OFFSET);
+    w.u32(caps);
+    w.zeros(4 * 4); // caps2..4, reserved2
+    debug_assert_eq!(w.len() as u64, DDS_DXT10_OFFSET);
+    w.u32(if tex.signed { DXGI_BC6H_SF16 } else { DXGI_BC6H_UF16 });
+    w.u32(DDS_RESOURCE_DIMENSION_TEXTURE2D);
+    w.u32(0); // misc flags
+    w.u32(1); // array size
+    w.u32(0); // misc flags 2: DDS_ALPHA_MODE_UNKNOWN
+    debug_assert_eq!(w.len(), DDS_DATA_OFFSET);
     for level in &tex.levels {
-        out.extend_from_slice(level);
+        w.bytes(level);
     }
-    Ok(out)
+    Ok(w.into_vec())
 }
 
 #[cfg(test)]
@@ -162,6 +173,23 @@ mod tests {
             let limits = Limits::default();
             assert_eq!(read_dds(&write_dds(&tex).unwrap(), &limits).unwrap(), tex);
             assert!(is_bc6h_dds(&write_dds(&tex).unwrap()));
+        }
+    }
+
+    #[test]
+    fn a_cut_dds_names_the_field_or_level_it_ends_in() {
+        let dds = write_dds(&texture(8, 8, 2, false)).unwrap();
+        for (cut, what) in [
+            (6, "the DDS header size"),
+            (18, "the DDS width"),
+            (86, "the DDS pixel format"),
+            (130, "the DDS DXGI format"),
+            (140, "the DDS array size"),
+            (DDS_DATA_OFFSET + 10, "DDS mip level 0 (8x8) (bytes 148..212 of a 158-byte input)"),
+            (dds.len() - 1, "DDS mip level 1 (4x4)"),
+        ] {
+            let e = read_dds(&dds[..cut], &Limits::default()).unwrap_err();
+            assert!(matches!(e, Error::Truncated { .. }) && e.to_string().contains(what), "cut at {cut}: {e}");
         }
     }
 

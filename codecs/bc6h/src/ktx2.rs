@@ -8,7 +8,8 @@
 //! The colour primaries live in the data format descriptor ([`KTX2_PRIMARIES`] lists those it
 //! can name): [`write_ktx2`] records them and [`read_ktx2_primaries`] reads them back.
 use crate::decode::surface_bytes;
-use crate::texture::{check_dims, level_size, u32_at, Bc6hTexture, TextureHeader};
+use crate::texture::{check_dims, level_size, Bc6hTexture, TextureHeader};
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::{ColorPrimaries, Error, Limits, Result};
 
 /// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
@@ -19,12 +20,14 @@ pub const VK_BC6H_SFLOAT: u32 = 144;
 /// The KTX2 file identifier `«KTX 20»\r\n\x1A\n`.
 pub const KTX2_IDENTIFIER: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
 
-fn u64_at(d: &[u8], off: usize) -> Result<u64> {
-    Ok(u32_at(d, off)? as u64 | (u32_at(d, off + 4)? as u64) << 32)
-}
-
+/// Offset of vkFormat, the first field after the identifier.
+const KTX2_VK_FORMAT: u64 = 12;
+/// Offset of the index (dfdByteOffset, dfdByteLength, kvd..., sgd...).
+const KTX2_INDEX: u64 = 48;
 /// Header (48) + index (32).
 const KTX2_LEVEL_INDEX: usize = 80;
+/// Bytes of one level index entry: byteOffset, byteLength, uncompressedByteLength (u64 each).
+const KTX2_LEVEL_ENTRY: usize = 24;
 /// KHR_DF_MODEL_BC6H (Khronos Data Format Specification 1.3, colorModel enumeration: 133;
 /// 131 is KHR_DF_MODEL_BC4).
 const KHR_DF_MODEL_BC6H: u32 = 133;
@@ -81,21 +84,24 @@ pub fn read_ktx2_primaries(data: &[u8]) -> ColorPrimaries {
     // KTX 2.0 "Index": dfdByteOffset at 48, dfdByteLength at 52. The DFD: dfdTotalSize, then
     // the block: word 0 vendorId (17 bits) | descriptorType (15 bits), word 1 version and
     // size, word 2 colorModel | colorPrimaries << 8 | transferFunction << 16 | flags << 24.
-    let read = || -> Option<u32> {
-        let offset = usize::try_from(u32_at(data, 48).ok()?).ok()?;
-        let length = usize::try_from(u32_at(data, 52).ok()?).ok()?;
-        let dfd = data.get(offset..offset.checked_add(length)?)?;
-        if length < 16 || u32_at(dfd, 4).ok()? != 0 {
-            return None;
+    let read = || -> Result<Option<u32>> {
+        let mut index = ByteReader::le(data).at(KTX2_INDEX);
+        let offset = index.u32("the KTX2 dfdByteOffset")?;
+        let length = index.u32("the KTX2 dfdByteLength")?;
+        let mut dfd = ByteReader::le(index.bytes_at(offset.into(), length.into(), "the KTX2 DFD")?);
+        if length < 16 || dfd.at(4).u32("the DFD block's vendor and type")? != 0 {
+            return Ok(None);
         }
-        Some(u32_at(dfd, 12).ok()? >> 8 & 0xFF)
+        dfd.seek(12);
+        Ok(Some(dfd.u32("the DFD's colour model and primaries")? >> 8 & 0xFF))
     };
-    read().map_or(ColorPrimaries::Unspecified, primaries_from_khr_df)
+    read().ok().flatten().map_or(ColorPrimaries::Unspecified, primaries_from_khr_df)
 }
 
 /// True if `head` starts with the KTX2 identifier and a BC6H vkFormat.
 pub fn is_bc6h_ktx2(head: &[u8]) -> bool {
-    head.starts_with(&KTX2_IDENTIFIER) && matches!(u32_at(head, 12), Ok(VK_BC6H_UFLOAT | VK_BC6H_SFLOAT))
+    head.starts_with(&KTX2_IDENTIFIER)
+        && matches!(ByteReader::le(head).at(KTX2_VK_FORMAT).u32("the vkFormat"), Ok(VK_BC6H_UFLOAT | VK_BC6H_SFLOAT))
 }
 
 /// Reads the header of a BC6H KTX2 file (2D, one layer, one face, no supercompression) and
@@ -108,7 +114,8 @@ pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
             Error::invalid("not a KTX2 file")
         });
     }
-    let vk = u32_at(data, 12)?;
+    let mut r = ByteReader::le(data).at(KTX2_VK_FORMAT);
+    let vk = r.u32("the KTX2 vkFormat")?;
     let signed = match vk {
         VK_BC6H_UFLOAT => false,
         VK_BC6H_SFLOAT => true,
@@ -118,13 +125,14 @@ pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
             )))
         }
     };
-    let width = u32_at(data, 20)?;
-    let height = u32_at(data, 24)?;
-    let depth = u32_at(data, 28)?;
-    let layers = u32_at(data, 32)?;
-    let faces = u32_at(data, 36)?;
-    let level_count = u32_at(data, 40)?;
-    let supercompression = u32_at(data, 44)?;
+    r.skip(4, "the KTX2 typeSize")?;
+    let width = r.u32("the KTX2 pixelWidth")?;
+    let height = r.u32("the KTX2 pixelHeight")?;
+    let depth = r.u32("the KTX2 pixelDepth")?;
+    let layers = r.u32("the KTX2 layerCount")?;
+    let faces = r.u32("the KTX2 faceCount")?;
+    let level_count = r.u32("the KTX2 levelCount")?;
+    let supercompression = r.u32("the KTX2 supercompressionScheme")?;
     if depth != 0 || layers > 1 || faces != 1 {
         return Err(Error::unsupported(format!(
             "KTX2 with depth {depth}, {layers} layers, {faces} faces: only single 2D textures are supported"
@@ -139,40 +147,48 @@ pub fn read_ktx2_header(data: &[u8], limits: &Limits) -> Result<TextureHeader> {
 
 /// Reads a BC6H KTX2 file (2D, one layer, one face, no supercompression, all mip levels).
 pub fn read_ktx2(data: &[u8], limits: &Limits) -> Result<Bc6hTexture> {
-    let TextureHeader { width, height, signed, levels } = read_ktx2_header(data, limits)?;
+    let (header, levels) = ktx2_levels(data, limits)?;
+    Bc6hTexture::copied(header, &levels, limits)
+}
+
+/// The header of a BC6H KTX2 file and its mip levels (level 0 first), borrowed from `data`
+/// (what decoding reads, without a copy); checked as [`read_ktx2`] checks them.
+pub fn ktx2_levels<'a>(data: &'a [u8], limits: &Limits) -> Result<(TextureHeader, Vec<&'a [u8]>)> {
+    let header = read_ktx2_header(data, limits)?;
+    let TextureHeader { width, height, levels, .. } = header;
+    let file = ByteReader::le(data);
     let mut out = Vec::with_capacity(levels);
     for i in 0..levels {
-        let entry = KTX2_LEVEL_INDEX + 24 * i;
-        let offset = u64_at(data, entry)?;
-        let length = u64_at(data, entry + 8)?;
+        // The entry's byteOffset and byteLength (its uncompressedByteLength is not needed).
+        let mut entry = file.at((KTX2_LEVEL_INDEX + KTX2_LEVEL_ENTRY * i) as u64);
+        let offset = entry.u64(format_args!("the KTX2 level index entry {i}"))?;
+        let length = entry.u64(format_args!("the KTX2 level index entry {i}"))?;
         let (w, h) = level_size(width, height, i);
         let need = surface_bytes(w, h).ok_or_else(|| Error::invalid("KTX2 level size overflows"))?;
         if length != need as u64 {
             return Err(Error::invalid(format!("KTX2 level {i} ({w}x{h}) declares {length} bytes, expected {need}")));
         }
-        let start = usize::try_from(offset).map_err(|_| Error::invalid("KTX2 level offset too large"))?;
-        let level = data.get(start..start.saturating_add(need)).ok_or_else(|| {
-            Error::truncated(format!("KTX2 level {i}: {need} bytes at offset {offset}, file has {}", data.len()))
-        })?;
-        limits.check_alloc(need as u64, "a KTX2 mip level")?;
-        out.push(level.to_vec());
+        out.push(file.bytes_at(offset, length, format_args!("KTX2 level {i} ({w}x{h})"))?);
     }
-    Ok(Bc6hTexture { width, height, signed, levels: out })
+    Ok((header, out))
 }
 
 fn align(v: usize, to: usize) -> usize {
     v.div_ceil(to) * to
 }
 
+/// Words of the data format descriptor [`ktx2_dfd`] writes.
+const KTX2_DFD_WORDS: usize = 11;
+
 /// The data format descriptor of a BC6H texture (Khronos Data Format Specification 1.3,
 /// "BC6H" descriptor: model 133, 4x4 texel blocks, 16 bytes, one 128-bit float sample) with
 /// the colorPrimaries value `primaries`.
-fn ktx2_dfd(signed: bool, primaries: u32) -> Vec<u8> {
+fn ktx2_dfd(signed: bool, primaries: u32) -> [u32; KTX2_DFD_WORDS] {
     let mut qualifiers = KHR_DF_SAMPLE_DATATYPE_FLOAT;
     if signed {
         qualifiers |= KHR_DF_SAMPLE_DATATYPE_SIGNED;
     }
-    let words: [u32; 11] = [
+    [
         4 + 24 + 16,         // dfdTotalSize
         0,                   // vendor Khronos, type basic
         2 | (24 + 16) << 16, // version 2, block size 40
@@ -184,9 +200,13 @@ fn ktx2_dfd(signed: bool, primaries: u32) -> Vec<u8> {
         0,                                            // sample position
         if signed { (-1.0f32).to_bits() } else { 0 }, // sampleLower
         1.0f32.to_bits(),                             // sampleUpper
-    ];
-    words.iter().flat_map(|w| w.to_le_bytes()).collect()
+    ]
 }
+
+/// The key/value data: one `KTXwriter` entry (its u32 length, then key and value, each ended by
+/// NUL), padded to 4 bytes.
+const KTX2_KVD: &[u8] = b"KTXwriter\0hdrcodec-bc6h\0";
+const KTX2_KVD_LEN: usize = (4 + KTX2_KVD.len()).next_multiple_of(4);
 
 /// Writes a BC6H KTX2 file: header, level index, DFD (recording `primaries`, one of
 /// [`KTX2_PRIMARIES`]: any other is an error), a `KTXwriter` key, then the levels (smallest
@@ -197,15 +217,10 @@ pub fn write_ktx2(tex: &Bc6hTexture, primaries: ColorPrimaries) -> Result<Vec<u8
         Error::unsupported(format!("a KTX2 data format descriptor cannot record {} primaries", primaries.name()))
     })?;
     let n = tex.levels.len();
-    let dfd_offset = KTX2_LEVEL_INDEX + 24 * n;
-    let dfd = ktx2_dfd(tex.signed, primaries);
-    let kvd_offset = dfd_offset + dfd.len();
-    let mut kvd = Vec::new();
-    let entry = b"KTXwriter\0hdrcodec-bc6h\0";
-    kvd.extend_from_slice(&(entry.len() as u32).to_le_bytes());
-    kvd.extend_from_slice(entry);
-    kvd.resize(align(kvd.len(), 4), 0);
-    let mut pos = align(kvd_offset + kvd.len(), 16);
+    let dfd_offset = KTX2_LEVEL_INDEX + KTX2_LEVEL_ENTRY * n;
+    let dfd_len = 4 * KTX2_DFD_WORDS;
+    let kvd_offset = dfd_offset + dfd_len;
+    let mut pos = align(kvd_offset + KTX2_KVD_LEN, 16);
     // Offsets: the smallest level comes first in the file.
     let mut offsets = vec![0usize; n];
     for i in (0..n).rev() {
@@ -213,28 +228,34 @@ pub fn write_ktx2(tex: &Bc6hTexture, primaries: ColorPrimaries) -> Result<Vec<u8
         offsets[i] = pos;
         pos += tex.levels[i].len();
     }
-    let mut out = Vec::with_capacity(pos);
-    out.extend_from_slice(&KTX2_IDENTIFIER);
+    let mut w = ByteWriter::from_vec(Vec::with_capacity(pos), ByteOrder::Little);
+    w.bytes(&KTX2_IDENTIFIER);
     let vk = if tex.signed { VK_BC6H_SFLOAT } else { VK_BC6H_UFLOAT };
     for v in [vk, 1, tex.width, tex.height, 0, 0, 1, n as u32, 0] {
-        out.extend_from_slice(&v.to_le_bytes());
+        w.u32(v);
     }
-    for v in [dfd_offset as u32, dfd.len() as u32, kvd_offset as u32, kvd.len() as u32] {
-        out.extend_from_slice(&v.to_le_bytes());
+    for v in [dfd_offset, dfd_len, kvd_offset, KTX2_KVD_LEN] {
+        w.u32(v as u32);
     }
-    out.extend_from_slice(&[0u8; 16]); // no supercompression global data
+    w.zeros(16); // no supercompression global data
     for (i, level) in tex.levels.iter().enumerate() {
-        for v in [offsets[i] as u64, level.len() as u64, level.len() as u64] {
-            out.extend_from_slice(&v.to_le_bytes());
+        for v in [offsets[i], level.len(), level.len()] {
+            w.u64(v as u64);
         }
     }
-    out.extend_from_slice(&dfd);
-    out.extend_from_slice(&kvd);
-    for i in (0..n).rev() {
-        out.resize(offsets[i], 0);
-        out.extend_from_slice(&tex.levels[i]);
+    for v in ktx2_dfd(tex.signed, primaries) {
+        w.u32(v);
     }
-    Ok(out)
+    w.u32(KTX2_KVD.len() as u32);
+    w.bytes(KTX2_KVD);
+    w.align(4);
+    debug_assert_eq!(w.len(), kvd_offset + KTX2_KVD_LEN);
+    for i in (0..n).rev() {
+        w.align(16);
+        debug_assert_eq!(w.len(), offsets[i]);
+        w.bytes(&tex.levels[i]);
+    }
+    Ok(w.into_vec())
 }
 
 #[cfg(test)]
@@ -309,6 +330,25 @@ mod tests {
             assert_eq!(read_ktx2_primaries(&ktx[..n]), ColorPrimaries::Unspecified, "cut at {n}");
         }
         assert_eq!(read_ktx2_primaries(&ktx), ColorPrimaries::Bt2020);
+    }
+
+    #[test]
+    fn a_cut_ktx2_names_the_field_or_level_it_ends_in() {
+        let ktx = write_ktx2(&texture(8, 8, 2, false), ColorPrimaries::Bt709).unwrap();
+        // Index at 80, DFD at 128, key/value data at 172; level 1 (4x4, 16 bytes) comes first,
+        // at 208, level 0 (8x8, 64 bytes) last, at 224.
+        assert_eq!(ktx.len(), 224 + 64);
+        for (cut, what) in [
+            (14, "the KTX2 vkFormat"),
+            (30, "the KTX2 pixelDepth"),
+            (46, "the KTX2 supercompressionScheme"),
+            (90, "the KTX2 level index entry 0"),
+            (250, "KTX2 level 0 (8x8) (bytes 224..288 of a 250-byte input)"),
+            (215, "KTX2 level 0 (8x8)"),
+        ] {
+            let e = read_ktx2(&ktx[..cut], &Limits::default()).unwrap_err();
+            assert!(matches!(e, Error::Truncated { .. }) && e.to_string().contains(what), "cut at {cut}: {e}");
+        }
     }
 
     #[test]

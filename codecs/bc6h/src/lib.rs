@@ -17,7 +17,7 @@ pub mod modes;
 pub mod texture;
 
 pub use codec::{downsample_box, encode_texture, Bc6hDdsCodec, Bc6hKtx2Codec};
-pub use dds::{read_dds, read_dds_header, write_dds};
+pub use dds::{dds_levels, read_dds, read_dds_header, write_dds};
 pub use decode::{block_dims, decode_block, decode_surface, decode_surface_into, surface_bytes};
-pub use ktx2::{read_ktx2, read_ktx2_header, write_ktx2};
+pub use ktx2::{ktx2_levels, read_ktx2, read_ktx2_header, write_ktx2};
 pub use texture::{Bc6hTexture, TextureHeader};

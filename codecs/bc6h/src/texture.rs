@@ -51,6 +51,17 @@ pub fn full_mip_count(width: u32, height: u32) -> usize {
 }
 
 impl Bc6hTexture {
+    /// A texture holding copies of `levels` (as a file's reader found them), each checked
+    /// against the limits first.
+    pub(crate) fn copied(header: TextureHeader, levels: &[&[u8]], limits: &Limits) -> Result<Self> {
+        let mut out = Vec::with_capacity(levels.len());
+        for level in levels {
+            limits.check_alloc(level.len() as u64, "a BC6H mip level")?;
+            out.push(level.to_vec());
+        }
+        Ok(Bc6hTexture { width: header.width, height: header.height, signed: header.signed, levels: out })
+    }
+
     /// Size of mip `level`.
     pub fn level_size(&self, level: usize) -> (u32, u32) {
         level_size(self.width, self.height, level)
@@ -92,13 +103,6 @@ impl Bc6hTexture {
         limits.check_image(w as u64, h as u64, hdrcodec_core::Channels::Rgb)?;
         decode_surface(w, h, data, self.signed)
     }
-}
-
-/// The little-endian `u32` at `off`, or a truncation error.
-pub(crate) fn u32_at(d: &[u8], off: usize) -> Result<u32> {
-    d.get(off..off + 4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .ok_or_else(|| Error::truncated("the file header"))
 }
 
 /// Checks the declared size against `limits` and the mip count against the size; returns the

@@ -23,6 +23,7 @@
 //! ```
 
 use crate::{Error, Result};
+use std::fmt::Display;
 
 /// The order of the bytes of multi-byte numbers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -34,12 +35,14 @@ pub enum ByteOrder {
     Big,
 }
 
-/// A bounds-checked cursor over `&'a [u8]` that reads numbers in one [`ByteOrder`].
+/// A bounds-checked cursor over `&'a [u8]` that reads numbers in one [`ByteOrder`], and text
+/// lines ([`line`](Self::line)).
 ///
 /// The position is a `u64` and may be [`seek`](Self::seek)ed anywhere, even past the end: reads
 /// from there fail with [`Error::Truncated`]. Each read takes `what`, a description of the
 /// structure being read ("the TIFF header", "strip 3"), which the error repeats together with the
-/// byte range that was missing.
+/// byte range that was missing. `what` is anything that displays: a `&str`, or
+/// `format_args!("scanline {y}")`, which costs nothing unless the read fails.
 #[derive(Clone, Debug)]
 pub struct ByteReader<'a> {
     data: &'a [u8],
@@ -50,7 +53,7 @@ pub struct ByteReader<'a> {
 macro_rules! read_numbers {
     ($($(#[$doc:meta])* $name:ident -> $t:ty;)*) => {$(
         $(#[$doc])*
-        pub fn $name(&mut self, what: &str) -> Result<$t> {
+        pub fn $name(&mut self, what: impl Display) -> Result<$t> {
             let b = self.array(what)?;
             Ok(match self.order {
                 ByteOrder::Little => <$t>::from_le_bytes(b),
@@ -122,13 +125,18 @@ impl<'a> ByteReader<'a> {
     }
 
     /// The range `off..off + len` of the input, if it is inside it.
+    #[inline]
     fn range(&self, off: u64, len: u64) -> Option<&'a [u8]> {
-        let end = off.checked_add(len).filter(|&end| end <= self.len())?;
-        // Both ends are at most `data.len()`, so they fit in usize.
-        self.data.get(usize::try_from(off).ok()?..usize::try_from(end).ok()?)
+        // Two comparisons, no overflow to handle: `off` within the input, then `len` within what
+        // follows it (a number that does not fit in usize cannot be either).
+        self.data.get(usize::try_from(off).ok()?..)?.get(..usize::try_from(len).ok()?)
     }
 
-    fn truncated(&self, off: u64, len: u64, what: &str) -> Error {
+    /// The error of a read that found the input too short: built only then, out of the way of
+    /// the reads that succeed.
+    #[cold]
+    #[inline(never)]
+    fn truncated(&self, off: u64, len: u64, what: impl Display) -> Error {
         Error::truncated(format!(
             "{what} (bytes {off}..{} of a {}-byte input)",
             off.saturating_add(len),
@@ -139,7 +147,7 @@ impl<'a> ByteReader<'a> {
     /// Checks, without reading or allocating, that `count` items of `size` bytes each follow
     /// the position, and returns their total size. Use it on a declared count before
     /// allocating for it; a product that overflows is reported as truncated data.
-    pub fn check_remaining(&self, count: u64, size: u64, what: &str) -> Result<u64> {
+    pub fn check_remaining(&self, count: u64, size: u64, what: impl Display) -> Result<u64> {
         match count.checked_mul(size) {
             Some(n) if n <= self.remaining() => Ok(n),
             Some(n) => Err(self.truncated(self.pos, n, what)),
@@ -151,54 +159,102 @@ impl<'a> ByteReader<'a> {
     }
 
     /// The next `n` bytes, as a sub-slice of the input.
-    pub fn bytes(&mut self, n: u64, what: &str) -> Result<&'a [u8]> {
-        let b = self.range(self.pos, n).ok_or_else(|| self.truncated(self.pos, n, what))?;
-        self.pos += n;
-        Ok(b)
+    #[inline]
+    pub fn bytes(&mut self, n: u64, what: impl Display) -> Result<&'a [u8]> {
+        match self.range(self.pos, n) {
+            Some(b) => {
+                self.pos += n;
+                Ok(b)
+            }
+            None => Err(self.truncated(self.pos, n, what)),
+        }
     }
 
     /// The `n` bytes at `off`, without moving the position.
-    pub fn bytes_at(&self, off: u64, n: u64, what: &str) -> Result<&'a [u8]> {
+    pub fn bytes_at(&self, off: u64, n: u64, what: impl Display) -> Result<&'a [u8]> {
         self.range(off, n).ok_or_else(|| self.truncated(off, n, what))
     }
 
     /// The next `n` bytes without moving the position.
-    pub fn peek(&self, n: u64, what: &str) -> Result<&'a [u8]> {
+    pub fn peek(&self, n: u64, what: impl Display) -> Result<&'a [u8]> {
         self.bytes_at(self.pos, n, what)
+    }
+
+    /// The bytes from the position to the end (empty past the end), without moving: for a
+    /// loop that walks them as a slice and then [`skip`](Self::skip)s what it used.
+    pub fn peek_rest(&self) -> &'a [u8] {
+        self.range(self.pos, self.remaining()).unwrap_or_default()
     }
 
     /// The bytes from the position to the end (empty past the end); moves to the end.
     pub fn rest(&mut self) -> &'a [u8] {
-        let b = self.range(self.pos, self.remaining()).unwrap_or_default();
+        let b = self.peek_rest();
         self.pos = self.pos.max(self.len());
         b
     }
 
+    /// The next bytes for which `pred` holds, at most `max_len` of them; moves past them. Never
+    /// fails: the caller looks at what follows (the end of the data, the bound, another byte).
+    /// Scans at most `max_len` bytes.
+    pub fn take_while(&mut self, max_len: u64, mut pred: impl FnMut(u8) -> bool) -> &'a [u8] {
+        let rest = self.peek_rest();
+        let max = usize::try_from(max_len).unwrap_or(usize::MAX).min(rest.len());
+        let n = rest[..max].iter().position(|&b| !pred(b)).unwrap_or(max);
+        self.pos += n as u64;
+        &rest[..n]
+    }
+
+    /// A text line: the bytes before the next `\n` (a `\r` before it is kept), moving past the
+    /// `\n`. The line may hold at most `max_len` bytes, so at most `max_len + 1` are scanned:
+    /// when the data ends first without a `\n` the error is [`Error::Truncated`]; when
+    /// `max_len` bytes pass without one, [`Error::Invalid`] (a line too long to be what the
+    /// caller reads). Either way the position does not move.
+    pub fn line(&mut self, max_len: u64, what: impl Display) -> Result<&'a [u8]> {
+        let start = self.pos;
+        let line = self.take_while(max_len, |b| b != b'\n');
+        if self.peek_rest().first() == Some(&b'\n') {
+            self.pos += 1;
+            return Ok(line);
+        }
+        self.pos = start;
+        let len = self.len();
+        Err(if line.len() as u64 == max_len && start.saturating_add(max_len) < len {
+            Error::invalid(format!("{what}: the line at offset {start} is longer than {max_len} bytes"))
+        } else {
+            Error::truncated(format!("{what} (no line end after offset {start} of a {len}-byte input)"))
+        })
+    }
+
     /// Skips `n` bytes, which must be present.
-    pub fn skip(&mut self, n: u64, what: &str) -> Result<()> {
+    pub fn skip(&mut self, n: u64, what: impl Display) -> Result<()> {
         self.bytes(n, what).map(|_| ())
     }
 
     /// A reader over the next `n` bytes (same byte order, its positions start at 0); moves past them.
-    pub fn sub(&mut self, n: u64, what: &str) -> Result<ByteReader<'a>> {
+    pub fn sub(&mut self, n: u64, what: impl Display) -> Result<ByteReader<'a>> {
         let data = self.bytes(n, what)?;
         Ok(ByteReader { data, pos: 0, order: self.order })
     }
 
     /// The next `N` bytes as an array.
-    pub fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N]> {
-        let mut a = [0u8; N];
-        a.copy_from_slice(self.bytes(N as u64, what)?);
-        Ok(a)
+    #[inline]
+    pub fn array<const N: usize>(&mut self, what: impl Display) -> Result<[u8; N]> {
+        match self.range(self.pos, N as u64).and_then(<[u8]>::first_chunk::<N>) {
+            Some(&a) => {
+                self.pos += N as u64;
+                Ok(a)
+            }
+            None => Err(self.truncated(self.pos, N as u64, what)),
+        }
     }
 
     /// The next byte.
-    pub fn u8(&mut self, what: &str) -> Result<u8> {
+    pub fn u8(&mut self, what: impl Display) -> Result<u8> {
         Ok(self.array::<1>(what)?[0])
     }
 
     /// The next byte as a signed number.
-    pub fn i8(&mut self, what: &str) -> Result<i8> {
+    pub fn i8(&mut self, what: impl Display) -> Result<i8> {
         Ok(self.array::<1>(what)?[0] as i8)
     }
 
@@ -461,6 +517,60 @@ mod tests {
         assert_eq!(r.rest().len(), 2);
         assert_eq!(r.position(), 10);
         assert!(r.skip(1, "x").is_err());
+    }
+
+    #[test]
+    fn lines_are_bounded_and_never_scan_past_the_bound() {
+        let data = b"#?RADIANCE\r\nFORMAT=x\n\n-Y 1 +X 2";
+        let mut r = ByteReader::le(data);
+        assert_eq!(r.line(64, "the header").unwrap(), b"#?RADIANCE\r");
+        assert_eq!(r.line(8, "the header").unwrap(), b"FORMAT=x", "exactly max_len bytes fit");
+        assert_eq!(r.line(0, "the header").unwrap(), b"", "an empty line fits any bound");
+        assert_eq!(r.position(), 22);
+        // The data ends before a line end: truncated, naming what and where; the position stays.
+        let e = r.line(64, "the resolution string").unwrap_err();
+        assert!(matches!(e, Error::Truncated { .. }), "{e}");
+        assert!(
+            e.to_string().contains("the resolution string (no line end after offset 22 of a 31-byte input)"),
+            "{e}"
+        );
+        assert_eq!(r.position(), 22);
+        // Exactly max_len bytes, then the end of the data: still truncated (a line end may follow).
+        assert!(matches!(r.line(9, "x"), Err(Error::Truncated { .. })));
+        // More than max_len bytes without a line end: invalid, however much data follows.
+        let e = r.line(8, "the resolution string").unwrap_err();
+        assert!(matches!(e, Error::Invalid { .. }), "{e}");
+        assert!(e.to_string().contains("at offset 22 is longer than 8 bytes"), "{e}");
+        assert_eq!(r.position(), 22);
+        let e = ByteReader::le(b"abc\n").line(2, "x").unwrap_err();
+        assert!(matches!(e, Error::Invalid { .. }), "{e}");
+        // Past the end, and a bound larger than any input.
+        r.seek(u64::MAX);
+        assert!(matches!(r.line(u64::MAX, "x"), Err(Error::Truncated { .. })));
+        assert_eq!(ByteReader::le(b"a\nb").line(u64::MAX, "x").unwrap(), b"a");
+    }
+
+    #[test]
+    fn take_while_stops_at_the_predicate_the_bound_or_the_end() {
+        let mut r = ByteReader::le(b"  12 x");
+        assert_eq!(r.take_while(10, |b| b == b' '), b"  ");
+        assert_eq!(r.take_while(1, |b| b.is_ascii_digit()), b"1", "the bound");
+        assert_eq!(r.take_while(10, |b| b.is_ascii_digit()), b"2", "the predicate");
+        assert_eq!(r.peek_rest(), b" x");
+        assert_eq!(r.take_while(u64::MAX, |_| true), b" x", "the end");
+        assert_eq!(r.position(), 6);
+        assert_eq!(r.take_while(5, |_| true), b"");
+        r.seek(100);
+        assert_eq!((r.take_while(5, |_| true), r.peek_rest(), r.position()), (&b""[..], &b""[..], 100));
+    }
+
+    #[test]
+    fn what_may_be_formatted_lazily() {
+        let mut r = ByteReader::le(&[1, 2, 3]);
+        let y = 7;
+        assert_eq!(r.u16(format_args!("scanline {y}")).unwrap(), 0x0201);
+        let e = r.u16(format_args!("scanline {y}")).unwrap_err();
+        assert!(e.to_string().contains("scanline 7 (bytes 2..4 of a 3-byte input)"), "{e}");
     }
 
     #[test]

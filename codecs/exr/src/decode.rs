@@ -205,6 +205,8 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
             .position;
         list.push(((at.y(), at.x()), chunk));
     }
+    // The copies are charged for as long as they are held (at most the file's size).
+    let _chunks = limits.charge(held as u64, "the compressed OpenEXR chunks")?;
     if list.len() != expected {
         return Err(Error::truncated("the OpenEXR chunks"));
     }
@@ -217,9 +219,9 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
     let row_len = w * n;
     sink.start(&info)?;
     // A batch of whole block rows: up to `BATCH` chunks when the sink takes them in place, at
-    // most about 4 MB of rows when they need a scratch buffer (and always one block row).
+    // most about 1 MB of rows when they need a scratch buffer (and always one block row).
     let in_place = sink.rows_mut(0, h as u32).is_some();
-    let batch_rows = if in_place { h } else { band_rows(row_len, 4 << 20) as usize };
+    let batch_rows = if in_place { h } else { band_rows(row_len, 1 << 20) as usize };
     let mut scratch = Scratch::new(limits);
     let mut covered = 0usize;
     let mut next_row = 0usize;
@@ -245,6 +247,7 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
         while let Some(c) = iter.next_if(|((y, _), _)| *y == last_y) {
             batch.push(c);
         }
+        let _blocks = limits.charge(block_bytes * batch.len() as u64, "a batch of decompressed OpenEXR blocks")?;
         let batch = batch.into_iter().map(|(_, c)| c);
         let blocks: Vec<Result<UncompressedBlock>> = if parallel {
             pool.install(|| batch.collect::<Vec<_>>().into_par_iter().map(decompress).collect())

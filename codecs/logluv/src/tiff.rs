@@ -208,7 +208,7 @@ impl<'a> StripRows<'a> {
         if k == 0 {
             let s = (row / self.rows_per_strip) as usize;
             self.strip =
-                self.file.bytes_at(u64::from(self.offsets[s]), u64::from(self.counts[s]), &format!("strip {s}"))?;
+                self.file.bytes_at(u64::from(self.offsets[s]), u64::from(self.counts[s]), format_args!("strip {s}"))?;
             self.pos = 0;
         }
         match self.info.encoding {

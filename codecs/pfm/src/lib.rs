@@ -27,6 +27,7 @@
 
 #![forbid(unsafe_code)]
 
+use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
@@ -48,29 +49,23 @@ struct Header {
     height: u32,
     little_endian: bool,
     scale: f32,
-    /// Offset of the first pixel byte.
-    data_start: usize,
 }
 
-/// Reads one whitespace-separated token starting at `*pos` (after skipping whitespace); the
-/// token must end with a whitespace byte within the first [`MAX_HEADER`] bytes.
-fn token<'a>(data: &'a [u8], pos: &mut usize, what: &str) -> Result<&'a [u8]> {
-    let end = data.len().min(MAX_HEADER);
-    while *pos < end && data[*pos].is_ascii_whitespace() {
-        *pos += 1;
+/// Reads one whitespace-separated token (after skipping whitespace); the token must end with a
+/// whitespace byte within the first [`MAX_HEADER`] bytes, on which the reader stops.
+fn token<'a>(r: &mut ByteReader<'a>, what: &str) -> Result<&'a [u8]> {
+    let room = |r: &ByteReader<'_>| (MAX_HEADER as u64).saturating_sub(r.position());
+    r.take_while(room(r), |b| b.is_ascii_whitespace());
+    let token = r.take_while(room(r), |b| !b.is_ascii_whitespace());
+    // The whitespace byte that ends the token: its absence is a truncation, unless the header
+    // bound stopped the scan first.
+    r.peek(1, format_args!("the {what} in the PFM header"))?;
+    if room(r) == 0 {
+        return Err(Error::invalid(format!(
+            "PFM header: the {what} is missing or the header is longer than {MAX_HEADER} bytes"
+        )));
     }
-    let start = *pos;
-    while *pos < end && !data[*pos].is_ascii_whitespace() {
-        *pos += 1;
-    }
-    if *pos == end {
-        return Err(if end == data.len() {
-            Error::truncated(format!("the PFM header ({what})"))
-        } else {
-            Error::invalid(format!("PFM header: {what} is missing or the header is longer than {MAX_HEADER} bytes"))
-        });
-    }
-    Ok(&data[start..*pos])
+    Ok(token)
 }
 
 fn parse_size(t: &[u8], what: &str) -> Result<u32> {
@@ -84,22 +79,22 @@ fn show(t: &[u8]) -> String {
     String::from_utf8_lossy(&t[..t.len().min(16)]).into_owned()
 }
 
-fn parse_header(data: &[u8]) -> Result<Header> {
-    if data.len() < 3 {
-        return Err(Error::truncated("the PFM magic"));
-    }
-    let grey = match &data[..2] {
+/// Parses the header; the reader is left on the first pixel byte.
+fn parse_header(r: &mut ByteReader<'_>) -> Result<Header> {
+    let magic: [u8; 3] = r.array("the PFM magic")?;
+    let grey = match &magic[..2] {
         b"PF" => false,
         b"Pf" => true,
         _ => return Err(Error::invalid("not a PFM file (it does not start with PF or Pf)")),
     };
-    if !data[2].is_ascii_whitespace() {
+    if !magic[2].is_ascii_whitespace() {
         return Err(Error::invalid("not a PFM file (no whitespace after PF/Pf)"));
     }
-    let mut pos = 2;
-    let width = parse_size(token(data, &mut pos, "the width")?, "width")?;
-    let height = parse_size(token(data, &mut pos, "the height")?, "height")?;
-    let scale_tok = token(data, &mut pos, "the scale")?;
+    // The whitespace after the magic also starts the first token's leading whitespace.
+    r.seek(2);
+    let width = parse_size(token(r, "width")?, "width")?;
+    let height = parse_size(token(r, "height")?, "height")?;
+    let scale_tok = token(r, "scale")?;
     let scale = std::str::from_utf8(scale_tok)
         .ok()
         .and_then(|s| s.parse::<f32>().ok())
@@ -108,7 +103,8 @@ fn parse_header(data: &[u8]) -> Result<Header> {
             Error::invalid(format!("PFM header: scale '{}' is not a finite non-zero number", show(scale_tok)))
         })?;
     // `token` stopped on the single whitespace byte that ends the header.
-    Ok(Header { grey, width, height, little_endian: scale < 0.0, scale: scale.abs(), data_start: pos + 1 })
+    r.skip(1, "the PFM header")?;
+    Ok(Header { grey, width, height, little_endian: scale < 0.0, scale: scale.abs() })
 }
 
 /// The colour of every decoded PFM image: PFM records none, so the samples are whatever the
@@ -117,24 +113,23 @@ fn pfm_color() -> ColorInfo {
     ColorInfo { primaries: ColorPrimaries::Unspecified, ..ColorInfo::default() }
 }
 
-/// Checks that the pixels the header declares are all present; returns their byte count.
-fn pixel_bytes(h: &Header, data: &[u8]) -> Result<u64> {
+/// The pixel bytes the header declares, which must all follow the header (the reader is on
+/// the first of them).
+fn pixel_bytes<'a>(h: &Header, r: &mut ByteReader<'a>) -> Result<&'a [u8]> {
     let per_pixel = if h.grey { 1 } else { 3 };
-    let need = (u64::from(h.width) * u64::from(h.height)).saturating_mul(per_pixel * 4);
-    let avail = (data.len() - h.data_start) as u64;
-    if avail < need {
-        return Err(Error::truncated(format!("the PFM pixels ({need} bytes needed, {avail} present)")));
-    }
-    Ok(need)
+    let what = "the PFM pixels";
+    let need = r.check_remaining(u64::from(h.width) * u64::from(h.height), per_pixel * 4, what)?;
+    r.bytes(need, what)
 }
 
 /// Reads the header of a PFM file: size, channels (always RGB: grey is returned as R = G = B),
 /// colour (unspecified primaries) and the stored format ("RGB f32 little-endian"). Checks the
 /// size against the limits' dimensions and that the file holds every pixel, allocating nothing.
 pub fn probe_pfm(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
-    let h = parse_header(data)?;
+    let mut r = ByteReader::le(data);
+    let h = parse_header(&mut r)?;
     limits.check_dimensions(u64::from(h.width), u64::from(h.height))?;
-    pixel_bytes(&h, data)?;
+    pixel_bytes(&h, &mut r)?;
     let format = format!(
         "{} f32 {}-endian",
         if h.grey { "grey" } else { "RGB" },
@@ -153,12 +148,12 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
 /// the bands arrive from the bottom of the image). Holds nothing of the image's size when the
 /// sink takes rows in place, and at most a 1 MB band otherwise.
 pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
-    let h = parse_header(data)?;
     let info = probe_pfm(data, limits)?;
+    let mut r = ByteReader::le(data);
+    let h = parse_header(&mut r)?;
     let w = h.width as usize;
     let per_pixel = if h.grey { 1 } else { 3 };
-    let need = pixel_bytes(&h, data)?;
-    let pixels = &data[h.data_start..h.data_start + need as usize];
+    let pixels = pixel_bytes(&h, &mut r)?;
     let read = |b: &[u8]| {
         let b = [b[0], b[1], b[2], b[3]];
         if h.little_endian {

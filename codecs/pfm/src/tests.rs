@@ -66,6 +66,11 @@ fn header_is_parsed_strictly() {
     long.extend(std::iter::repeat_n(b'0', 300));
     long.push(b'\n');
     assert!(matches!(bad(&long), Error::Invalid { .. }));
+    // A header cut short names the field it ends in.
+    for (h, field) in [(&b"PF\n12"[..], "the width"), (b"PF\n1 2", "the height"), (b"PF\n1 2\n-1", "the scale")] {
+        let e = bad(h);
+        assert!(matches!(e, Error::Truncated { .. }) && e.to_string().contains(field), "{e}");
+    }
     // Whitespace variants that writers produce are accepted.
     let ok = b"PF\r\n1  1\r\n-1.000000\n\x00\x00\x80\x3f\x00\x00\x00\x40\x00\x00\x40\x40";
     assert_eq!(PfmCodec.decode(ok, &Limits::default()).unwrap().samples(), &[1.0, 2.0, 3.0]);

@@ -5,6 +5,7 @@
 //! the header is a sequence of text lines ended by an empty line; `EXPOSURE` and `COLORCORR`
 //! are cumulative (each occurrence multiplies), `PIXASPECT` too.
 
+use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::{Chromaticities, Error, Result};
 
 /// Longest header we accept: real headers are a few hundred bytes, and a bound keeps a file of
@@ -90,12 +91,21 @@ pub fn sniff(head: &[u8]) -> bool {
     head.starts_with(b"#?") && head.get(2).is_none_or(|&c| c.is_ascii_graphic() || c == b'\n')
 }
 
-/// Splits off the next line (without its `\n`); `None` when no newline is left.
-fn next_line<'a>(data: &'a [u8], pos: &mut usize) -> Option<&'a [u8]> {
-    let rest = data.get(*pos..)?;
-    let n = rest.iter().position(|&b| b == b'\n')?;
-    *pos += n + 1;
-    Some(&rest[..n])
+/// The next header line (without its `\n`), within the [`MAX_HEADER_BYTES`] that the header
+/// and the resolution string may take together, line ends included.
+fn header_line<'a>(r: &mut ByteReader<'a>, what: &str) -> Result<&'a [u8]> {
+    let too_long = || Error::invalid(format!("the Radiance header is longer than {MAX_HEADER_BYTES} bytes"));
+    // The bytes the line may take before its `\n`; none, not even an empty line, once the
+    // header has used them all (then the data must end there: a truncation).
+    let room = match (MAX_HEADER_BYTES as u64).checked_sub(r.position() + 1) {
+        Some(room) => room,
+        None if r.remaining() > 0 => return Err(too_long()),
+        None => 0,
+    };
+    r.line(room, what).map_err(|e| match e {
+        Error::Invalid { .. } => too_long(),
+        e => e,
+    })
 }
 
 fn parse_floats<const N: usize>(value: &str, what: &str) -> Result<[f64; N]> {
@@ -168,15 +178,7 @@ pub fn parse(data: &[u8]) -> Result<Header> {
             Error::invalid("not a Radiance picture: it does not start with '#?'")
         });
     }
-    let window = &data[..data.len().min(MAX_HEADER_BYTES)];
-    let truncated_or_long = |pos: usize| {
-        if data.len() > MAX_HEADER_BYTES && pos >= MAX_HEADER_BYTES / 2 {
-            Error::invalid(format!("the Radiance header is longer than {MAX_HEADER_BYTES} bytes"))
-        } else {
-            Error::truncated("the Radiance header (no empty line ends it)")
-        }
-    };
-    let mut pos = 0;
+    let mut r = ByteReader::le(data);
     let mut format = None;
     let mut exposure = 1.0;
     let mut colorcorr = [1.0; 3];
@@ -185,7 +187,7 @@ pub fn parse(data: &[u8]) -> Result<Header> {
     let mut metadata = Vec::new();
     let mut first = true;
     loop {
-        let raw = next_line(window, &mut pos).ok_or_else(|| truncated_or_long(pos))?;
+        let raw = header_line(&mut r, "the Radiance header, before the empty line that must end it")?;
         // Text lines: tolerate a DOS line end, refuse bytes that are not text.
         let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
         let line = std::str::from_utf8(raw)
@@ -234,7 +236,7 @@ pub fn parse(data: &[u8]) -> Result<Header> {
             _ => metadata.push((name.to_ascii_lowercase(), value.to_string())),
         }
     }
-    let line = next_line(window, &mut pos).ok_or_else(|| Error::truncated("the Radiance resolution string"))?;
+    let line = header_line(&mut r, "the Radiance resolution string")?;
     let line = std::str::from_utf8(line).map_err(|_| Error::invalid("the Radiance resolution string is not text"))?;
     let (major, minor) = parse_resolution(line.trim_end_matches('\r'))?;
     if exposure != 1.0 {
@@ -256,7 +258,8 @@ pub fn parse(data: &[u8]) -> Result<Header> {
         metadata,
         major,
         minor,
-        data_start: pos,
+        // The position is inside `data`, whose length is a usize.
+        data_start: r.position() as usize,
     })
 }
 
@@ -335,4 +338,63 @@ pub fn write(h: &WriteHeader<'_>, out: &mut Vec<u8>) {
     }
     s.push_str(&format!("FORMAT={}\n\n-Y {} +X {}\n", h.format.format_string(), h.height, h.width));
     out.extend_from_slice(s.as_bytes());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_header_is_bounded_and_a_short_one_is_truncated() {
+        let ok = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\r\n\n-Y 2 +X 3\n\x01\x02";
+        let h = parse(ok).unwrap();
+        assert_eq!((h.width(), h.height(), h.data_start), (3, 2, ok.len() - 2));
+        for cut in 0..ok.len() - 2 {
+            let e = parse(&ok[..cut]).unwrap_err();
+            assert!(matches!(e, Error::Truncated { .. }), "cut at {cut}: {e}");
+        }
+        let e = parse(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n").unwrap_err();
+        assert!(e.to_string().contains("before the empty line"), "{e}");
+        let e = parse(b"#?RADIANCE\n\n-Y 2 +X 3").unwrap_err();
+        assert!(e.to_string().contains("resolution string"), "{e}");
+
+        // A header of exactly MAX_HEADER_BYTES, line ends included, is read; one byte more is
+        // too long, whether in one line or spread over many, and is not scanned further.
+        let fill = |len: usize, line: usize| {
+            let mut v = b"#?RADIANCE\n".to_vec();
+            let tail = b"\n-Y 1 +X 1\n";
+            while v.len() + tail.len() < len {
+                let n = (len - tail.len() - v.len()).min(line);
+                v.push(b'#');
+                v.extend(std::iter::repeat_n(b'x', n.saturating_sub(2)));
+                v.push(b'\n');
+            }
+            v.extend_from_slice(tail);
+            v.extend_from_slice(&[0; 4]);
+            v
+        };
+        for line in [80, MAX_HEADER_BYTES] {
+            let exact = fill(MAX_HEADER_BYTES, line);
+            assert_eq!(parse(&exact).unwrap().data_start, MAX_HEADER_BYTES, "lines of {line}");
+            let e = parse(&fill(MAX_HEADER_BYTES + 1, line)).unwrap_err();
+            assert!(matches!(e, Error::Invalid { .. }) && e.to_string().contains("longer than"), "{e}");
+        }
+        // Lines that fill the bound exactly, then one more line, however short: too long.
+        let mut full = b"#?RADIANCE\n".to_vec();
+        while full.len() < MAX_HEADER_BYTES {
+            let n = (MAX_HEADER_BYTES - full.len()).min(80);
+            full.push(b'#');
+            full.extend(std::iter::repeat_n(b'x', n - 2));
+            full.push(b'\n');
+        }
+        assert_eq!((full.len(), full[MAX_HEADER_BYTES - 1]), (MAX_HEADER_BYTES, b'\n'));
+        full.extend_from_slice(b"\n-Y 1 +X 1\n\0\0\0\0");
+        let e = parse(&full).unwrap_err();
+        assert!(e.to_string().contains("longer than"), "{e}");
+        let mut endless = b"#?RADIANCE\n".to_vec();
+        endless.resize(3 * MAX_HEADER_BYTES, b'x');
+        assert!(matches!(parse(&endless), Err(Error::Invalid { .. })));
+        // Cut inside the bound: truncated.
+        assert!(matches!(parse(&endless[..MAX_HEADER_BYTES - 1]), Err(Error::Truncated { .. })));
+    }
 }
