@@ -314,6 +314,35 @@ mod tests {
     use super::*;
     use hdrcodec_core::Limits;
 
+    /// The codec decodes to linear f32 (half samples exactly), into an image or a caller's
+    /// strided buffer alike, within a budget far below the image's coefficients.
+    #[test]
+    fn decode_and_decode_into_agree() {
+        use hdrcodec_core::sink::FrameBufMut;
+        use hdrcodec_core::ImageCodec;
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata/tiny_alpha_sp.jxr");
+        let file = std::fs::read(path).unwrap();
+        let image = crate::JxrCodec.decode(&file, &Limits::default()).unwrap();
+        assert_eq!((image.width(), image.height(), image.channels()), (40, 24, Channels::Rgba));
+        assert_eq!((image.color.primaries, image.color.nits_per_unit), (hdrcodec_core::ColorPrimaries::Bt709, 80.0));
+        // 64bppRGBAHalf: the f32 samples are jxrlib's halves.
+        let raw = decode_raw(&file, &DecodeOptions::new(Limits::default())).unwrap();
+        let halves: Vec<f32> =
+            raw.chunks_exact(2).map(|b| half::f16::from_bits(u16::from_le_bytes([b[0], b[1]])).to_f32()).collect();
+        assert_eq!(image.samples().len(), halves.len());
+        assert!(image.samples().iter().zip(&halves).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let stride = 40 * 4 + 3;
+        let mut buf = vec![-1.0f32; stride * 24];
+        let info = crate::JxrCodec
+            .decode_into(&file, &DecodeOptions::new(Limits::default()), FrameBufMut::f32(&mut buf, stride))
+            .unwrap();
+        assert_eq!((info.width, info.height), (40, 24));
+        for y in 0..24 {
+            assert_eq!(&buf[y * stride..y * stride + 160], image.row(y as u32));
+            assert_eq!(&buf[y * stride + 160..(y + 1) * stride], &[-1.0; 3]);
+        }
+    }
+
     /// jxrlib's samples (imagecodecs `jpegxr_decode`) of streams T.835 wrote, hashed
     /// (testdata/README.md): hard tiles, a non-square hard grid, windowing.
     #[test]
