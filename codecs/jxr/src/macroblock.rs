@@ -508,20 +508,18 @@ impl PlaneDecoder {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
                 if pattern & 1 != 0 {
                     let n = self.block(r, chroma, BAND_HP, 1, &mut pairs)?;
-                    let mut input = [0i32; 16];
+                    // The block's coefficients are zero until here (the row was cleared):
+                    // write each level where the adaptive scan puts it.
+                    let block = &mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16];
+                    let scan = if mode == 1 { &mut self.hp_ver } else { &mut self.hp_hor };
                     let mut k = 1usize;
                     for p in &pairs[..n] {
                         k += p.run as usize;
                         if k >= 16 {
                             return Err(corrupt("HP past the end"));
                         }
-                        let scan = if mode == 1 { &mut self.hp_ver } else { &mut self.hp_hor };
-                        input[scan.hit(k - 1)] = p.level;
+                        block[scan.hit(k - 1)] = p.level.wrapping_shl(model_bits);
                         k += 1;
-                    }
-                    let o = ch * MB_COEFFS + hp(b, 1);
-                    for (d, &v) in c[o..o + 15].iter_mut().zip(&input[1..]) {
-                        *d = v.wrapping_shl(model_bits);
                     }
                     lap_mean[usize::from(chroma)] += n as i32;
                 }
