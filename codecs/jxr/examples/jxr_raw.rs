@@ -1,4 +1,5 @@
-//! Writes the raw output samples (jxrlib's pixel-format bytes) of a `.jxr` file to a file.
+//! Writes the raw output samples (jxrlib's pixel-format bytes) of a `.jxr` file to a file, or
+//! with `JXR_F32` set the codec's linear f32 samples; `JXR_TIMES` and `JXR_THREADS` time it.
 use hdrcodec_core::{DecodeOptions, Limits};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
@@ -10,7 +11,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut raw = Vec::new();
     for _ in 0..std::env::var("JXR_TIMES").ok().and_then(|v| v.parse().ok()).unwrap_or(1) {
         let t = std::time::Instant::now();
-        raw = hdrcodec_jxr::decode_raw(&file, &options)?;
+        if std::env::var_os("JXR_F32").is_some() {
+            // The codec's own path: linear f32 rows into an image.
+            use hdrcodec_core::ImageCodec;
+            let image = hdrcodec_jxr::JxrCodec.decode_with(&file, &options)?;
+            raw = image.samples().iter().flat_map(|v| v.to_le_bytes()).collect();
+        } else {
+            raw = hdrcodec_jxr::decode_raw(&file, &options)?;
+        }
         best = best.min(t.elapsed());
     }
     eprintln!("decoded in {best:?} (best)");
