@@ -1,17 +1,19 @@
 //! The [`ImageCodec`] implementations (`bc6h` for DDS, `bc6h-ktx2` for KTX2), encoding with
 //! optional mip chains.
-use crate::dds::{dds_levels, is_bc6h_dds, read_dds_header, write_dds};
-use crate::decode::decode_surface_into;
+use crate::dds::{dds_header, dds_levels, is_bc6h_dds, read_dds_header};
+use crate::decode::{decode_surface_into, surface_bytes};
 use crate::encode::{encode_surface, EncodeOptions};
 use crate::ktx2::{
-    is_bc6h_ktx2, khr_df_primaries, ktx2_levels, read_ktx2_header, read_ktx2_primaries, write_ktx2, KTX2_PRIMARIES,
+    is_bc6h_ktx2, khr_df_primaries, ktx2_header, ktx2_levels, read_ktx2_header, read_ktx2_primaries, KTX2_PRIMARIES,
 };
 use crate::texture::{full_mip_count, level_size, Bc6hTexture, TextureHeader};
+use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, ImageInfo,
     Limits, Result,
 };
+use std::borrow::Cow;
 
 /// The options both codecs understand.
 const OPTIONS: &[&str] = &["signed", "mips"];
@@ -83,20 +85,74 @@ pub fn encode_texture(
     Ok(Bc6hTexture { width, height, signed: options.signed, levels })
 }
 
-/// Encodes the texture and reports the samples BC6H could not hold (see [`clip_note`]).
-fn encode_with(image: &HdrImage, settings: &EncodeSettings, codec: &str) -> Result<(Bc6hTexture, EncodeReport)> {
-    settings.check_options(codec, OPTIONS)?;
-    let signed = settings.bool_option("signed")?.unwrap_or(false);
-    let mips = settings.bool_option("mips")?.unwrap_or(false);
-    let options =
-        EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), pool: settings.pool.clone() };
-    let rgb = image.with_channels(Channels::Rgb);
-    let texture = encode_texture(image.width(), image.height(), rgb.samples(), &options, mips)?;
-    let mut report = EncodeReport::new();
-    if let Some(note) = clip_note(image, signed) {
-        report.note(note);
+/// Rows of blocks encoded and written at a time (a multiple of 4): bounds what is held of the
+/// encoded file while leaving each band thousands of blocks to spread over the threads.
+const BAND_ROWS: u32 = 256;
+
+/// The levels of a texture as the writers stream them: level 0 is the image's own samples (no
+/// copy when it is RGB), the mip chain (at most a third of level 0) is computed ahead; each level
+/// is encoded and written a band of block rows at a time.
+struct Levels<'a> {
+    width: u32,
+    height: u32,
+    level0: Cow<'a, [f32]>,
+    mips: Vec<Vec<f32>>,
+    options: EncodeOptions,
+}
+
+impl<'a> Levels<'a> {
+    /// Checks the options, and reports the samples BC6H cannot hold (see [`clip_note`]).
+    fn new(image: &'a HdrImage, settings: &EncodeSettings, codec: &str) -> Result<(Self, EncodeReport)> {
+        settings.check_options(codec, OPTIONS)?;
+        let signed = settings.bool_option("signed")?.unwrap_or(false);
+        let mips = settings.bool_option("mips")?.unwrap_or(false);
+        let options = EncodeOptions {
+            signed,
+            effort: settings.effort.min(EncodeSettings::MAX_EFFORT),
+            pool: settings.pool.clone(),
+        };
+        let (width, height) = (image.width(), image.height());
+        if width == 0 || height == 0 {
+            return Err(hdrcodec_core::Error::invalid(format!("BC6H texture size {width}x{height} is empty")));
+        }
+        let level0: Cow<'a, [f32]> = match image.channels() {
+            Channels::Rgb => Cow::Borrowed(image.samples()),
+            _ => Cow::Owned(image.with_channels(Channels::Rgb).into_samples()),
+        };
+        let mut chain: Vec<Vec<f32>> = Vec::new();
+        if mips {
+            for i in 1..full_mip_count(width, height) {
+                let (pw, ph) = level_size(width, height, i - 1);
+                let (w, h) = level_size(width, height, i);
+                let next = downsample_box(chain.last().map_or(&level0[..], |v| &v[..]), pw, ph, w, h);
+                chain.push(next);
+            }
+        }
+        let mut report = EncodeReport::new();
+        if let Some(note) = clip_note(image, signed) {
+            report.note(note);
+        }
+        Ok((Levels { width, height, level0, mips: chain, options }, report))
     }
-    Ok((texture, report))
+
+    fn count(&self) -> usize {
+        1 + self.mips.len()
+    }
+
+    /// Encodes level `i` into `out`, a band of block rows at a time.
+    fn write_level(&self, i: usize, out: &mut dyn std::io::Write) -> Result<()> {
+        let (w, h) = level_size(self.width, self.height, i);
+        let rgb = if i == 0 { &self.level0[..] } else { &self.mips[i - 1][..] };
+        let row = w as usize * 3;
+        let mut y = 0;
+        while y < h {
+            let rows = BAND_ROWS.min(h - y);
+            let band = &rgb[y as usize * row..(y + rows) as usize * row];
+            out.write_all(&encode_surface(w, rows, band, &self.options)?)?;
+            y += rows;
+        }
+        Ok(())
+    }
 }
 
 /// What the encoder replaced (NaN by 0, values beyond the half range by ±65504, negatives in
@@ -190,8 +246,13 @@ impl ImageCodec for Bc6hDdsCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        let (texture, report) = encode_with(image, settings, self.name())?;
-        out.write_all(&write_dds(&texture)?)?;
+        let (levels, report) = Levels::new(image, settings, self.name())?;
+        let mut header = ByteWriter::new(ByteOrder::Little);
+        dds_header(&mut header, levels.width, levels.height, levels.options.signed, levels.count());
+        out.write_all(header.as_slice())?;
+        for i in 0..levels.count() {
+            levels.write_level(i, out)?;
+        }
         Ok(report)
     }
 }
@@ -240,19 +301,29 @@ impl ImageCodec for Bc6hKtx2Codec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
-        let (texture, mut report) = encode_with(image, settings, self.name())?;
+        let (levels, mut report) = Levels::new(image, settings, self.name())?;
         let primaries = match khr_df_primaries(&image.color.primaries) {
-            Some(_) => image.color.primaries,
+            Some(code) => code,
             None => {
                 report.note(format!(
                     "KTX2 cannot record {} primaries: the samples are stored as they are and the file says \
                      unspecified (--opt primaries=NAME converts them)",
                     image.color.primaries.name()
                 ));
-                ColorPrimaries::Unspecified
+                0
             }
         };
-        out.write_all(&write_ktx2(&texture, primaries)?)?;
+        let n = levels.count();
+        let (header, offsets) = ktx2_header(levels.width, levels.height, levels.options.signed, n, primaries)?;
+        out.write_all(&header)?;
+        // The smallest level first, each at its offset (a multiple of 16).
+        let mut pos = header.len() as u64;
+        for i in (0..n).rev() {
+            out.write_all(&[0; 16][..(offsets[i] - pos) as usize])?;
+            levels.write_level(i, out)?;
+            let (w, h) = level_size(levels.width, levels.height, i);
+            pos = offsets[i] + surface_bytes(w, h).unwrap_or(0) as u64;
+        }
         Ok(report)
     }
 }
@@ -299,6 +370,28 @@ mod tests {
         assert!(!report.notes[0].contains("below"), "{report:?}");
         let fine = HdrImage::zeroed(4, 4, Channels::Rgb);
         assert!(Bc6hDdsCodec.encode_to(&fine, &EncodeSettings::default(), &mut Vec::new()).unwrap().notes.is_empty());
+    }
+
+    #[test]
+    fn streamed_files_are_the_texture_writers_files() {
+        // Taller than a band, with a partial band and block row at the bottom, RGBA input.
+        let (w, h) = (37u32, 2 * BAND_ROWS + 9);
+        let samples = (0..w * h * 4).map(|i| ((i * 7919) % 1000) as f32 * 0.013 - 0.5).collect();
+        let image = HdrImage::new(w, h, Channels::Rgba, samples, ColorInfo::default()).unwrap();
+        let rgb = image.with_channels(Channels::Rgb);
+        for (signed, mips) in [(false, false), (true, true)] {
+            let settings = EncodeSettings::default()
+                .with_effort(0)
+                .with_option("signed", signed.to_string())
+                .with_option("mips", mips.to_string());
+            let options = EncodeOptions { signed, effort: 0, pool: settings.pool.clone() };
+            let texture = encode_texture(w, h, rgb.samples(), &options, mips).unwrap();
+            assert_eq!(Bc6hDdsCodec.encode(&image, &settings).unwrap(), crate::write_dds(&texture).unwrap());
+            assert_eq!(
+                Bc6hKtx2Codec.encode(&image, &settings).unwrap(),
+                crate::write_ktx2(&texture, ColorPrimaries::Bt709).unwrap()
+            );
+        }
     }
 
     #[test]

@@ -123,19 +123,30 @@ pub fn write_dds(tex: &Bc6hTexture) -> Result<Vec<u8>> {
     tex.validate()?;
     let total: usize = tex.levels.iter().map(Vec::len).sum();
     let mut w = ByteWriter::from_vec(Vec::with_capacity(DDS_DATA_OFFSET + total), ByteOrder::Little);
+    dds_header(&mut w, tex.width, tex.height, tex.signed, tex.levels.len());
+    for level in &tex.levels {
+        w.bytes(level);
+    }
+    Ok(w.into_vec())
+}
+
+/// The DDS header (magic, DDS_HEADER, DDS_HEADER_DXT10) of a `width` x `height` BC6H texture
+/// with `levels` mip levels: what precedes the levels, which follow largest first.
+pub(crate) fn dds_header(w: &mut ByteWriter, width: u32, height: u32, signed: bool, levels: usize) {
     w.bytes(DDS_MAGIC);
-    let mipmapped = tex.levels.len() > 1;
+    let mipmapped = levels > 1;
     let mut flags = DDSD_CAPS | DDSD_HEIGHT | DDSD_WIDTH | DDSD_PIXELFORMAT | DDSD_LINEARSIZE;
     if mipmapped {
         flags |= DDSD_MIPMAPCOUNT;
     }
     w.u32(124);
     w.u32(flags);
-    w.u32(tex.height);
-    w.u32(tex.width);
-    w.u32(tex.levels[0].len() as u32); // linear size of level 0
+    w.u32(height);
+    w.u32(width);
+    // Linear size of level 0 (a size over 4 GiB cannot be said; readers recompute it).
+    w.u32(surface_bytes(width, height).unwrap_or(0).min(u32::MAX as usize) as u32);
     w.u32(0); // depth
-    w.u32(tex.levels.len() as u32);
+    w.u32(levels as u32);
     w.zeros(11 * 4); // reserved1
                      // DDS_PIXELFORMAT: size 32, FourCC "DX10".
     w.u32(32);
@@ -149,16 +160,11 @@ pub fn write_dds(tex: &Bc6hTexture) -> Result<Vec<u8>> {
     w.u32(caps);
     w.zeros(4 * 4); // caps2..4, reserved2
     debug_assert_eq!(w.len() as u64, DDS_DXT10_OFFSET);
-    w.u32(if tex.signed { DXGI_BC6H_SF16 } else { DXGI_BC6H_UF16 });
+    w.u32(if signed { DXGI_BC6H_SF16 } else { DXGI_BC6H_UF16 });
     w.u32(DDS_RESOURCE_DIMENSION_TEXTURE2D);
     w.u32(0); // misc flags
     w.u32(1); // array size
     w.u32(0); // misc flags 2: DDS_ALPHA_MODE_UNKNOWN
-    debug_assert_eq!(w.len(), DDS_DATA_OFFSET);
-    for level in &tex.levels {
-        w.bytes(level);
-    }
-    Ok(w.into_vec())
 }
 
 #[cfg(test)]

@@ -217,45 +217,66 @@ pub fn write_ktx2(tex: &Bc6hTexture, primaries: ColorPrimaries) -> Result<Vec<u8
         Error::unsupported(format!("a KTX2 data format descriptor cannot record {} primaries", primaries.name()))
     })?;
     let n = tex.levels.len();
+    let (header, offsets) = ktx2_header(tex.width, tex.height, tex.signed, n, primaries)?;
+    let mut w = ByteWriter::from_vec(header, ByteOrder::Little);
+    for i in (0..n).rev() {
+        w.align(16);
+        debug_assert_eq!(w.len() as u64, offsets[i]);
+        w.bytes(&tex.levels[i]);
+    }
+    Ok(w.into_vec())
+}
+
+/// The KTX2 header, level index, DFD (with colorPrimaries `primaries`) and key/value data of a
+/// `width` x `height` BC6H texture with `levels` mip levels, and where each level goes: the
+/// smallest level comes first in the file, each at a multiple of 16.
+pub(crate) fn ktx2_header(
+    width: u32,
+    height: u32,
+    signed: bool,
+    levels: usize,
+    primaries: u32,
+) -> Result<(Vec<u8>, Vec<u64>)> {
+    let n = levels;
     let dfd_offset = KTX2_LEVEL_INDEX + KTX2_LEVEL_ENTRY * n;
     let dfd_len = 4 * KTX2_DFD_WORDS;
     let kvd_offset = dfd_offset + dfd_len;
-    let mut pos = align(kvd_offset + KTX2_KVD_LEN, 16);
-    // Offsets: the smallest level comes first in the file.
-    let mut offsets = vec![0usize; n];
+    let sizes = (0..n)
+        .map(|i| {
+            let (w, h) = level_size(width, height, i);
+            surface_bytes(w, h).map(|b| b as u64).ok_or_else(|| Error::invalid("KTX2 level size overflows"))
+        })
+        .collect::<Result<Vec<u64>>>()?;
+    let mut pos = align(kvd_offset + KTX2_KVD_LEN, 16) as u64;
+    let mut offsets = vec![0u64; n];
     for i in (0..n).rev() {
-        pos = align(pos, 16);
+        pos = pos.div_ceil(16) * 16;
         offsets[i] = pos;
-        pos += tex.levels[i].len();
+        pos += sizes[i];
     }
-    let mut w = ByteWriter::from_vec(Vec::with_capacity(pos), ByteOrder::Little);
+    let mut w = ByteWriter::new(ByteOrder::Little);
     w.bytes(&KTX2_IDENTIFIER);
-    let vk = if tex.signed { VK_BC6H_SFLOAT } else { VK_BC6H_UFLOAT };
-    for v in [vk, 1, tex.width, tex.height, 0, 0, 1, n as u32, 0] {
+    let vk = if signed { VK_BC6H_SFLOAT } else { VK_BC6H_UFLOAT };
+    for v in [vk, 1, width, height, 0, 0, 1, n as u32, 0] {
         w.u32(v);
     }
     for v in [dfd_offset, dfd_len, kvd_offset, KTX2_KVD_LEN] {
         w.u32(v as u32);
     }
     w.zeros(16); // no supercompression global data
-    for (i, level) in tex.levels.iter().enumerate() {
-        for v in [offsets[i], level.len(), level.len()] {
-            w.u64(v as u64);
+    for i in 0..n {
+        for v in [offsets[i], sizes[i], sizes[i]] {
+            w.u64(v);
         }
     }
-    for v in ktx2_dfd(tex.signed, primaries) {
+    for v in ktx2_dfd(signed, primaries) {
         w.u32(v);
     }
     w.u32(KTX2_KVD.len() as u32);
     w.bytes(KTX2_KVD);
     w.align(4);
     debug_assert_eq!(w.len(), kvd_offset + KTX2_KVD_LEN);
-    for i in (0..n).rev() {
-        w.align(16);
-        debug_assert_eq!(w.len(), offsets[i]);
-        w.bytes(&tex.levels[i]);
-    }
-    Ok(w.into_vec())
+    Ok((w.into_vec(), offsets))
 }
 
 #[cfg(test)]

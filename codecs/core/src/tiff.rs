@@ -745,21 +745,41 @@ impl IfdWriter {
     /// Errors if the file would outgrow 32-bit offsets, an entry has more than 2^32-1 values,
     /// there are more than 65535 entries, or `link_at` is not inside `w`.
     pub fn write(&self, w: &mut ByteWriter, link_at: usize) -> Result<usize> {
+        let (ifd, next) = self.emit(w, 0)?;
+        w.patch_u32(link_at, ifd as u32)?;
+        Ok(next)
+    }
+
+    /// The bytes of this IFD in byte order `order` (from a word-alignment byte if needed, then
+    /// the entries and the values that do not fit in them) for a file whose first `file_len`
+    /// bytes are already
+    /// written elsewhere (streamed): append them, then store the returned IFD offset at the
+    /// link (the header's first-IFD offset). The IFD's next-IFD offset is 0.
+    pub fn bytes_after(&self, order: ByteOrder, file_len: u64) -> Result<(Vec<u8>, u64)> {
+        let mut w = ByteWriter::new(order);
+        let (ifd, _) = self.emit(&mut w, file_len)?;
+        Ok((w.into_vec(), ifd))
+    }
+
+    /// Appends the IFD to `w`, whose first byte lies at file offset `base`; returns the IFD's
+    /// offset in the file and the position in `w` of its next-IFD offset.
+    fn emit(&self, w: &mut ByteWriter, base: u64) -> Result<(u64, usize)> {
         if self.entries.len() > usize::from(u16::MAX) {
             return Err(Error::invalid(format!("{} entries in one TIFF IFD (at most 65535)", self.entries.len())));
         }
         if let Some(e) = self.entries.iter().find(|e| e.count > u64::from(u32::MAX)) {
             return Err(Error::invalid(format!("{} values in TIFF tag {} (at most 2^32-1)", e.count, e.tag)));
         }
-        w.align(2);
-        let ifd = w.len() as u64;
+        if (base + w.len() as u64) % 2 == 1 {
+            w.u8(0);
+        }
+        let ifd = base + w.len() as u64;
         let end = ifd + self.size();
         if end > u64::from(u32::MAX) {
             return Err(Error::limit(format!(
                 "the TIFF file would reach {end} bytes; classic TIFF offsets are 32-bit"
             )));
         }
-        w.patch_u32(link_at, ifd as u32)?;
         w.u16(self.entries.len() as u16);
         let mut extra = ifd + 2 + ENTRY_LEN * self.entries.len() as u64 + 4;
         for e in &self.entries {
@@ -779,10 +799,12 @@ impl IfdWriter {
         w.u32(0);
         for e in self.entries.iter().filter(|e| e.byte_len() > 4) {
             write_values(w, &e.values);
-            w.align(2);
+            if (base + w.len() as u64) % 2 == 1 {
+                w.u8(0);
+            }
         }
-        debug_assert_eq!(w.len() as u64, end);
-        Ok(next)
+        debug_assert_eq!(base + w.len() as u64, end);
+        Ok((ifd, next))
     }
 }
 

@@ -316,66 +316,119 @@ impl WordsToRgb {
 /// not hold. The file's luminance is `Y · nits_per_unit / STONITS`, so decoding gives the same
 /// absolute luminance (samples in file units, `nits_per_unit` = STONITS).
 pub fn image_to_raster(image: &HdrImage, encoding: Encoding, stonits: Stonits) -> Result<(LogLuvRaster, EncodeReport)> {
-    let m = rgb_to_xyz(&image.color.primaries)?;
-    // LogLuv24's 4.8 decades clip most HDR images at their own scale: choose first (one pass
-    // over the luminance). LogL16 and LogLuv32 (38.5 decades) rarely need another scale: encode
-    // at the image's own and choose only if that clipped, which gives the same choice.
-    let lazy = stonits == Stonits::Auto && encoding != Encoding::LogLuv24;
-    let mut choice = if lazy { scale::keep(image) } else { scale::choose(image, &m, encoding, stonits)? };
-    let (mut words, mut clipped) = encode_words(image, &m, encoding, choice.scale);
-    if lazy && clipped.out_of_range() {
-        let moved = scale::choose(image, &m, encoding, stonits)?;
-        if moved.moved_for.is_some() {
-            choice = moved;
-            (words, clipped) = encode_words(image, &m, encoding, choice.scale);
-        }
-    }
-    let mut report = EncodeReport::new();
-    if let Some(note) = scale::moved_note(encoding, &choice, image.color.nits_per_unit) {
-        report.note(note);
-    }
-    if let Some(note) = clipped.note(encoding, &choice, matches!(stonits, Stonits::Fixed(_))) {
-        report.note(note);
-    }
-    let raster =
-        LogLuvRaster { width: image.width(), height: image.height(), encoding, words, stonits: Some(choice.stonits) };
-    Ok((raster, report))
+    let plan = Plan::new(image, encoding, stonits)?;
+    let mut words = vec![0u32; image.pixel_count()];
+    let mut clipped = Clipped::default();
+    plan.encode(image.samples(), &mut words, &mut clipped);
+    let raster = LogLuvRaster {
+        width: image.width(),
+        height: image.height(),
+        encoding,
+        words,
+        stonits: Some(plan.choice.stonits),
+    };
+    Ok((raster, plan.report(&clipped)))
 }
 
-/// The words of `image` (RGB → XYZ matrix `m`) with file luminance `Y · s`, and what clipped.
-fn encode_words(image: &HdrImage, m: &Mat3, encoding: Encoding, s: f64) -> (Vec<u32>, Clipped) {
+/// How an image is turned into words: its RGB → XYZ matrix and the scale chosen for it.
+struct Plan {
+    m: Mat3,
+    encoding: Encoding,
+    stonits: Stonits,
+    choice: scale::Choice,
+    channels: usize,
+    nits_per_unit: f32,
+}
+
+impl Plan {
+    /// The matrix, and STONITS as `stonits` says. With [`Stonits::Auto`] the scale moves only
+    /// when the image would clip at its own (see [`scale::choose`]), so every file of an image
+    /// that fits is written at the image's `nits_per_unit`.
+    fn new(image: &HdrImage, encoding: Encoding, stonits: Stonits) -> Result<Self> {
+        let m = rgb_to_xyz(&image.color.primaries)?;
+        let choice = scale::choose(image, &m, encoding, stonits)?;
+        Ok(Plan {
+            m,
+            encoding,
+            stonits,
+            choice,
+            channels: image.channels().count(),
+            nits_per_unit: image.color.nits_per_unit,
+        })
+    }
+
+    /// Encodes interleaved `samples` (whole pixels of the image's layout) into `words`, one per
+    /// pixel, tallying what the encoding could not hold.
+    fn encode(&self, samples: &[f32], words: &mut [u32], clipped: &mut Clipped) {
+        let (m, s, encoding) = (&self.m, self.choice.scale, self.encoding);
+        let pixels = samples.chunks_exact(self.channels).zip(words.iter_mut());
+        match encoding {
+            Encoding::LogL16 => {
+                for (p, w) in pixels {
+                    let [r, g, b] = [p[0], p[1], p[2]].map(f64::from);
+                    // `* s` is exact when s = 1: a file at the image's own scale is the same as ever.
+                    let y = (m[1][0] * r + m[1][1] * g + m[1][2] * b) * s;
+                    *w = u32::from(pixel::logl16_from_y(y));
+                    clipped.tally(encoding, y, *w);
+                }
+            }
+            Encoding::LogLuv24 | Encoding::LogLuv32 => {
+                for (p, w) in pixels {
+                    let [r, g, b] = [p[0], p[1], p[2]].map(f64::from);
+                    let v: [f32; 3] = std::array::from_fn(|i| ((m[i][0] * r + m[i][1] * g + m[i][2] * b) * s) as f32);
+                    *w = if encoding == Encoding::LogLuv24 {
+                        pixel::logluv24_from_xyz(v)
+                    } else {
+                        pixel::logluv32_from_xyz(v)
+                    };
+                    clipped.tally(encoding, f64::from(v[1]), *w);
+                }
+            }
+        }
+    }
+
+    /// The notes: the scale chosen (when it moved) and what clipped.
+    fn report(&self, clipped: &Clipped) -> EncodeReport {
+        let mut report = EncodeReport::new();
+        if let Some(note) = scale::moved_note(self.encoding, &self.choice, self.nits_per_unit) {
+            report.note(note);
+        }
+        if let Some(note) = clipped.note(self.encoding, &self.choice, matches!(self.stonits, Stonits::Fixed(_))) {
+            report.note(note);
+        }
+        report
+    }
+}
+
+/// Encodes an image as a LogLuv TIFF into `out`, strip by strip (see [`encode_with_report`]
+/// for the report): the words and bytes of one strip are held at a time, and the IFD's offset
+/// is filled in by seeking back.
+pub fn write_with_report(
+    image: &HdrImage,
+    opts: &EncodeOptions,
+    out: &mut dyn hdrcodec_core::WriteSeek,
+) -> Result<EncodeReport> {
+    let plan = Plan::new(image, opts.encoding, opts.stonits)?;
+    let rows_per_strip = match opts.rows_per_strip {
+        // About 64 KiB of pixels per strip, as `LogLuvRaster::to_tiff` writes.
+        0 => (65536 / image.width().max(1).saturating_mul(4)).max(1),
+        n => n,
+    };
+    let layout = tiff::Layout {
+        width: image.width(),
+        height: image.height(),
+        encoding: opts.encoding,
+        rows_per_strip,
+        stonits: Some(plan.choice.stonits),
+    };
+    let row = image.width() as usize * plan.channels;
     let mut clipped = Clipped::default();
-    // `* s` is exact when s = 1: a file at the image's own scale is the same as ever.
-    let xyz = |[r, g, b]: [f32; 3]| -> [f32; 3] {
-        let [r, g, b] = [r, g, b].map(f64::from);
-        std::array::from_fn(|i| ((m[i][0] * r + m[i][1] * g + m[i][2] * b) * s) as f32)
-    };
-    let words = match encoding {
-        Encoding::LogL16 => image
-            .rgb()
-            .map(|p| {
-                let [r, g, b] = p.map(f64::from);
-                let y = (m[1][0] * r + m[1][1] * g + m[1][2] * b) * s;
-                let w = u32::from(pixel::logl16_from_y(y));
-                clipped.tally(encoding, y, w);
-                w
-            })
-            .collect(),
-        Encoding::LogLuv24 | Encoding::LogLuv32 => image
-            .rgb()
-            .map(|p| {
-                let v = xyz(p);
-                let w = if encoding == Encoding::LogLuv24 {
-                    pixel::logluv24_from_xyz(v)
-                } else {
-                    pixel::logluv32_from_xyz(v)
-                };
-                clipped.tally(encoding, f64::from(v[1]), w);
-                w
-            })
-            .collect(),
-    };
-    (words, clipped)
+    tiff::write_streamed(out, &layout, |first_row, words| {
+        let start = first_row as usize * row;
+        plan.encode(&image.samples()[start..start + words.len() * plan.channels], words, &mut clipped);
+        Ok(())
+    })?;
+    Ok(plan.report(&clipped))
 }
 
 /// Encodes an image as a LogLuv TIFF (the notes of [`encode_with_report`] are dropped).
@@ -386,9 +439,9 @@ pub fn encode(image: &HdrImage, opts: &EncodeOptions) -> Result<Vec<u8>> {
 /// Encodes an image as a LogLuv TIFF, with the report of [`image_to_raster`]: the STONITS
 /// chosen and what was clipped.
 pub fn encode_with_report(image: &HdrImage, opts: &EncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
-    let (raster, report) = image_to_raster(image, opts.encoding, opts.stonits)?;
-    let file = if opts.rows_per_strip == 0 { raster.to_tiff()? } else { tiff::write(&raster, opts.rows_per_strip)? };
-    Ok((file, report))
+    let mut file = std::io::Cursor::new(Vec::new());
+    let report = write_with_report(image, opts, &mut file)?;
+    Ok((file.into_inner(), report))
 }
 
 /// The [`ImageCodec`] of one LogLuv encoding. Each instance decodes any LogLuv TIFF; it
@@ -443,18 +496,31 @@ impl ImageCodec for LogLuvTiffCodec {
     fn decode_rows(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         decode_rows(data, &options.limits, &DecodeOptions::default(), sink)
     }
+    /// Into a plain writer the file is assembled in memory first (the header points at the
+    /// IFD, which follows the strips); [`encode_to_seekable`](ImageCodec::encode_to_seekable)
+    /// streams it.
     fn encode_to(
         &self,
         image: &HdrImage,
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<EncodeReport> {
+        let mut file = std::io::Cursor::new(Vec::new());
+        let report = self.encode_to_seekable(image, settings, &mut file)?;
+        out.write_all(file.get_ref())?;
+        Ok(report)
+    }
+    fn encode_to_seekable(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn hdrcodec_core::WriteSeek,
+    ) -> Result<EncodeReport> {
         settings.check_options(self.name(), &["rows_per_strip", "stonits"])?;
         let rows_per_strip = settings.parse_option::<u32>("rows_per_strip")?.unwrap_or(0);
         let stonits = settings.option("stonits").map(str::parse).transpose()?.unwrap_or_default();
-        let (file, mut report) =
-            encode_with_report(image, &EncodeOptions { encoding: self.encoding, rows_per_strip, stonits })?;
-        out.write_all(&file)?;
+        let mut report =
+            write_with_report(image, &EncodeOptions { encoding: self.encoding, rows_per_strip, stonits }, out)?;
         if !image.color.primaries.is_specified() {
             // LogLuv stores CIE XYZ: the samples must be read in some primaries to get there.
             report.note(

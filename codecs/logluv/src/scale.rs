@@ -238,12 +238,6 @@ impl Clipped {
         }
     }
 
-    /// True when the range, rather than the sign or NaN, clipped something: another STONITS
-    /// may help.
-    pub(crate) fn out_of_range(&self) -> bool {
-        self.dark > 0 || self.bright > 0
-    }
-
     /// True when nothing was clipped.
     pub fn is_empty(&self) -> bool {
         *self == Clipped::default()

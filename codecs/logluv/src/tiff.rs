@@ -235,39 +235,77 @@ impl<'a> StripRows<'a> {
 /// values over 4 bytes after it).
 pub fn write(raster: &LogLuvRaster, rows_per_strip: u32) -> Result<Vec<u8>> {
     let (w, h) = (raster.width, raster.height);
-    if w == 0 || h == 0 {
-        return Err(Error::invalid(format!("cannot write an empty {w}x{h} LogLuv TIFF")));
-    }
     if raster.words.len() as u64 != u64::from(w) * u64::from(h) {
         return Err(Error::invalid(format!("{}x{} raster with {} words", w, h, raster.words.len())));
     }
-    let rps = rows_per_strip.clamp(1, h);
-    let mut file = ByteWriter::new(ByteOrder::Little);
-    let link = core_tiff::write_header(&mut file, MAGIC_TIFF);
-    let out = file.as_mut_vec();
+    let layout = Layout { width: w, height: h, encoding: raster.encoding, rows_per_strip, stonits: raster.stonits };
+    let mut out = std::io::Cursor::new(Vec::new());
+    write_streamed(&mut out, &layout, |first_row, words| {
+        let at = first_row as usize * w as usize;
+        words.copy_from_slice(&raster.words[at..at + words.len()]);
+        Ok(())
+    })?;
+    Ok(out.into_inner())
+}
+
+/// What the IFD of a LogLuv TIFF says.
+pub(crate) struct Layout {
+    pub width: u32,
+    pub height: u32,
+    pub encoding: Encoding,
+    pub rows_per_strip: u32,
+    pub stonits: Option<f64>,
+}
+
+/// Writes a little-endian TIFF strip by strip into `out`: the header, each strip as soon as
+/// `fill(first_row, words)` has given the encoded words of its rows, then the IFD, whose offset
+/// is stored in the header by seeking back. Holds one strip of words and bytes at a time.
+pub(crate) fn write_streamed(
+    out: &mut dyn hdrcodec_core::WriteSeek,
+    layout: &Layout,
+    mut fill: impl FnMut(u32, &mut [u32]) -> Result<()>,
+) -> Result<()> {
+    let Layout { width: w, height: h, encoding, .. } = *layout;
+    if w == 0 || h == 0 {
+        return Err(Error::invalid(format!("cannot write an empty {w}x{h} LogLuv TIFF")));
+    }
+    let rps = layout.rows_per_strip.clamp(1, h);
+    let mut header = ByteWriter::new(ByteOrder::Little);
+    let link = core_tiff::write_header(&mut header, MAGIC_TIFF);
+    out.write_all(header.as_slice())?;
+    let mut pos = header.len() as u64;
     let mut offsets = Vec::new();
     let mut counts = Vec::new();
-    for strip in raster.words.chunks(w as usize * rps as usize) {
-        let start = out.len();
-        for row in strip.chunks(w as usize) {
-            match raster.encoding {
+    let mut words = vec![0u32; w as usize * rps as usize];
+    let mut bytes = Vec::new();
+    let mut first_row = 0;
+    while first_row < h {
+        let rows = rps.min(h - first_row);
+        let words = &mut words[..rows as usize * w as usize];
+        fill(first_row, words)?;
+        bytes.clear();
+        for row in words.chunks(w as usize) {
+            match encoding {
                 Encoding::LogLuv24 => {
                     for &p in row {
-                        out.extend_from_slice(&[(p >> 16) as u8, (p >> 8) as u8, p as u8]);
+                        bytes.extend_from_slice(&[(p >> 16) as u8, (p >> 8) as u8, p as u8]);
                     }
                 }
-                Encoding::LogLuv32 => rle::encode_row(row, 4, out),
-                Encoding::LogL16 => rle::encode_row(row, 2, out),
+                Encoding::LogLuv32 => rle::encode_row(row, 4, &mut bytes),
+                Encoding::LogL16 => rle::encode_row(row, 2, &mut bytes),
             }
         }
-        offsets.push(start as u32);
-        counts.push((out.len() - start) as u32);
+        // Every offset and count stays below this, so the casts cannot wrap.
+        if pos + bytes.len() as u64 > u64::from(u32::MAX) - 4096 - 8 * (offsets.len() as u64 + 1) {
+            return Err(Error::limit("the LogLuv TIFF would exceed 4 GiB (classic TIFF offsets are 32-bit)"));
+        }
+        out.write_all(&bytes)?;
+        offsets.push(pos as u32);
+        counts.push(bytes.len() as u32);
+        pos += bytes.len() as u64;
+        first_row += rows;
     }
-    // Checked before the casts above can matter: every offset and count is below this.
-    if out.len() > u32::MAX as usize - 4096 - 8 * offsets.len() {
-        return Err(Error::limit("the LogLuv TIFF would exceed 4 GiB (classic TIFF offsets are 32-bit)"));
-    }
-    let (compression, photometric, spp) = match raster.encoding {
+    let (compression, photometric, spp) = match encoding {
         Encoding::LogLuv32 => (COMPRESSION_SGILOG, PHOTOMETRIC_LOGLUV, 3),
         Encoding::LogLuv24 => (COMPRESSION_SGILOG24, PHOTOMETRIC_LOGLUV, 3),
         Encoding::LogL16 => (COMPRESSION_SGILOG, PHOTOMETRIC_LOGL, 1),
@@ -285,11 +323,15 @@ pub fn write(raster: &LogLuvRaster, rows_per_strip: u32) -> Result<Vec<u8>> {
     ifd.longs(tag::STRIP_BYTE_COUNTS, &counts);
     ifd.short(tag::PLANAR_CONFIGURATION, 1);
     ifd.shorts(tag::SAMPLE_FORMAT, &[2; 3][..spp]);
-    if let Some(s) = raster.stonits {
+    if let Some(s) = layout.stonits {
         ifd.double(TAG_STONITS, s);
     }
-    ifd.write(&mut file, link)?;
-    Ok(file.into_vec())
+    let (ifd_bytes, ifd_offset) = ifd.bytes_after(ByteOrder::Little, pos)?;
+    out.write_all(&ifd_bytes)?;
+    out.seek(std::io::SeekFrom::Start(link as u64))?;
+    out.write_all(&(ifd_offset as u32).to_le_bytes())?;
+    out.seek(std::io::SeekFrom::End(0))?;
+    Ok(())
 }
 
 #[cfg(test)]
