@@ -15,6 +15,7 @@ use hdrcodec_bc6h::{Bc6hDdsCodec, Bc6hKtx2Codec};
 use hdrcodec_container::{decode_frames, HdrcCodec, RawF16Codec, RawF32Codec, Reader, SeekReader};
 use hdrcodec_core::{EncodeSettings, HdrImage, ImageCodec, ImageInfo, Limits, Result};
 use hdrcodec_exr::{ExrCodec, ExrCompression};
+use hdrcodec_jxr::JxrCodec;
 use hdrcodec_logluv::{raster_to_image, read_tiff, DecodeOptions, Encoding, LogLuvTiffCodec};
 use hdrcodec_pfm::PfmCodec;
 use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncodeOptions, Rounding};
@@ -23,11 +24,12 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 7] = [
+pub const TARGETS: [(&str, Target); 8] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
     ("exr", exr),
+    ("jxr", jxr),
     ("logluv", logluv),
     ("pfm", pfm),
     ("rgbe", rgbe),
@@ -128,6 +130,27 @@ pub fn pfm(data: &[u8]) {
         let back = PfmCodec.decode(&bytes, &limits).expect("our own output always decodes");
         let same = img.samples().iter().zip(back.samples()).all(|(a, b)| a.to_bits() == b.to_bits());
         assert!(same && img.samples().len() == back.samples().len(), "PFM round trip changed samples");
+    }
+}
+
+/// JPEG XR: the codec (probe and decode through the container, entropy decoding, the
+/// transform and output formatting), jxrlib's raw samples for any pixel format, and the
+/// coefficients of the primary and planar alpha codestreams, on one and two threads.
+pub fn jxr(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    let _ = probe_and_decode(&JxrCodec, data, &limits);
+    let options = hdrcodec_core::DecodeOptions::new(limits.clone());
+    let _ = hdrcodec_jxr::decode_raw(data, &options);
+    if let Ok(c) = hdrcodec_jxr::container::parse_container(data) {
+        let _ = hdrcodec_jxr::decode_coefficients(c.image, &options);
+        if let Some(alpha) = c.alpha {
+            let _ = hdrcodec_jxr::decode_coefficients(alpha, &options);
+        }
+        // One pool for every input (starting threads per input would slow the fuzzer down).
+        static POOL: std::sync::OnceLock<Option<hdrcodec_core::ThreadPool>> = std::sync::OnceLock::new();
+        if let Some(pool) = POOL.get_or_init(|| hdrcodec_core::ThreadPool::new(2).ok()) {
+            let _ = hdrcodec_jxr::decode_raw(data, &options.clone().with_pool(pool.clone()));
+        }
     }
 }
 

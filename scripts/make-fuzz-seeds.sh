@@ -25,4 +25,6 @@ seed container hdrc
 seed rgbe hdr
 seed logluv tif --codec logluv32
 seed bc6h_files dds --effort 0
+# JPEG XR: no encoder yet; the crate's small test streams (JxrEncApp and T.835 wrote them).
+mkdir -p "$out/jxr" && cp codecs/jxr/testdata/*.jxr "$out/jxr/"
 echo "seeds: $(find "$out" -type f | wc -l) files in $out" >&2

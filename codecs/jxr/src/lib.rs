@@ -2,16 +2,114 @@
 //! hdrcodec family, decoded bit-exactly as jxrlib decodes it.
 //!
 //! Modules follow the bitstream's layers: [`container`] (Annex A), `bits` (bit reader and
-//! variable-length words), `header` (image and plane headers, index table), `vlc` (the fixed
+//! variable-length words), [`header`] (image and plane headers, index table), `vlc` (the fixed
 //! and adaptive code tables), `macroblock` (DC, LP, HP, CBP and flexbits), `predict` and
 //! `quant` (prediction and quantization), `transform` (the inverse lapped transform), `output`
-//! (colour conversion and output formatting, T.832 9.10), `tiles` and `decoder`.
+//! (colour conversion and output formatting, T.832 9.10), `tiles` and [`decoder`].
+//!
+//! Entropy decoding gives, for every macroblock and channel, the 256 dequantized and
+//! predicted coefficients the inverse transform reads ([`decode_coefficients`], layout in
+//! [`mb`]); it matches the ITU reference software T.835 coefficient for coefficient.
+//!
+//! Colour: JPEG XR files carry no colour signalling the decoder reads. By the WIC convention
+//! the fixed-point, half and float formats are linear scRGB (BT.709 primaries, 1.0 = 80 nits),
+//! and the integer formats sRGB-encoded (linearised when decoded to `f32`, reference white
+//! 80 nits as sRGB's reference display).
 
 #![forbid(unsafe_code)]
 
+mod bits;
 pub mod container;
-// Shared by the entropy decoder and the inverse transform as they land.
-#[allow(dead_code)]
-mod mb;
+pub mod decoder;
+pub mod header;
+mod macroblock;
+pub mod mb;
 pub mod output;
+mod predict;
+mod quant;
+mod render;
+mod tiles;
 pub mod transform;
+mod vlc;
+
+pub use decoder::{decode_coefficients, Coefficients, PlaneCoeffs, RowDecoder};
+pub use render::decode_raw;
+
+use hdrcodec_core::sink::RowSink;
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage,
+    ImageCodec, ImageInfo, Limits, Result,
+};
+
+/// The JPEG XR codec of the family (`jxr`, id `JXR `).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct JxrCodec;
+
+/// The colour every decoded JPEG XR image carries (see the crate documentation).
+fn jxr_color() -> ColorInfo {
+    ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 80.0, hdr10: None }
+}
+
+/// Reads the container and codestream headers of a `.jxr` file: size, channels, colour and a
+/// description ("48bppRGBHalf, 1262x860, frequency order, OL1, 1x1 tiles"). Allocates
+/// nothing of the image's size.
+pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let container = container::parse_container(data)?;
+    let cs = header::parse(container.image)?;
+    limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
+    let format = container.pixel_format;
+    let channels = if format.alpha { Channels::Rgba } else { Channels::Rgb };
+    let i = &cs.image;
+    let description = format!(
+        "{}, {}x{}, {} order, OL{}, {}x{} tiles{}",
+        format.name,
+        i.width,
+        i.height,
+        if i.frequency_mode { "frequency" } else { "spatial" },
+        i.overlap,
+        i.tile_widths.len(),
+        i.tile_heights.len(),
+        if i.hard_tiling { " (hard)" } else { "" },
+    );
+    Ok(ImageInfo::new(i.width, i.height, channels, jxr_color()).with_format(description))
+}
+
+impl ImageCodec for JxrCodec {
+    fn name(&self) -> &'static str {
+        "jxr"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"JXR "
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["jxr", "wdp", "hdp"]
+    }
+    /// `II BC 01` (JPEG XR) or `II BC 00` (HD Photo).
+    fn sniff(&self, head: &[u8]) -> bool {
+        head.len() >= 4 && head[..3] == *b"II\xBC" && head[3] <= 1
+    }
+    /// None for now: the samples of the HDR formats are scRGB by convention (see the crate
+    /// documentation), which decoded images state as BT.709 with 80 nits per unit.
+    fn color_signalling(&self) -> ColorSignalling {
+        ColorSignalling::None
+    }
+    /// The headers only (see [`probe_jxr`]).
+    fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+        probe_jxr(data, limits)
+    }
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+        render::decode_rows(data, options, sink, jxr_color())
+    }
+    /// The encoder is the next issue.
+    fn encode_to(
+        &self,
+        _image: &HdrImage,
+        _settings: &EncodeSettings,
+        _out: &mut dyn std::io::Write,
+    ) -> Result<EncodeReport> {
+        Err(Error::unsupported("JPEG XR encoding (not implemented yet)"))
+    }
+}

@@ -1,0 +1,222 @@
+//! MSB-first bit reading over a byte slice (T.832 clause 8 reads every syntax element most
+//! significant bit first), and the byte-aligned variable-length word VLW_ESC.
+//!
+//! The reader keeps up to 64 bits in a buffer, left-aligned, and refills a whole word at a time
+//! while at least 8 bytes remain. Reading past the end never fails on the spot: the missing
+//! bits read as zeros and [`BitReader::overrun`] turns true. Decoders check it at the end of a
+//! packet (or of a macroblock row) and report [`Error::Truncated`]; every loop of the entropy
+//! decoder is bounded by the block size, so zeros cannot make it run away.
+
+use hdrcodec_core::{Error, Result};
+
+/// An MSB-first bit reader.
+#[derive(Clone, Debug)]
+pub struct BitReader<'a> {
+    data: &'a [u8],
+    /// Next byte of `data` to load into `buf`.
+    pos: usize,
+    /// Bits not yet consumed, left-aligned (bit 63 is the next bit).
+    buf: u64,
+    /// Number of valid bits in `buf` (zeros past the end of the data count as valid).
+    avail: u32,
+    /// Zero bits appended past the end of the data that are in `buf` or were consumed.
+    padded: u64,
+}
+
+impl<'a> BitReader<'a> {
+    /// A reader at the first bit of `data`.
+    pub fn new(data: &'a [u8]) -> Self {
+        BitReader { data, pos: 0, buf: 0, avail: 0, padded: 0 }
+    }
+
+    /// Tops the buffer up to at least 56 bits: one unaligned 8-byte load while 8 bytes
+    /// remain (the bits of the loaded word past `avail` are the stream's next bits, so loads
+    /// may overlap), byte by byte with zero padding at the end.
+    #[inline]
+    fn refill(&mut self) {
+        if let Some(chunk) = self.data.get(self.pos..self.pos + 8) {
+            let mut word = [0u8; 8];
+            word.copy_from_slice(chunk);
+            self.buf |= u64::from_be_bytes(word) >> self.avail;
+            self.pos += ((63 - self.avail) >> 3) as usize;
+            // avail + 8 * ((63 - avail) / 8) for avail <= 56.
+            self.avail |= 56;
+        } else {
+            self.refill_tail();
+        }
+    }
+
+    #[cold]
+    fn refill_tail(&mut self) {
+        while self.avail <= 56 {
+            let byte = match self.data.get(self.pos) {
+                Some(&b) => {
+                    self.pos += 1;
+                    b
+                }
+                None => {
+                    self.padded += 8;
+                    0
+                }
+            };
+            self.buf |= u64::from(byte) << (56 - self.avail);
+            self.avail += 8;
+        }
+    }
+
+    /// The next `n` bits (`n` ≤ 32) without consuming them.
+    #[inline]
+    pub fn peek(&mut self, n: u32) -> u32 {
+        debug_assert!(n <= 32);
+        if self.avail < n {
+            self.refill();
+        }
+        if n == 0 {
+            0
+        } else {
+            (self.buf >> (64 - n)) as u32
+        }
+    }
+
+    /// Consumes `n` bits (`n` ≤ 32) that were peeked.
+    #[inline]
+    pub fn skip(&mut self, n: u32) {
+        debug_assert!(n <= self.avail);
+        // n <= 32 < 64: the shift is defined.
+        self.buf <<= n & 63;
+        self.avail -= n;
+    }
+
+    /// Reads `n` bits (`n` ≤ 32) as an unsigned number.
+    #[inline]
+    pub fn read(&mut self, n: u32) -> u32 {
+        let v = self.peek(n);
+        self.skip(n);
+        v
+    }
+
+    /// Reads one bit.
+    #[inline]
+    pub fn bit(&mut self) -> bool {
+        self.read(1) != 0
+    }
+
+    /// Reads `n` bits (`n` ≤ 64).
+    pub fn read_u64(&mut self, n: u32) -> u64 {
+        if n <= 32 {
+            u64::from(self.read(n))
+        } else {
+            let hi = u64::from(self.read(n - 32));
+            (hi << 32) | u64::from(self.read(32))
+        }
+    }
+
+    /// Bits consumed so far (counting zeros read past the end).
+    pub fn bit_pos(&self) -> u64 {
+        self.pos as u64 * 8 + self.padded - u64::from(self.avail)
+    }
+
+    /// True when more bits were consumed than the data holds.
+    pub fn overrun(&self) -> bool {
+        self.bit_pos() > self.data.len() as u64 * 8
+    }
+
+    /// Skips to the next byte boundary.
+    pub fn align(&mut self) {
+        let rem = (self.bit_pos() % 8) as u32;
+        if rem != 0 {
+            self.peek(8);
+            self.skip(8 - rem);
+        }
+    }
+
+    /// The byte offset of the next bit (after [`align`](Self::align), the next byte).
+    pub fn byte_pos(&self) -> u64 {
+        self.bit_pos().div_ceil(8)
+    }
+
+    /// [`Error::Truncated`] naming `what` if the reader ran past the end of its data.
+    pub fn check(&self, what: &str) -> Result<()> {
+        if self.overrun() {
+            Err(Error::truncated(what.to_string()))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Reads a byte-aligned VLW_ESC word (T.832 8.2, used by the index table): a first byte
+    /// below 0xFB starts a 16-bit value; 0xFB is followed by a 32-bit and 0xFC by a 64-bit
+    /// value; 0xFD..=0xFF are escapes without a value (`None`).
+    pub fn vlw_esc(&mut self) -> Option<u64> {
+        let first = self.read(8);
+        match first {
+            0..=0xFA => Some(u64::from((first << 8) | self.read(8))),
+            0xFB => Some(u64::from(self.read(32))),
+            0xFC => Some(self.read_u64(64)),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_msb_first_across_refills() {
+        let data: Vec<u8> = (0..40u8).map(|i| i.wrapping_mul(37).wrapping_add(11)).collect();
+        // Reference: a naive bit iterator.
+        let bits: Vec<u32> = data.iter().flat_map(|b| (0..8).rev().map(move |i| u32::from((b >> i) & 1))).collect();
+        for widths in [[1u32, 3, 7, 13, 32, 2, 17, 5], [8, 8, 8, 8, 8, 8, 8, 8], [32, 31, 30, 1, 1, 29, 9, 4]] {
+            let mut r = BitReader::new(&data);
+            let mut at = 0usize;
+            'outer: loop {
+                for &w in &widths {
+                    if at + w as usize > bits.len() {
+                        break 'outer;
+                    }
+                    let want = bits[at..at + w as usize].iter().fold(0u32, |a, &b| (a << 1) | b);
+                    assert_eq!(r.read(w), want, "at bit {at}, width {w}");
+                    at += w as usize;
+                    assert_eq!(r.bit_pos(), at as u64);
+                }
+            }
+            assert!(!r.overrun());
+        }
+    }
+
+    #[test]
+    fn past_the_end_reads_zeros_and_flags_overrun() {
+        let mut r = BitReader::new(&[0xFF, 0x80]);
+        assert_eq!(r.read(9), 0x1FF);
+        assert!(!r.overrun());
+        assert_eq!(r.read(7), 0);
+        assert!(!r.overrun());
+        assert!(r.check("x").is_ok());
+        assert_eq!(r.read(32), 0);
+        assert!(r.overrun());
+        assert!(matches!(r.check("the tile"), Err(Error::Truncated { .. })));
+        // Long after the end: still zeros, still no panic.
+        for _ in 0..100 {
+            assert_eq!(r.read(32), 0);
+        }
+        let mut e = BitReader::new(&[]);
+        assert_eq!(e.read(1), 0);
+        assert!(e.overrun());
+    }
+
+    #[test]
+    fn align_and_vlw_esc() {
+        let data = [0b1010_0000, 0x12, 0x34, 0xFB, 0, 1, 0, 2, 0xFF, 0xFC, 0, 0, 0, 1, 0, 0, 0, 3];
+        let mut r = BitReader::new(&data);
+        assert_eq!(r.read(3), 0b101);
+        r.align();
+        assert_eq!(r.byte_pos(), 1);
+        assert_eq!(r.vlw_esc(), Some(0x1234));
+        assert_eq!(r.vlw_esc(), Some(0x0001_0002));
+        assert_eq!(r.vlw_esc(), None);
+        assert_eq!(r.vlw_esc(), Some((1 << 32) | 3));
+        assert_eq!(r.byte_pos(), data.len() as u64);
+        assert!(!r.overrun());
+    }
+}

@@ -1,0 +1,296 @@
+//! Coefficient prediction (T.832 9.3; T.835 `algo.c: _jxr_complete_cur_dclp`,
+//! `r_parse.c: r_calculate_mbhp_mode, _jxr_propagate_hp_predictions`, jxrlib
+//! `strPredQuant.c`, `strPredQuantDec.c`), on quantized values inside one tile.
+//!
+//! Coefficients are indexed as in [`crate::mb`]: `c[0]` DC, `c[k]` LP coefficient `k`,
+//! `c[mb::hp(b, k)]` HP coefficient `k` of block `b` (raster order in the macroblock).
+
+use crate::header::ClrFmt;
+use crate::mb::{hp, MB_COEFFS};
+
+/// DC prediction mode of a macroblock (T.832 9.3.1): 0 from the left, 1 from the top, 2
+/// from both, 3 none. `left`, `top`, `top_left` are the neighbours' coefficient arrays
+/// (all channels, [`MB_COEFFS`] each), present when inside the tile.
+pub fn dc_mode(fmt: ClrFmt, left: Option<&[i32]>, top: Option<&[i32]>, top_left: Option<&[i32]>) -> u8 {
+    let (l, t, tl) = match (left, top, top_left) {
+        (None, None, _) => return 3,
+        (None, Some(_), _) => return 1,
+        (Some(_), None, _) => return 0,
+        (Some(l), Some(t), Some(tl)) => (l, t, tl),
+        // A macroblock with a left and a top neighbour always has a top-left one.
+        (Some(_), Some(_), None) => return 2,
+    };
+    let d = |a: &[i32], b: &[i32], ch: usize| (i64::from(a[ch * MB_COEFFS]) - i64::from(b[ch * MB_COEFFS])).abs();
+    let (hor, ver) = match fmt {
+        ClrFmt::YOnly | ClrFmt::NComponent => (d(tl, l, 0), d(tl, t, 0)),
+        _ => {
+            let scale = match fmt {
+                ClrFmt::Yuv422 => 4,
+                ClrFmt::Yuv420 => 8,
+                _ => 2,
+            };
+            (d(tl, l, 0) * scale + d(tl, l, 1) + d(tl, l, 2), d(tl, t, 0) * scale + d(tl, t, 1) + d(tl, t, 2))
+        }
+    };
+    if hor * 4 < ver {
+        1
+    } else if ver * 4 < hor {
+        0
+    } else {
+        2
+    }
+}
+
+/// DC and LP prediction of one macroblock (`cur`: all channels), given its neighbours inside
+/// the tile and whether each has the same LP QP index. Returns the DC mode.
+#[allow(clippy::too_many_arguments)]
+pub fn predict_dclp(
+    fmt: ClrFmt,
+    channels: usize,
+    cur: &mut [i32],
+    left: Option<&[i32]>,
+    top: Option<&[i32]>,
+    top_left: Option<&[i32]>,
+    same_lp_qp_left: bool,
+    same_lp_qp_top: bool,
+) -> u8 {
+    let mode = dc_mode(fmt, left, top, top_left);
+    for ch in 0..channels {
+        let o = ch * MB_COEFFS;
+        let l = left.map_or(0, |m| i64::from(m[o]));
+        let t = top.map_or(0, |m| i64::from(m[o]));
+        let add = match mode {
+            0 => l,
+            1 => t,
+            2 => {
+                if ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) {
+                    (l + t + 1) >> 1
+                } else {
+                    (l + t) >> 1
+                }
+            }
+            _ => 0,
+        };
+        cur[o] = cur[o].wrapping_add(add as i32);
+    }
+    let lp_mode = if mode == 0 && same_lp_qp_left {
+        0
+    } else if mode == 1 && same_lp_qp_top {
+        1
+    } else {
+        2
+    };
+    for ch in 0..channels {
+        let o = ch * MB_COEFFS;
+        let c = &mut cur[o..o + MB_COEFFS];
+        let l = left.map(|m| &m[o..o + MB_COEFFS]);
+        let t = top.map(|m| &m[o..o + MB_COEFFS]);
+        let add = |c: &mut [i32], i: usize, v: i32| c[i] = c[i].wrapping_add(v);
+        match (fmt, ch > 0) {
+            (ClrFmt::Yuv420, true) => match (lp_mode, l, t) {
+                (0, Some(l), _) => add(c, 2, l[2]),
+                (1, _, Some(t)) => add(c, 1, t[1]),
+                _ => {}
+            },
+            (ClrFmt::Yuv422, true) => match (lp_mode, l, t) {
+                (0, Some(l), _) => {
+                    add(c, 4, l[4]);
+                    add(c, 2, l[2]);
+                    add(c, 6, l[6]);
+                }
+                (1, _, Some(t)) => {
+                    add(c, 4, t[4]);
+                    add(c, 1, t[5]);
+                    let v = c[1];
+                    add(c, 5, v);
+                }
+                (2, _, _) if mode == 1 => {
+                    let v = c[1];
+                    add(c, 5, v);
+                }
+                _ => {}
+            },
+            _ => match (lp_mode, l, t) {
+                (0, Some(l), _) => {
+                    for k in [4, 8, 12] {
+                        add(c, k, l[k]);
+                    }
+                }
+                (1, _, Some(t)) => {
+                    for k in [1, 2, 3] {
+                        add(c, k, t[k]);
+                    }
+                }
+                _ => {}
+            },
+        }
+    }
+    mode
+}
+
+/// HP prediction direction of a macroblock from its (predicted) LP coefficients (T.832
+/// 9.3.3): 0 from the left, 1 from the top, 2 none.
+pub fn hp_mode(fmt: ClrFmt, cur: &[i32]) -> u8 {
+    let a = |ch: usize, k: usize| i64::from(cur[ch * MB_COEFFS + k]).abs();
+    let mut hor = a(0, 1) + a(0, 2) + a(0, 3);
+    let mut ver = a(0, 4) + a(0, 8) + a(0, 12);
+    match fmt {
+        ClrFmt::YOnly | ClrFmt::NComponent => {}
+        ClrFmt::Yuv444 | ClrFmt::Yuvk => {
+            hor += a(1, 1) + a(2, 1);
+            ver += a(1, 4) + a(2, 4);
+        }
+        ClrFmt::Yuv422 => {
+            hor += a(1, 1) + a(2, 1) + a(1, 5) + a(2, 5);
+            ver += a(1, 2) + a(2, 2) + a(1, 6) + a(2, 6);
+        }
+        ClrFmt::Yuv420 => {
+            hor += a(1, 1) + a(2, 1);
+            ver += a(1, 2) + a(2, 2);
+        }
+    }
+    if hor * 4 < ver {
+        0
+    } else if ver * 4 < hor {
+        1
+    } else {
+        2
+    }
+}
+
+/// HP prediction inside one macroblock (`_jxr_propagate_hp_predictions`): with mode 0 the
+/// left-column coefficients 4, 8, 12 of each block add those of the block to the left; with
+/// mode 1 the top-row coefficients 1, 2, 3 add those of the block above. `c` holds all
+/// channels; for 420 and 422 the call for channel 0 also predicts both chroma channels.
+pub fn predict_hp(fmt: ClrFmt, c: &mut [i32], ch: usize, mode: u8) {
+    fn step(c: &mut [i32], o: usize, to: usize, from: usize, ks: [usize; 3]) {
+        for k in ks {
+            let v = c[o + hp(from, k)];
+            let d = &mut c[o + hp(to, k)];
+            *d = d.wrapping_add(v);
+        }
+    }
+    let o = ch * MB_COEFFS;
+    match mode {
+        0 => {
+            for b in (1..16).filter(|b| b % 4 != 0) {
+                step(c, o, b, b - 1, [4, 8, 12]);
+            }
+        }
+        1 => {
+            for b in 4..16 {
+                step(c, o, b, b - 4, [1, 2, 3]);
+            }
+        }
+        _ => {}
+    }
+    let (blocks_per_row, blocks) = match fmt {
+        ClrFmt::Yuv420 => (2, 4),
+        ClrFmt::Yuv422 => (2, 8),
+        _ => return,
+    };
+    for chroma in [1, 2] {
+        let o = chroma * MB_COEFFS;
+        match mode {
+            0 => {
+                for b in (1..blocks).step_by(2) {
+                    step(c, o, b, b - 1, [4, 8, 12]);
+                }
+            }
+            1 => {
+                for b in blocks_per_row..blocks {
+                    step(c, o, b, b - blocks_per_row, [1, 2, 3]);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The CBP prediction of one channel (T.832 9.3.4; T.835 `_jxr_PredCBP444/422/420`): turns
+/// the decoded difference pattern `diff` into the coded-block pattern, given the prediction
+/// state and the neighbours' patterns inside the tile (`None` outside). Returns the pattern
+/// and the number of coded blocks scaled to 16 (what the model is updated with).
+pub fn predict_cbp(fmt: ClrFmt, ch: usize, diff: u32, state: u8, left: Option<u32>, top: Option<u32>) -> (u32, i32) {
+    let mut cbp = diff;
+    let chroma_sub = ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+    let (top_bit, left_bit, all, scale) = match (fmt, chroma_sub) {
+        (ClrFmt::Yuv420, true) => (2, 1, 0xF, 4),
+        (ClrFmt::Yuv422, true) => (6, 1, 0xFF, 2),
+        _ => (10, 5, 0xFFFF, 1),
+    };
+    if state == 0 {
+        cbp ^= match (left, top) {
+            (Some(l), _) => (l >> left_bit) & 1,
+            (None, Some(t)) => (t >> top_bit) & 1,
+            (None, None) => 1,
+        };
+        match (fmt, chroma_sub) {
+            (ClrFmt::Yuv420, true) => {
+                cbp ^= 0x02 & (cbp << 1);
+                cbp ^= 0x0C & (cbp << 2);
+            }
+            (ClrFmt::Yuv422, true) => {
+                cbp ^= 0x02 & (cbp << 1);
+                cbp ^= 0x0C & (cbp << 2);
+                cbp ^= 0x30 & (cbp << 2);
+                cbp ^= 0xC0 & (cbp << 2);
+            }
+            _ => {
+                cbp ^= 0x02 & (cbp << 1);
+                cbp ^= 0x10 & (cbp << 3);
+                cbp ^= 0x20 & (cbp << 1);
+                cbp ^= (cbp & 0x33) << 2;
+                cbp ^= (cbp & 0xCC) << 6;
+                cbp ^= (cbp & 0x3300) << 2;
+            }
+        }
+    } else if state == 2 {
+        cbp ^= all;
+    }
+    cbp &= all;
+    (cbp, cbp.count_ones() as i32 * scale)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mb(channels: usize, f: impl Fn(usize, usize) -> i32) -> Vec<i32> {
+        (0..channels * MB_COEFFS).map(|i| f(i / MB_COEFFS, i % MB_COEFFS)).collect()
+    }
+
+    #[test]
+    fn dc_modes() {
+        let z = mb(3, |_, _| 0);
+        assert_eq!(dc_mode(ClrFmt::Yuv444, None, None, None), 3);
+        assert_eq!(dc_mode(ClrFmt::Yuv444, None, Some(&z), None), 1);
+        assert_eq!(dc_mode(ClrFmt::Yuv444, Some(&z), None, None), 0);
+        // Left differs strongly from top-left (an edge between the rows): the current
+        // macroblock is predicted from its left neighbour, below the same edge.
+        let l = mb(3, |ch, k| if ch == 0 && k == 0 { 100 } else { 0 });
+        assert_eq!(dc_mode(ClrFmt::Yuv444, Some(&l), Some(&z), Some(&z)), 0);
+        assert_eq!(dc_mode(ClrFmt::Yuv444, Some(&z), Some(&l), Some(&z)), 1);
+        assert_eq!(dc_mode(ClrFmt::Yuv444, Some(&z), Some(&z), Some(&z)), 2);
+    }
+
+    #[test]
+    fn dc_average_rounds_down_for_luma_and_up_for_subsampled_chroma() {
+        let l = mb(3, |_, k| if k == 0 { -3 } else { 0 });
+        let t = mb(3, |_, _| 0);
+        let tl = mb(3, |_, k| if k == 0 { -1 } else { 0 });
+        let mut cur = mb(3, |_, _| 0);
+        assert_eq!(predict_dclp(ClrFmt::Yuv420, 3, &mut cur, Some(&l), Some(&t), Some(&tl), true, true), 2);
+        assert_eq!((cur[0], cur[MB_COEFFS]), (-2, -1));
+    }
+
+    #[test]
+    fn cbp_prediction_at_the_tile_corner() {
+        // State 0, no neighbours: bit 0 flips, then propagates through the quads.
+        let (cbp, n) = predict_cbp(ClrFmt::Yuv444, 0, 0, 0, None, None);
+        assert_eq!(cbp, 0xFFFF);
+        assert_eq!(n, 16);
+        assert_eq!(predict_cbp(ClrFmt::Yuv444, 0, 0x0F0F, 1, None, None), (0x0F0F, 8));
+        assert_eq!(predict_cbp(ClrFmt::Yuv420, 1, 0, 2, None, None), (0xF, 16));
+    }
+}

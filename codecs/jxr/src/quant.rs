@@ -1,0 +1,114 @@
+//! Quantization (T.832 9.4 and 8.3.5): QP index → step size, per-macroblock QP index coding,
+//! and dequantization of a macroblock's coefficients.
+
+use crate::bits::BitReader;
+use crate::header::{ClrFmt, QpSet};
+use crate::mb;
+use hdrcodec_core::{Error, Result};
+
+/// The quantization step of QP index `index` (T.832 9.4.2; T.835 `_jxr_quant_map`, jxrlib
+/// `strPredQuant.c: remapQP`). `luma_like` is true for the first channel's DC and LP and for
+/// every channel's HP; the other channels' DC and LP steps are halved in scaled mode. Index 0
+/// is step 1 in both modes.
+pub fn step(index: u8, scaled: bool, luma_like: bool) -> i32 {
+    let x = i32::from(index);
+    if x == 0 {
+        return 1;
+    }
+    let shift = i32::from(luma_like);
+    let (man, exp) = if scaled {
+        if x < 16 {
+            (x, shift)
+        } else {
+            (16 + x % 16, (x >> 4) - 1 + shift)
+        }
+    } else if x < 32 {
+        ((x + 3) >> 2, 0)
+    } else if x < 48 {
+        ((16 + x % 16 + 1) >> 1, (x >> 4) - 2)
+    } else {
+        (16 + x % 16, (x >> 4) - 3)
+    };
+    man << exp
+}
+
+/// DECODE_QP_INDEX (T.832 8.6.x): which of a tile's `count` (> 1) LP or HP quantizer sets a
+/// macroblock uses. An index past the last set is an error.
+pub fn read_qp_index(r: &mut BitReader, count: usize) -> Result<u8> {
+    const BITS: [u32; 17] = [0, 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4];
+    if !r.bit() {
+        return Ok(0);
+    }
+    let index = r.read(BITS[count.min(16)]) as usize + 1;
+    if index >= count {
+        return Err(Error::invalid(format!("JPEG XR: macroblock QP index {index} of {count} quantizer sets")));
+    }
+    Ok(index as u8)
+}
+
+/// The quantizers of one tile and plane: the DC set, the LP sets and the HP sets.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TileQp {
+    /// DC indices.
+    pub dc: QpSet,
+    /// LP sets (at least one).
+    pub lp: Vec<QpSet>,
+    /// HP sets (at least one).
+    pub hp: Vec<QpSet>,
+    /// The LP band uses the DC set (USE_DC_QP): no per-macroblock LP index.
+    pub lp_use_dc: bool,
+    /// The HP band uses the LP sets (USE_LP_QP): the HP index is the LP index.
+    pub hp_use_lp: bool,
+}
+
+/// Number of LP coefficients (with the DC) and of HP blocks of channel `ch` (T.832 6.5).
+pub fn channel_shape(fmt: ClrFmt, ch: usize) -> (usize, usize) {
+    match (fmt, ch) {
+        (ClrFmt::Yuv420, 1..) => (4, 4),
+        (ClrFmt::Yuv422, 1..) => (8, 8),
+        _ => (16, 16),
+    }
+}
+
+/// Multiplies one channel's quantized coefficients by their steps: DC by `dc`, LP by `lp`, the
+/// HP of the coded blocks by `hp` (wrapping, as jxrlib's 32-bit arithmetic does).
+pub fn dequantize(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32, hp: i32) {
+    c[mb::DC] = c[mb::DC].wrapping_mul(dc);
+    for v in &mut c[1..shape.0] {
+        *v = v.wrapping_mul(lp);
+    }
+    for v in &mut c[16..16 + 15 * shape.1] {
+        *v = v.wrapping_mul(hp);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_follow_the_tables() {
+        // Unscaled (JXR-NOTES §5, T.832 9.4.2).
+        let u: Vec<i32> =
+            [0u8, 1, 4, 5, 15, 16, 31, 32, 47, 48, 63, 64, 255].iter().map(|&i| step(i, false, true)).collect();
+        assert_eq!(u, vec![1, 1, 1, 2, 4, 4, 8, 8, 16, 16, 31, 32, 31 << 12]);
+        // Scaled luma: 2i below 16, then (16 + i mod 16) << (i/16).
+        let s: Vec<i32> = [1u8, 15, 16, 31, 32, 255].iter().map(|&i| step(i, true, true)).collect();
+        assert_eq!(s, vec![2, 30, 32, 62, 64, 31 << 15]);
+        // Scaled chroma DC/LP: half.
+        let c: Vec<i32> = [1u8, 15, 16, 255].iter().map(|&i| step(i, true, false)).collect();
+        assert_eq!(c, vec![1, 15, 16, 31 << 14]);
+        // Unscaled does not depend on the channel.
+        assert_eq!(step(100, false, false), step(100, false, true));
+    }
+
+    #[test]
+    fn qp_index_bounds() {
+        // 1, then 3 bits "111" = 7 + 1 = 8 > 5 sets: an error.
+        let mut r = BitReader::new(&[0b1111_0000]);
+        assert!(read_qp_index(&mut r, 6).is_err());
+        let mut r = BitReader::new(&[0b0100_0000]);
+        assert_eq!(read_qp_index(&mut r, 2).unwrap(), 0);
+        assert_eq!(read_qp_index(&mut r, 2).unwrap(), 1);
+    }
+}

@@ -1,0 +1,499 @@
+//! One tile, end to end through entropy decoding: its packets (one in spatial order; DC, LP,
+//! HP and FLEXBITS in frequency order, T.832 8.4), its tile headers and quantizers, the
+//! macroblock layer, prediction and dequantization (T.835 `r_tile_spatial.c`,
+//! `r_tile_frequency.c`; jxrlib `strdec.c: readPackets, readTileHeader*`).
+//!
+//! The adaptive coding state and every prediction stop at tile edges, so tiles decode
+//! independently of each other. Inside a tile, decoding is serial in raster order; a
+//! [`TileDecoder`] gives one macroblock row at a time (in frequency order, each packet's
+//! reader advances by one row), holding only the row above for prediction.
+
+use crate::bits::BitReader;
+use crate::header::{read_qp_set, Bands, ClrFmt, Codestream, PlaneHeader, QpSet, QpSource};
+use crate::macroblock::{self, PlaneDecoder};
+use crate::mb::MB_COEFFS;
+use crate::predict;
+use crate::quant::{self, TileQp};
+use hdrcodec_core::{Error, Result};
+
+/// Per-macroblock side information kept while a tile decodes (and handed to the FLEXBITS
+/// stage when it runs apart, see [`FlexStage`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct MbSide {
+    lp_qi: u8,
+    hp_qi: u8,
+    hp_mode: u8,
+    hp_bits: [u32; 2],
+}
+
+/// One plane of a tile being decoded: its adaptive state, quantizers, and the two macroblock
+/// rows prediction needs (the current one and the one above), quantized.
+struct PlaneWork<'h> {
+    hdr: &'h PlaneHeader,
+    dec: PlaneDecoder,
+    qp: TileQp,
+    /// Macroblocks per row.
+    w: usize,
+    /// Coefficient rows, the row `my` in slot `my % 2`.
+    rows: [Vec<i32>; 2],
+    side: [Vec<MbSide>; 2],
+    cbp: [Vec<u32>; 2],
+}
+
+impl<'h> PlaneWork<'h> {
+    fn new(hdr: &'h PlaneHeader, w: usize) -> Self {
+        let uniform = |s: QpSource| match s {
+            QpSource::Uniform(set) => set,
+            QpSource::PerTile => QpSet::default(),
+        };
+        let qp = TileQp {
+            dc: uniform(hdr.dc),
+            lp: vec![uniform(hdr.lp)],
+            hp: vec![uniform(hdr.hp)],
+            lp_use_dc: false,
+            hp_use_lp: false,
+        };
+        let row = || vec![0; w * hdr.channels * MB_COEFFS];
+        PlaneWork {
+            hdr,
+            dec: PlaneDecoder::new(hdr.clr_fmt, hdr.channels),
+            qp,
+            w,
+            rows: [row(), row()],
+            side: [vec![MbSide::default(); w], vec![MbSide::default(); w]],
+            cbp: [vec![0; w * hdr.channels], vec![0; w * hdr.channels]],
+        }
+    }
+
+    fn stride(&self) -> usize {
+        self.hdr.channels * MB_COEFFS
+    }
+
+    /// Clears the slot of row `my` before it is decoded.
+    fn start_row(&mut self, my: usize) {
+        let s = my % 2;
+        self.rows[s].fill(0);
+        self.side[s].fill(MbSide::default());
+        self.cbp[s].fill(0);
+    }
+
+    /// The coefficients of macroblock `mx` of row `my` (all channels).
+    fn mb(&mut self, mx: usize, my: usize) -> &mut [i32] {
+        let stride = self.stride();
+        &mut self.rows[my % 2][mx * stride..(mx + 1) * stride]
+    }
+
+    /// MB_DC of macroblock (`mx`, `my`).
+    fn dc(&mut self, r: &mut BitReader, mx: usize, my: usize) {
+        let (stride, w) = (self.stride(), self.w as u32);
+        self.dec.dc(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w);
+    }
+
+    /// MB_LP of macroblock (`mx`, `my`).
+    fn lp(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
+        let (stride, w) = (self.stride(), self.w as u32);
+        self.dec.lp(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w)
+    }
+
+    /// TILE_HEADER_DC.
+    fn header_dc(&mut self, r: &mut BitReader) {
+        if self.hdr.dc == QpSource::PerTile {
+            self.qp.dc = read_qp_set(r, self.hdr.channels);
+        }
+    }
+
+    /// TILE_HEADER_LOWPASS.
+    fn header_lp(&mut self, r: &mut BitReader) {
+        if self.hdr.bands.has_lp() && self.hdr.lp == QpSource::PerTile {
+            self.qp.lp_use_dc = r.bit();
+            self.qp.lp = if self.qp.lp_use_dc {
+                vec![self.qp.dc]
+            } else {
+                let n = r.read(4) as usize + 1;
+                (0..n).map(|_| read_qp_set(r, self.hdr.channels)).collect()
+            };
+        }
+    }
+
+    /// TILE_HEADER_HIGHPASS.
+    fn header_hp(&mut self, r: &mut BitReader) {
+        if self.hdr.bands.has_hp() && self.hdr.hp == QpSource::PerTile {
+            self.qp.hp_use_lp = r.bit();
+            self.qp.hp = if self.qp.hp_use_lp {
+                self.qp.lp.clone()
+            } else {
+                let n = r.read(4) as usize + 1;
+                (0..n).map(|_| read_qp_set(r, self.hdr.channels)).collect()
+            };
+        }
+    }
+
+    fn read_lp_index(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
+        if self.hdr.bands.has_lp() && self.qp.lp.len() > 1 && !self.qp.lp_use_dc {
+            self.side[my % 2][mx].lp_qi = quant::read_qp_index(r, self.qp.lp.len())?;
+        }
+        Ok(())
+    }
+
+    fn read_hp_index(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
+        if self.hdr.bands.has_hp() && self.qp.hp.len() > 1 {
+            let side = &mut self.side[my % 2][mx];
+            side.hp_qi = if self.qp.hp_use_lp { side.lp_qi } else { quant::read_qp_index(r, self.qp.hp.len())? };
+        }
+        Ok(())
+    }
+
+    /// DC and LP prediction of macroblock (`mx`, `my`).
+    fn predict_dclp(&mut self, mx: usize, my: usize) {
+        let stride = self.stride();
+        let (s, t) = (my % 2, 1 - my % 2);
+        let [r0, r1] = &mut self.rows;
+        let (cur_row, prev_row) = if s == 0 { (r0, &*r1) } else { (r1, &*r0) };
+        let (before, rest) = cur_row.split_at_mut(mx * stride);
+        let cur = &mut rest[..stride];
+        let left = (mx > 0).then(|| &before[(mx - 1) * stride..]);
+        let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
+        let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
+        let q = self.side[s][mx].lp_qi;
+        let same_left = mx > 0 && self.side[s][mx - 1].lp_qi == q;
+        let same_top = my > 0 && self.side[t][mx].lp_qi == q;
+        predict::predict_dclp(self.hdr.clr_fmt, self.hdr.channels, cur, left, top, top_left, same_left, same_top);
+    }
+
+    /// MB_CBP and MB_HP of macroblock (`mx`, `my`); with `flex_inline` the flexbits follow
+    /// each block.
+    fn cbp_hp(&mut self, r: &mut BitReader, mx: usize, my: usize, flex_inline: bool) -> Result<()> {
+        let ch = self.hdr.channels;
+        let s = my % 2;
+        let [c0, c1] = &mut self.cbp;
+        let (cur_row, prev_row) = if s == 0 { (c0, &*c1) } else { (c1, &*c0) };
+        let (before, rest) = cur_row.split_at_mut(mx * ch);
+        let left = (mx > 0).then(|| &before[(mx - 1) * ch..]);
+        let top = (my > 0).then(|| &prev_row[mx * ch..(mx + 1) * ch]);
+        let cur_cbp = &mut rest[..ch];
+        self.dec.cbp(r, left, top, cur_cbp)?;
+        let stride = ch * MB_COEFFS;
+        let c = &mut self.rows[s][mx * stride..(mx + 1) * stride];
+        let mode = predict::hp_mode(self.hdr.clr_fmt, c);
+        let bits = self.dec.hp(r, c, cur_cbp, mode, mx as u32, self.w as u32, flex_inline)?;
+        self.side[s][mx].hp_mode = mode;
+        self.side[s][mx].hp_bits = bits;
+        Ok(())
+    }
+
+    /// FLEXBITS of macroblock (`mx`, `my`) from a FLEXBITS packet.
+    fn flex(&mut self, r: &mut BitReader, mx: usize, my: usize) {
+        let stride = self.stride();
+        let bits = self.side[my % 2][mx].hp_bits;
+        let (fmt, channels, trim) = (self.hdr.clr_fmt, self.hdr.channels, self.dec.trim);
+        macroblock::flex_mb(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], fmt, channels, trim, bits);
+    }
+
+    /// HP prediction of macroblock (`mx`, `my`) (after its flexbits).
+    fn predict_hp(&mut self, mx: usize, my: usize) {
+        let (fmt, channels) = (self.hdr.clr_fmt, self.hdr.channels);
+        let mode = self.side[my % 2][mx].hp_mode;
+        predict_hp_mb(fmt, channels, self.mb(mx, my), mode);
+    }
+
+    /// Row `my` into `out` (exactly a row long): dequantized, or (`quantized`) as it is, for
+    /// a FLEXBITS stage to complete.
+    fn output_row(&self, my: usize, out: &mut [i32], quantized: bool) -> Result<()> {
+        let s = my % 2;
+        let out = out
+            .get_mut(..self.rows[s].len())
+            .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?;
+        out.copy_from_slice(&self.rows[s]);
+        if !quantized {
+            for (c, side) in out.chunks_exact_mut(self.stride()).zip(&self.side[s]) {
+                dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// HP prediction of one macroblock (`c`: all channels); for 420 and 422 the luma call also
+/// predicts the chroma channels.
+fn predict_hp_mb(fmt: ClrFmt, channels: usize, c: &mut [i32], mode: u8) {
+    let channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
+    for ch in 0..channels {
+        predict::predict_hp(fmt, c, ch, mode);
+    }
+}
+
+/// Dequantizes one macroblock (`c`: all channels) with the tile's quantizers.
+fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled: bool) -> Result<()> {
+    let lp = qp.lp.get(usize::from(side.lp_qi)).ok_or_else(|| Error::invalid("JPEG XR: LP QP index"))?;
+    let hp = qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
+    for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).enumerate() {
+        let luma = ch == 0;
+        quant::dequantize(
+            cc,
+            quant::channel_shape(fmt, ch),
+            quant::step(qp.dc.index[ch], scaled, luma),
+            quant::step(lp.index[ch], scaled, luma),
+            quant::step(hp.index[ch], scaled, true),
+        );
+    }
+    Ok(())
+}
+
+/// Runs `f` on every macroblock of row `my` (`w` wide), each plane in turn (primary, then
+/// alpha), then checks that the packet did not run out.
+fn each_mb<F>(planes: &mut [PlaneWork], r: &mut BitReader, w: usize, my: usize, what: &str, mut f: F) -> Result<()>
+where
+    F: FnMut(&mut PlaneWork, &mut BitReader, usize, usize) -> Result<()>,
+{
+    for mx in 0..w {
+        for p in planes.iter_mut() {
+            f(p, r, mx, my)?;
+        }
+    }
+    r.check(what)
+}
+
+/// Reads a packet's start code `00 00 01 xx` (`strict`: an error if it is wrong; jxrlib
+/// tolerates a bad FLEXBITS packet header).
+fn start_code(r: &mut BitReader, strict: bool) -> Result<()> {
+    let code = r.read(24);
+    r.read(8);
+    if code != 1 && strict {
+        return Err(Error::invalid("JPEG XR: a tile packet does not start with 00 00 01"));
+    }
+    Ok(())
+}
+
+/// Where tile (`tx`, `ty`) lies, in macroblocks: x0, y0, width, height.
+pub fn tile_rect(cs: &Codestream, tx: usize, ty: usize) -> (u32, u32, u32, u32) {
+    let x0: u32 = cs.image.tile_widths[..tx].iter().sum();
+    let y0: u32 = cs.image.tile_heights[..ty].iter().sum();
+    (x0, y0, cs.image.tile_widths[tx], cs.image.tile_heights[ty])
+}
+
+/// Decodes one tile macroblock row at a time: entropy decoding, prediction and
+/// dequantization of tile (`tx`, `ty`). Its state (readers of its packets, adaptive
+/// contexts, the row above) is its own, so the tiles of a tile row decode independently.
+pub struct TileDecoder<'a> {
+    w: usize,
+    h: usize,
+    my: usize,
+    bands: Bands,
+    frequency: bool,
+    /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS, as many as coded.
+    readers: Vec<BitReader<'a>>,
+    planes: Vec<PlaneWork<'a>>,
+    /// Leave the FLEXBITS packet, HP prediction and dequantization to a [`FlexStage`].
+    defer_flex: bool,
+}
+
+impl<'a> TileDecoder<'a> {
+    /// Locates the tile's packets and reads their start codes and tile headers.
+    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+        let (_, _, w, h) = tile_rect(cs, tx, ty);
+        let (w, h) = (w as usize, h as usize);
+        let mut planes = vec![PlaneWork::new(&cs.primary, w)];
+        if let Some(a) = &cs.alpha {
+            planes.push(PlaneWork::new(a, w));
+        }
+        let tile = ty * cs.image.tile_widths.len() + tx;
+        let bands = cs.primary.bands;
+        let frequency = cs.image.frequency_mode;
+        let per_tile = if frequency { bands.count() } else { 1 };
+        let mut readers = Vec::with_capacity(per_tile);
+        for band in 0..per_tile {
+            let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
+            let mut r = BitReader::new(&data[*entry as usize..]);
+            // jxrlib tolerates a bad FLEXBITS start code.
+            start_code(&mut r, band < 3)?;
+            readers.push(r);
+        }
+        let trim_flag = cs.image.trim_flexbits;
+        if !frequency {
+            let r = &mut readers[0];
+            let trim = if trim_flag { r.read(4) } else { 0 };
+            for p in &mut planes {
+                p.dec.trim = trim;
+                p.header_dc(r);
+                p.header_lp(r);
+                p.header_hp(r);
+            }
+        } else {
+            for p in &mut planes {
+                p.header_dc(&mut readers[0]);
+            }
+            if let Some(r) = readers.get_mut(1) {
+                planes.iter_mut().for_each(|p| p.header_lp(r));
+            }
+            if let Some(r) = readers.get_mut(2) {
+                planes.iter_mut().for_each(|p| p.header_hp(r));
+            }
+            if let Some(r) = readers.get_mut(3) {
+                let trim = if trim_flag { r.read(4) } else { 0 };
+                planes.iter_mut().for_each(|p| p.dec.trim = trim);
+            }
+        }
+        for r in &readers {
+            r.check("a JPEG XR tile header")?;
+        }
+        Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes, defer_flex: false })
+    }
+
+    /// Decodes the next macroblock row into `out` (one buffer per plane: primary, then
+    /// alpha; each exactly `width × channels` arrays of [`MB_COEFFS`] long), dequantized and
+    /// predicted. An error after the last row.
+    pub fn next_row(&mut self, out: &mut [&mut [i32]]) -> Result<()> {
+        self.decode_row(out, None)
+    }
+
+    /// True when the codestream has a FLEXBITS packet that a [`FlexStage`] can decode apart
+    /// (frequency order with flexbits).
+    pub fn has_flex_packet(&self) -> bool {
+        self.readers.len() == 4
+    }
+
+    /// Decodes the next row without its FLEXBITS (which must be in a packet of their own):
+    /// `out` gets the row quantized, without HP prediction, and `side` (one per plane, a row
+    /// long) what [`FlexStage::complete_row`] needs.
+    pub(crate) fn next_row_deferred(&mut self, out: &mut [&mut [i32]], side: &mut [&mut [MbSide]]) -> Result<()> {
+        if !self.has_flex_packet() {
+            return Err(Error::invalid("JPEG XR: deferred flexbits without a FLEXBITS packet (a bug)"));
+        }
+        self.defer_flex = true;
+        self.decode_row(out, Some(side))
+    }
+
+    fn decode_row(&mut self, out: &mut [&mut [i32]], side: Option<&mut [&mut [MbSide]]>) -> Result<()> {
+        let (w, my, bands) = (self.w, self.my, self.bands);
+        if my >= self.h {
+            return Err(Error::invalid("JPEG XR: a tile read past its last row (a bug in the decoder)"));
+        }
+        for p in &mut self.planes {
+            p.start_row(my);
+        }
+        let planes = &mut self.planes;
+        if !self.frequency {
+            let r = &mut self.readers[0];
+            each_mb(planes, r, w, my, "a JPEG XR tile", |p, r, mx, my| {
+                p.read_lp_index(r, mx, my)?;
+                p.read_hp_index(r, mx, my)?;
+                p.dc(r, mx, my);
+                if p.hdr.bands.has_lp() {
+                    p.lp(r, mx, my)?;
+                }
+                p.predict_dclp(mx, my);
+                if p.hdr.bands.has_hp() {
+                    p.cbp_hp(r, mx, my, p.hdr.bands.has_flex())?;
+                    p.predict_hp(mx, my);
+                }
+                Ok(())
+            })?;
+        } else {
+            let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
+            let r = dc;
+            each_mb(planes, r, w, my, "a JPEG XR DC packet", |p, r, mx, my| {
+                p.dc(r, mx, my);
+                if !p.hdr.bands.has_lp() {
+                    p.predict_dclp(mx, my);
+                }
+                Ok(())
+            })?;
+            if let Some(r) = rest.get_mut(0) {
+                each_mb(planes, r, w, my, "a JPEG XR LP packet", |p, r, mx, my| {
+                    p.read_lp_index(r, mx, my)?;
+                    p.lp(r, mx, my)?;
+                    p.predict_dclp(mx, my);
+                    Ok(())
+                })?;
+            }
+            if let Some(r) = rest.get_mut(1) {
+                each_mb(planes, r, w, my, "a JPEG XR HP packet", |p, r, mx, my| {
+                    p.read_hp_index(r, mx, my)?;
+                    p.cbp_hp(r, mx, my, false)?;
+                    if bands == Bands::NoFlexbits {
+                        p.predict_hp(mx, my);
+                    }
+                    Ok(())
+                })?;
+            }
+            if let Some(r) = rest.get_mut(2).filter(|_| !self.defer_flex) {
+                each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
+                    p.flex(r, mx, my);
+                    p.predict_hp(mx, my);
+                    Ok(())
+                })?;
+            }
+        }
+        for (p, o) in self.planes.iter().zip(out.iter_mut()) {
+            p.output_row(my, o, self.defer_flex)?;
+        }
+        if let Some(side) = side {
+            for (p, s) in self.planes.iter().zip(side.iter_mut()) {
+                s.get_mut(..w)
+                    .ok_or_else(|| Error::invalid("JPEG XR: a short side buffer (a bug in the decoder)"))?
+                    .copy_from_slice(&p.side[my % 2]);
+            }
+        }
+        self.my += 1;
+        Ok(())
+    }
+}
+
+/// The FLEXBITS packet of a tile in frequency order, decoded apart from the other packets
+/// (so that it can run on another thread than the DC, LP and HP packets, a row behind them):
+/// completes the rows [`TileDecoder::next_row_deferred`] gives with their flexbits, HP
+/// prediction and dequantization.
+pub(crate) struct FlexStage<'a> {
+    w: usize,
+    reader: BitReader<'a>,
+    trim: u32,
+    /// Per plane: INTERNAL_CLR_FMT, channels, SCALED_FLAG and the tile's quantizers.
+    planes: Vec<(ClrFmt, usize, bool, TileQp)>,
+}
+
+impl<'a> FlexStage<'a> {
+    /// The FLEXBITS stage of tile (`tx`, `ty`) (the tile headers are read again for its
+    /// quantizers).
+    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+        let mut t = TileDecoder::new(cs, data, tx, ty)?;
+        let reader = t.readers.pop().filter(|_| t.readers.len() == 3).ok_or_else(|| {
+            Error::invalid("JPEG XR: a FLEXBITS stage without a FLEXBITS packet (a bug in the decoder)")
+        })?;
+        let trim = t.planes[0].dec.trim;
+        let planes = t.planes.iter().map(|p| (p.hdr.clr_fmt, p.hdr.channels, p.hdr.scaled, p.qp.clone())).collect();
+        Ok(FlexStage { w: t.w, reader, trim, planes })
+    }
+
+    /// Completes one row (per plane: the row, and its side information).
+    pub fn complete_row(&mut self, rows: &mut [&mut [i32]], side: &[&[MbSide]]) -> Result<()> {
+        if rows.len() < self.planes.len() || side.len() < self.planes.len() {
+            return Err(Error::invalid("JPEG XR: a FLEXBITS stage given too few planes (a bug)"));
+        }
+        for mx in 0..self.w {
+            for (i, (fmt, channels, _, _)) in self.planes.iter().enumerate() {
+                let stride = channels * MB_COEFFS;
+                let c = rows[i]
+                    .get_mut(mx * stride..(mx + 1) * stride)
+                    .ok_or_else(|| Error::invalid("JPEG XR: a short row (a bug)"))?;
+                let s = side[i].get(mx).ok_or_else(|| Error::invalid("JPEG XR: a short side row (a bug)"))?;
+                macroblock::flex_mb(&mut self.reader, c, *fmt, *channels, self.trim, s.hp_bits);
+                predict_hp_mb(*fmt, *channels, c, s.hp_mode);
+            }
+        }
+        self.reader.check("a JPEG XR FLEXBITS packet")?;
+        for (i, (fmt, channels, scaled, qp)) in self.planes.iter().enumerate() {
+            let stride = channels * MB_COEFFS;
+            for (c, s) in rows[i].chunks_exact_mut(stride).zip(side[i]) {
+                dequantize_mb(c, s, qp, *fmt, *scaled)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Bytes a [`TileDecoder`] holds: two rows of coefficients and side information per plane.
+pub fn tile_bytes(cs: &Codestream, tx: usize, ty: usize) -> u64 {
+    let (_, _, w, _) = tile_rect(cs, tx, ty);
+    let channels = cs.primary.channels + cs.alpha.as_ref().map_or(0, |a| a.channels);
+    2 * u64::from(w) * (channels as u64 * (MB_COEFFS as u64 * 4 + 4) + 32)
+}

@@ -1,0 +1,351 @@
+//! hdrcodec-jxr against the JPEG XR references:
+//! - the three corpus `.jxr` files and a matrix of streams jxrlib's JxrEncApp writes from
+//!   corpus crops (half, float, RGBA with planar and interleaved alpha, 8- and 16-bit RGB,
+//!   16- and 32-bit fixed point, 8/16-bit grey, grey half and float, BGR/BGRA, 565/555/101010;
+//!   overlap 0/1/2, spatial and frequency order, sequential packets, tiles, trimmed flexbits,
+//!   band truncation, 4:2:0, 4:2:2, Y-only, lossless and lossy) entropy-decode to exactly the
+//!   coefficients the ITU reference software T.835 feeds its inverse transform. T.835 cannot
+//!   be built in CI, so its coefficients are kept as digests ([`PlaneCoeffs::digest`]),
+//!   computed on a developer's machine with T.835 1.32 (mloskot/jxr-refsoft) built with a
+//!   print of the dequantized, predicted coefficients (`r_strip.c: dequantize_up_dclp`,
+//!   `IPCT_level2_up2`);
+//! - end to end (entropy decoding, the inverse transform, output formatting), every corpus
+//!   file and matrix stream decodes to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
+//!   which calls jxrlib, in the pixel format's own layout, or JxrDecApp's TIFF for the formats
+//!   imagecodecs converts: padded float, fixed point, 555/565/101010);
+//! - `probe` agrees with jxrlib (imagecodecs) on size and channels;
+//! - truncated and damaged corpus files give errors or images, never panics.
+
+mod common;
+
+use hdrcodec_core::{DecodeOptions, ImageCodec, Limits};
+use hdrcodec_jxr::container::parse_container;
+use hdrcodec_jxr::decoder::DIGEST_START;
+use hdrcodec_jxr::{decode_coefficients, decode_raw, JxrCodec};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// The digest of every plane of a file: primary, interleaved alpha, then planar alpha.
+fn digest(file: &[u8], pool: hdrcodec_core::ThreadPool) -> u64 {
+    let container = parse_container(file).unwrap();
+    let options = DecodeOptions::new(Limits::default()).with_pool(pool);
+    let c = decode_coefficients(container.image, &options).unwrap();
+    let mut state = c.digest(DIGEST_START);
+    if let Some(alpha) = container.alpha {
+        state = decode_coefficients(alpha, &options).unwrap().digest(state);
+    }
+    state
+}
+
+/// T.835's digests of the corpus files.
+const CORPUS: [(&str, u64); 3] = [
+    ("GoldenGate_48bppRGBHalf_lossless.jxr", 0xb8e8_48f0_89a6_dc7e),
+    ("StillLife_128bppRGBAFloat_q0.9.jxr", 0x6aae_1f6f_a9ea_b1e2),
+    ("venice_sunset_1k_32bppRGBE_lossless.jxr", 0x6010_f167_70a7_62aa),
+];
+
+#[test]
+fn corpus_coefficients_match_t835() {
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    let names: Vec<String> = files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    for (name, want) in CORPUS {
+        assert!(names.iter().any(|n| n == name), "corpus file {name} is missing");
+        let file = std::fs::read(files.iter().find(|p| p.ends_with(name)).unwrap()).unwrap();
+        assert_eq!(digest(&file, hdrcodec_core::ThreadPool::single()), want, "{name}");
+    }
+}
+
+/// Writes the crops the matrix encodes, as uncompressed TIFFs JxrEncApp reads, from the
+/// corpus's GoldenGate (decoded by jxrlib through imagecodecs).
+const CROPS: &str = r#"
+import imagecodecs, numpy as np, struct, sys
+out, src = sys.argv[1], sys.argv[2]
+def write_tiff(path, arr):
+    h, w, n = arr.shape
+    dt = arr.dtype
+    data = np.ascontiguousarray(arr).astype(dt.newbyteorder('<')).tobytes()
+    kind = {'f': 3, 'i': 2}.get(dt.kind, 1)
+    entries = [(256, 4, [w]), (257, 4, [h]), (258, 3, [dt.itemsize * 8] * n), (259, 3, [1]),
+               (262, 3, [2 if n >= 3 else 1]), (273, 4, [0]), (277, 3, [n]), (278, 4, [h]),
+               (279, 4, [len(data)]), (284, 3, [1]), (339, 3, [kind] * n)]
+    if n == 4: entries.append((338, 3, [2]))
+    entries.sort()
+    extra = 8 + 2 + 12 * len(entries) + 4
+    data_off = extra + 8 * n + 4
+    entries = [(t, ty, [data_off] if t == 273 else v) for t, ty, v in entries]
+    ifd = struct.pack('<H', len(entries)); tail = b''
+    for tag, typ, vals in entries:
+        size = len(vals) * (2 if typ == 3 else 4)
+        if size <= 4:
+            v = b''.join(struct.pack('<H' if typ == 3 else '<I', x) for x in vals).ljust(4, b'\0')
+        else:
+            v = struct.pack('<I', extra + len(tail)); tail += b''.join(struct.pack('<H', x) for x in vals)
+        ifd += struct.pack('<HHI', tag, typ, len(vals)) + v
+    body = (b'II*\0' + struct.pack('<I', 8) + ifd + struct.pack('<I', 0) + tail).ljust(data_off, b'\0') + data
+    open(out + '/' + path, 'wb').write(body)
+img = imagecodecs.jpegxr_decode(open(src, 'rb').read())
+def crop(h, w, y=300, x=500): return np.ascontiguousarray(img[y:y+h, x:x+w])
+ramp = lambda h, w: np.linspace(0, 1, h * w).reshape(h, w, 1).astype(np.float16)
+write_tiff('half_100x72.tif', crop(72, 100))
+write_tiff('half_17x5.tif', crop(5, 17))
+write_tiff('half_1x1.tif', crop(1, 1))
+write_tiff('half_200x130.tif', crop(130, 200, 100, 300))
+write_tiff('float_100x72.tif', crop(72, 100).astype(np.float32))
+write_tiff('halfa_100x72.tif', np.concatenate([crop(72, 100), ramp(72, 100)], axis=2))
+write_tiff('floata_100x72.tif', np.concatenate([crop(72, 100), ramp(72, 100)], axis=2).astype(np.float32))
+write_tiff('rgb8_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), 0, 1) ** (1/2.2) * 255).astype(np.uint8))
+write_tiff('rgb16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), 0, 1) * 65535).astype(np.uint16))
+write_tiff('grayh_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2]))
+write_tiff('grayf_100x72.tif', np.ascontiguousarray(crop(72, 100)[:, :, 1:2].astype(np.float32)))
+write_tiff('fixed16_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), -3, 3) * 8192).astype(np.int16))
+g8 = (np.clip(crop(72, 100).astype(np.float32), 0, 1) ** (1/2.2) * 255).astype(np.uint8)
+g16 = (np.clip(crop(72, 100).astype(np.float32), 0, 1) * 65535).astype(np.uint16)
+write_tiff('rgba8_100x72.tif', np.concatenate([g8, np.linspace(0, 255, 7200).reshape(72, 100, 1).astype(np.uint8)], axis=2))
+write_tiff('rgba16_100x72.tif', np.concatenate([g16, np.linspace(0, 65535, 7200).reshape(72, 100, 1).astype(np.uint16)], axis=2))
+write_tiff('fixed32_100x72.tif', (np.clip(crop(72, 100).astype(np.float32), -100, 100) * (1 << 24)).astype(np.int32))
+write_tiff('gray8_100x72.tif', np.ascontiguousarray(g8[:, :, 1:2]))
+write_tiff('gray16_100x72.tif', np.ascontiguousarray(g16[:, :, 1:2]))
+"#;
+
+/// The matrix: name, input crop, JxrEncApp options, T.835's digest.
+const MATRIX: &[(&str, &str, &str, u64)] = &[
+    ("h_default", "half_100x72", "-c 12", 0x7ca5_8acd_1cf7_6fdd),
+    ("h_spatial", "half_100x72", "-c 12 -f", 0x7ca5_8acd_1cf7_6fdd),
+    ("h_ol0", "half_100x72", "-c 12 -l 0", 0xa481_39cd_a1d8_3476),
+    ("h_ol2", "half_100x72", "-c 12 -l 2", 0xb5d2_48b7_7184_5314),
+    ("h_q03", "half_100x72", "-c 12 -q 0.3", 0x3e83_a1c2_0149_5b93),
+    ("h_q07", "half_100x72", "-c 12 -q 0.7", 0xb817_e814_e5ad_614b),
+    ("h_q09s", "half_100x72", "-c 12 -q 0.9 -f", 0xd8f8_b36d_6bc7_0979),
+    ("h_q40", "half_100x72", "-c 12 -q 40", 0x61d7_d9d4_e336_6730),
+    ("h_tiles", "half_100x72", "-c 12 -V 3 2 -H 2", 0x7ca5_8acd_1cf7_6fdd),
+    ("h_tiles_sp", "half_100x72", "-c 12 -f -q 0.7 -V 3 2 -H 2", 0xb817_e814_e5ad_614b),
+    ("h_tiles_seq", "half_100x72", "-c 12 -p -q 0.5 -U 2 3", 0x4a44_9d42_12c9_265c),
+    ("h_trim", "half_100x72", "-c 12 -q 0.8 -F 5", 0xfee1_978a_fe9f_ebe6),
+    ("h_trim_sp", "half_100x72", "-c 12 -q 0.8 -F 3 -f", 0xfee1_978a_fe9f_ebe6),
+    ("h_s1", "half_100x72", "-c 12 -q 0.8 -s 1", 0xfee1_978a_fe9f_ebe6),
+    ("h_s2", "half_100x72", "-c 12 -q 0.8 -s 2", 0x7b6c_902b_489f_de36),
+    ("h_s3", "half_100x72", "-c 12 -q 0.8 -s 3", 0xa568_157c_9e1b_c16a),
+    ("h_s2sp", "half_100x72", "-c 12 -q 0.8 -s 2 -f", 0x7b6c_902b_489f_de36),
+    ("h_17x5", "half_17x5", "-c 12 -q 0.6", 0x8cf4_dbcc_0019_f091),
+    ("h_1x1", "half_1x1", "-c 12", 0xcc5b_5685_e103_cfe8),
+    ("h_big", "half_200x130", "-c 12 -q 0.4 -U 3 2", 0x822c_46e1_c22d_72c7),
+    ("f_q09", "float_100x72", "-c 15 -q 0.9", 0xe294_9623_88aa_0a7e),
+    ("f_lossless", "float_100x72", "-c 15", 0x1e0f_353b_d210_b01a),
+    ("ha_planar", "halfa_100x72", "-c 25 -q 0.8 -Q 30", 0xe636_a66e_323b_ce57),
+    ("ha_inter", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30", 0xe636_a66e_323b_ce57),
+    ("ha_inter_sp", "halfa_100x72", "-c 25 -a 3 -q 0.6 -Q 10 -f", 0x4e89_0db1_144b_9343),
+    ("fa_inter", "floata_100x72", "-c 28 -a 3 -q 0.9", 0xe1f7_0ea0_4217_e7b0),
+    ("r8_420", "rgb8_100x72", "-c 9 -d 1 -q 0.6", 0xb897_30aa_4273_85ab),
+    ("r8_422", "rgb8_100x72", "-c 9 -d 2 -q 0.6", 0x1013_b9d9_c33b_4f05),
+    ("r8_q03", "rgb8_100x72", "-c 9 -q 0.3", 0x996a_bfbd_909d_51c6),
+    ("r8_420sp", "rgb8_100x72", "-c 9 -d 1 -q 0.5 -f -l 2", 0x74c3_cad8_37ac_2dea),
+    ("r8_422t", "rgb8_100x72", "-c 9 -d 2 -q 0.7 -V 2 -H 2 -l 2", 0x5da5_57c9_fb4c_8712),
+    ("r8_y", "rgb8_100x72", "-c 9 -d 0 -q 0.7", 0x3a83_6333_d257_7719),
+    ("r8_lossless", "rgb8_100x72", "-c 9", 0x7ea5_248f_f0d1_7362),
+    ("r16", "rgb16_100x72", "-c 10 -q 0.8", 0xc0f9_1500_34cc_a7fa),
+    ("g_half", "grayh_100x72", "-c 5 -q 0.7", 0x2fcf_28bc_bac7_6851),
+    ("g_float", "grayf_100x72", "-c 8 -q 0.9", 0x736f_2853_3b61_95af),
+    ("g_half_sp", "grayh_100x72", "-c 5 -q 0.5 -f -V 2 -H 2", 0x24ef_ef92_5a87_a8f7),
+    ("fx16", "fixed16_100x72", "-c 11 -q 0.8", 0xf99f_9d1e_a66b_b3d2),
+    ("fx16l", "fixed16_100x72", "-c 11", 0xbd11_85fc_15bd_1307),
+    ("bgra8", "rgba8_100x72", "-c 22 -q 0.8 -a 3 -Q 20", 0x00fa_2c00_dc7d_6486),
+    ("bgra8p", "rgba8_100x72", "-c 22 -q 0.8", 0x4885_1754_0845_3389),
+    ("rgba16", "rgba16_100x72", "-c 23 -q 0.7 -a 3", 0xb6e6_567f_75ea_1b42),
+    ("fx32", "fixed32_100x72", "-c 14 -q 0.9", 0x0c54_1fb0_89a6_228b),
+    ("gray8", "gray8_100x72", "-c 2 -q 0.6", 0x0b8a_6a69_30ef_84a4),
+    ("gray16", "gray16_100x72", "-c 3 -q 0.8", 0x47cc_5158_9db3_d8d7),
+    ("r565", "rgb8_100x72", "-c 30 -q 0.9", 0x71fb_ea79_1324_3ab2),
+    ("r555", "rgb8_100x72", "-c 29 -q 0.8", 0xd307_d6c3_50bf_df5c),
+    ("r101010", "rgb16_100x72", "-c 31 -q 0.8", 0x9ddd_fe04_cd69_9bf4),
+    ("bgr24", "rgb8_100x72", "-c 0 -q 0.7", 0xb351_316a_564f_8b2f),
+    ("ha_s1", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 1", 0x1cd0_433f_b970_3d24),
+    ("ha_s2", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 2", 0xdc78_9e50_e9e8_b6ec),
+    ("ha_s3", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -s 3", 0xcb35_6393_0018_105e),
+    ("ha_trim", "halfa_100x72", "-c 25 -a 3 -q 0.8 -Q 30 -F 3", 0x1cd0_433f_b970_3d24),
+    ("ha_tiles", "halfa_100x72", "-c 25 -a 3 -q 0.6 -Q 20 -p -V 2 3 -H 2", 0x0e23_dfb4_dca8_0415),
+    ("ha_tiles_sp", "halfa_100x72", "-c 25 -a 3 -q 0.6 -Q 20 -f -U 2 2 -F 2", 0xbca7_fb81_2ec6_6d25),
+    ("r8_420_s2", "rgb8_100x72", "-c 9 -d 1 -q 0.5 -s 2", 0xfc65_1169_0070_c1a4),
+    ("r8_422_tr", "rgb8_100x72", "-c 9 -d 2 -q 0.9 -F 4 -f", 0x7638_b75b_ebd7_840c),
+    ("bgra_420", "rgba8_100x72", "-c 22 -d 1 -q 0.4 -a 3 -Q 40", 0x5643_9d3d_f010_5295),
+];
+
+/// One generated stream: its name, T.835's digest, its path.
+type Stream = (&'static str, u64, PathBuf);
+
+/// Generates the matrix's streams with JxrEncApp into a temporary directory, once per test
+/// run (the tests share them); `None` (skip, or panic in CI) without the venv, JxrEncApp or
+/// the corpus.
+fn matrix_streams() -> Option<(PathBuf, Vec<Stream>)> {
+    static STREAMS: OnceLock<Option<(PathBuf, Vec<Stream>)>> = OnceLock::new();
+    STREAMS.get_or_init(generate_matrix).clone()
+}
+
+fn generate_matrix() -> Option<(PathBuf, Vec<Stream>)> {
+    let py = common::require(common::python(), "the reference venv (imagecodecs)")?;
+    let enc = common::require(common::tool("JxrEncApp"), "JxrEncApp (Debian libjxr-tools)")?;
+    let files = common::corpus_files("jxr", "jxr")?;
+    let src = files.iter().find(|p| p.ends_with(CORPUS[0].0)).expect("the GoldenGate corpus file");
+    let dir = common::temp_dir("jxr_matrix");
+    common::run_python(&py, CROPS, &[dir.as_os_str(), src.as_os_str()]);
+    let mut out = Vec::new();
+    for &(name, input, args, want) in MATRIX {
+        let jxr = dir.join(format!("{name}.jxr"));
+        let mut cmd = Command::new(&enc);
+        cmd.arg("-i").arg(dir.join(format!("{input}.tif"))).arg("-o").arg(&jxr).args(args.split(' '));
+        common::run_ok(&mut cmd);
+        out.push((name, want, jxr));
+    }
+    Some((dir, out))
+}
+
+#[test]
+fn jxrenc_matrix_coefficients_match_t835() {
+    let Some((_dir, streams)) = matrix_streams() else { return };
+    let pool = hdrcodec_core::ThreadPool::new(2).unwrap();
+    let mut bad = Vec::new();
+    for (name, want, path) in &streams {
+        let file = std::fs::read(path).unwrap();
+        let got = digest(&file, hdrcodec_core::ThreadPool::single());
+        if got != *want {
+            bad.push(format!("{name}: {got:#018x}, T.835 {want:#018x}"));
+        }
+        // Tiles decoded in parallel give the same coefficients.
+        assert_eq!(digest(&file, pool.clone()), got, "{name} on two threads");
+    }
+    assert!(bad.is_empty(), "coefficients differ from T.835's:\n{}", bad.join("\n"));
+}
+
+/// imagecodecs' (jxrlib's) shape of a decoded file: height, width, samples per pixel.
+fn jxrlib_shape(py: &Path, path: &Path) -> (u32, u32, usize) {
+    let script = "import imagecodecs, sys\na = imagecodecs.jpegxr_decode(open(sys.argv[1], 'rb').read())\n\
+                  print(a.shape[0], a.shape[1], a.shape[2] if a.ndim == 3 else 1)";
+    let out = common::run_python(py, script, &[path.as_os_str()]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let v: Vec<usize> = text.split_whitespace().map(|t| t.parse().unwrap()).collect();
+    (v[0] as u32, v[1] as u32, v[2])
+}
+
+#[test]
+fn probe_agrees_with_jxrlib() {
+    let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    for path in &files {
+        let file = std::fs::read(path).unwrap();
+        assert!(JxrCodec.sniff(&file));
+        let info = JxrCodec.probe(&file, &Limits::default()).unwrap();
+        let (h, w, n) = jxrlib_shape(&py, path);
+        assert_eq!((info.width, info.height), (w, h), "{}", path.display());
+        // jxrlib gives RGBE as 4 bytes per pixel; everything else as its channels.
+        if !path.to_string_lossy().contains("RGBE") {
+            assert_eq!(info.channels.count(), n, "{}", path.display());
+        }
+    }
+}
+
+#[test]
+fn damaged_corpus_files_never_panic() {
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    let limits = Limits::fuzzing();
+    for path in &files {
+        let file = std::fs::read(path).unwrap();
+        let cs = parse_container(&file).unwrap().image;
+        // Truncations at 40 points, and byte flips (the crate's unit tests sweep every byte of small streams).
+        let step = (cs.len() / 40).max(1);
+        for n in (0..cs.len()).step_by(step) {
+            assert!(decode_coefficients(&cs[..n], &DecodeOptions::new(limits.clone())).is_err());
+        }
+        let mut rng = common::Rng(cs.len() as u64 | 1);
+        let mut bad = cs.to_vec();
+        for _ in 0..20 {
+            let at = rng.below(cs.len() as u32) as usize;
+            bad[at] ^= 1 << rng.below(8);
+            let _ = decode_coefficients(&bad, &DecodeOptions::new(limits.clone()));
+            bad[at] = cs[at];
+        }
+        for n in (0..file.len()).step_by(file.len() / 10) {
+            let _ = JxrCodec.probe(&file[..n], &limits);
+            let _ = JxrCodec.decode(&file[..n], &limits);
+        }
+    }
+}
+
+/// How a stream's samples are compared with jxrlib's: imagecodecs' array as it is, the same
+/// with our blue-first channels reordered, or the sample bytes of JxrDecApp's TIFF (the formats
+/// imagecodecs converts: padded float, fixed point, 555/565/101010; a padding channel of ours
+/// is dropped).
+fn check_mode(name: &str) -> &'static str {
+    match name {
+        "bgra8" | "bgra8p" | "bgr24" | "bgra_420" => "bgr",
+        "f_q09" | "f_lossless" | "fx16" | "fx16l" | "fx32" | "r565" | "r555" | "r101010" => "tif",
+        _ => "ic",
+    }
+}
+
+/// Compares our raw samples of each file with jxrlib's, in one Python run: returns the lines
+/// it prints, one per file ("path differing-samples").
+fn jxrlib_raw_diffs(py: &Path, dec: &Path, pairs: &[(PathBuf, PathBuf, &str)]) -> Vec<String> {
+    let script = r#"
+import imagecodecs, numpy as np, struct, subprocess, sys
+dec, args = sys.argv[1], sys.argv[2:]
+def tiff_samples(path):
+    b = open(path, 'rb').read()
+    off = struct.unpack('<I', b[4:8])[0]; n = struct.unpack('<H', b[off:off + 2])[0]
+    tags = {}
+    for i in range(n):
+        t, ty, c, v = struct.unpack('<HHII', b[off + 2 + 12 * i:off + 14 + 12 * i]); tags[t] = (ty, c, v)
+    def vals(t):
+        ty, c, v = tags[t]; size = 2 if ty == 3 else 4
+        if c * size <= 4: return [v & 0xffff if ty == 3 else v]
+        return list(struct.unpack('<%d%s' % (c, 'H' if ty == 3 else 'I'), b[v:v + c * size]))
+    data = b''.join(b[o:o + c] for o, c in zip(vals(273), vals(279)))
+    return tags[256][2], tags[257][2], tags[277][2] & 0xffff, data
+for jxr, raw, mode in zip(args[::3], args[1::3], args[2::3]):
+    ours = open(raw, 'rb').read()
+    if mode == 'tif':
+        subprocess.run([dec, '-i', jxr, '-o', raw + '.tif'], check=True, capture_output=True)
+        w, h, spp, ref = tiff_samples(raw + '.tif')
+        if len(ours) != len(ref) and len(ours) * spp == len(ref) * (spp + 1):
+            k = len(ours) // (w * h * (spp + 1))
+            ours = b''.join(ours[i:i + k * spp] for i in range(0, len(ours), k * (spp + 1)))
+        print(jxr, 'size' if len(ours) != len(ref) else sum(x != y for x, y in zip(ours, ref)))
+        continue
+    ref = imagecodecs.jpegxr_decode(open(jxr, 'rb').read())
+    if len(ref.tobytes()) != len(ours):
+        print(jxr, 'size'); continue
+    a = np.frombuffer(ours, dtype=ref.dtype).reshape(ref.shape)
+    if mode == 'bgr':
+        a = a[:, :, [2, 1, 0] + list(range(3, ref.shape[2]))]
+    print(jxr, int((a != ref).sum()))
+"#;
+    let mut args: Vec<&std::ffi::OsStr> = vec![dec.as_os_str()];
+    for (jxr, raw, mode) in pairs {
+        args.extend([jxr.as_os_str(), raw.as_os_str(), std::ffi::OsStr::new(*mode)]);
+    }
+    let out = common::run_python(py, script, &args);
+    String::from_utf8(out.stdout).unwrap().lines().map(str::to_string).collect()
+}
+
+#[test]
+fn samples_match_jxrlib_end_to_end() {
+    let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
+    let Some(dec) = common::require(common::tool("JxrDecApp"), "JxrDecApp (Debian libjxr-tools)") else { return };
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    let Some((dir, streams)) = matrix_streams() else { return };
+    let options = DecodeOptions::new(Limits::default());
+    let mut pairs = Vec::new();
+    let inputs = files
+        .iter()
+        .map(|p| (p.clone(), "ic"))
+        .chain(streams.iter().map(|(name, _, path)| (path.clone(), check_mode(name))));
+    for (path, mode) in inputs {
+        let raw = decode_raw(&std::fs::read(&path).unwrap(), &options).unwrap();
+        let raw_path = dir.join(format!("{}.ours.raw", path.file_name().unwrap().to_string_lossy()));
+        std::fs::write(&raw_path, raw).unwrap();
+        pairs.push((path, raw_path, mode));
+    }
+    let lines = jxrlib_raw_diffs(&py, &dec, &pairs);
+    assert_eq!(lines.len(), pairs.len(), "{lines:?}");
+    let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
+    assert!(bad.is_empty(), "samples differ from jxrlib's:\n{bad:?}");
+}
