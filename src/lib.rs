@@ -21,6 +21,7 @@ pub use hdrcodec_bc6h as bc6h;
 pub use hdrcodec_container as container;
 pub use hdrcodec_core as core;
 pub use hdrcodec_exr as exr;
+pub use hdrcodec_jxr as jxr;
 pub use hdrcodec_logluv as logluv;
 pub use hdrcodec_pfm as pfm;
 pub use hdrcodec_rgbe as rgbe;
@@ -47,6 +48,8 @@ fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
         Arc::new(logluv::LogLuvTiffCodec::new(logluv::Encoding::LogL16)),
         Arc::new(bc6h::Bc6hDdsCodec),
         Arc::new(bc6h::Bc6hKtx2Codec),
+        // Decoding only until its encoder lands (`can_encode` is false).
+        Arc::new(jxr::JxrCodec),
     ]
 }
 

@@ -11,7 +11,9 @@ fn every_decoder_charges_the_shared_budget() {
     let decoded = u64::from(w * h) * 3 * 4;
     let registry = hdrcodec::registry();
     let mut checked = Vec::new();
-    for codec in registry.codecs() {
+    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
+    // their own tests (tests/jxr_reference.rs).
+    for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let settings = EncodeSettings::default().with_effort(0);
         let Ok((file, _)) = hdrcodec::encode_for(codec.as_ref(), &image, &settings) else { continue };
         // Room for the decoded image and the decoder's working set (at most a copy of the

@@ -24,7 +24,9 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
     let decoded = u64::from(w * h) * 3 * 4;
     let registry = hdrcodec::registry();
     let mut checked = Vec::new();
-    for codec in registry.codecs() {
+    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
+    // their own tests (tests/jxr_reference.rs).
+    for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let mut settings = EncodeSettings::default().with_effort(0);
         if codec.name() == "hdrc" {
             // Tiles bound what the container decodes at once.
@@ -69,7 +71,7 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
 #[test]
 fn a_buffer_too_small_is_an_error_before_anything_is_written() {
     let image = photo(16, 8);
-    for codec in hdrcodec::registry().codecs() {
+    for codec in hdrcodec::registry().codecs().iter().filter(|c| c.can_encode()) {
         let (file, _) = hdrcodec::encode_for(codec.as_ref(), &image, &EncodeSettings::default()).unwrap();
         let row_len = 16 * 3;
         let mut buf = vec![-1.0f32; row_len * 8 - 1];

@@ -349,3 +349,64 @@ fn samples_match_jxrlib_end_to_end() {
     let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
     assert!(bad.is_empty(), "samples differ from jxrlib's:\n{bad:?}");
 }
+
+/// The family's shared contracts on real files: the registry picks JPEG XR for `.jxr`; `probe`
+/// says what `decode` gives; `decode_into` fills a strided `f32` or `f16` buffer with the same
+/// samples, within a budget smaller than the image; the budget is charged while decoding and
+/// returned after.
+#[test]
+fn corpus_files_keep_the_family_contracts() {
+    use hdrcodec_core::half::f16;
+    use hdrcodec_core::sink::FrameBufMut;
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
+    let registry = hdrcodec::registry();
+    for path in &files {
+        let file = std::fs::read(path).unwrap();
+        let name = path.display().to_string();
+        let codec = registry.for_input(path, &file).unwrap();
+        assert_eq!(codec.name(), "jxr", "{name}");
+        assert!(!codec.can_encode());
+        let info = codec.probe(&file, &Limits::default()).unwrap();
+        let limits = Limits::default();
+        let whole = codec.decode(&file, &limits).unwrap();
+        assert_eq!(limits.in_use(), 0, "{name}: every charge returned");
+        assert_eq!((info.width, info.height, info.channels), (whole.width(), whole.height(), whole.channels()));
+        assert_eq!(info.color, whole.color, "{name}");
+        let (w, h) = (whole.width() as usize, whole.height() as usize);
+        let row_len = w * whole.channels().count();
+        let stride = row_len + 3;
+        let decoded = (w * h * whole.channels().count() * 4) as u64;
+        // Decoding into the caller's buffer allocates bands of coefficients and samples (a
+        // large part of these small images, a few dozen MB of a 40 MP one), not the image.
+        let budget = Limits::default();
+        let options = DecodeOptions::new(budget.clone());
+        let mut f32_buf = vec![-7.0f32; stride * h];
+        codec
+            .decode_into(&file, &options, FrameBufMut::f32(&mut f32_buf, stride))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mut f16_buf = vec![f16::from_f32(-7.0); stride * h];
+        codec
+            .decode_into(&file, &options, FrameBufMut::f16(&mut f16_buf, stride))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        for y in 0..h {
+            let want = whole.row(y as u32);
+            let got = &f32_buf[y * stride..y * stride + row_len];
+            assert!(want.iter().zip(got).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: row {y}");
+            assert!(f32_buf[y * stride + row_len..(y + 1) * stride].iter().all(|&v| v == -7.0), "{name}: padding");
+            let halves = &f16_buf[y * stride..y * stride + row_len];
+            assert!(
+                want.iter().zip(halves).all(|(a, b)| f16::from_f32(*a).to_bits() == b.to_bits()),
+                "{name}: f16 row {y}"
+            );
+        }
+        let into_peak = budget.peak();
+        let fresh = Limits::default();
+        codec.decode(&file, &fresh).unwrap();
+        // Less by the image, but for the band buffer a strided or f16 target needs.
+        assert!(
+            into_peak + decoded / 2 <= fresh.peak(),
+            "{name}: decode_into held {into_peak} bytes at its peak, decode {} (image {decoded})",
+            fresh.peak()
+        );
+    }
+}

@@ -29,7 +29,9 @@ fn fast() -> EncodeSettings {
 fn probe_equals_decode_on_the_generated_corpus_for_every_codec() {
     let registry = hdrcodec::registry();
     let scenes = hdrcodec_cli::corpus::scenes();
-    for codec in registry.codecs() {
+    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
+    // their own tests (tests/jxr_reference.rs).
+    for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let mut encoded = 0;
         for scene in &scenes {
             // The facade's colour preparation, as `convert` does; a scene a codec cannot take
@@ -69,7 +71,9 @@ fn probe_needs_no_memory_of_the_image_size() {
     let registry = hdrcodec::registry();
     let image = large(Channels::Rgba);
     let tight = Limits::default().with_max_alloc_bytes(1 << 16);
-    for codec in registry.codecs() {
+    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
+    // their own tests (tests/jxr_reference.rs).
+    for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let (bytes, _) = hdrcodec::encode_for(codec.as_ref(), &image, &fast())
             .unwrap_or_else(|e| panic!("{}: cannot encode 2048x2048: {e}", codec.name()));
         let e = codec.decode(&bytes, &tight).expect_err(codec.name());
@@ -123,7 +127,9 @@ fn probe_never_panics_on_damaged_files_and_agrees_with_decode_where_both_succeed
     let registry = hdrcodec::registry();
     let scene = hdrcodec_cli::corpus::scene("odd-3x5").expect("the odd-3x5 scene");
     let limits = Limits::default();
-    for codec in registry.codecs() {
+    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
+    // their own tests (tests/jxr_reference.rs).
+    for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let (file, _) = hdrcodec::encode_for(codec.as_ref(), &scene.image, &fast()).unwrap();
         let mut damaged: Vec<Vec<u8>> = (0..file.len()).map(|n| file[..n].to_vec()).collect();
         for at in 0..file.len() {

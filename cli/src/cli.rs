@@ -406,13 +406,16 @@ pub fn codecs(json: bool) -> Result<()> {
     let list: Vec<Value> = reg
         .codecs()
         .iter()
-        .map(|c| json!({"name": c.name(), "extensions": c.extensions(), "id": String::from_utf8_lossy(&c.id())}))
+        .map(|c| {
+            json!({"name": c.name(), "extensions": c.extensions(), "id": String::from_utf8_lossy(&c.id()), "encodes": c.can_encode()})
+        })
         .collect();
     if json {
         return print_json(&json!({ "codecs": list }));
     }
     for c in reg.codecs() {
-        println!("{:<10} {:<6} .{}", c.name(), String::from_utf8_lossy(&c.id()), c.extensions().join(" ."));
+        let only = if c.can_encode() { "" } else { "  (decodes only)" };
+        println!("{:<10} {:<6} .{}{only}", c.name(), String::from_utf8_lossy(&c.id()), c.extensions().join(" ."));
     }
     Ok(())
 }

@@ -31,6 +31,11 @@ pub trait ImageCodec: Send + Sync {
     fn records_nits_per_unit(&self) -> bool {
         false
     }
+    /// False for a codec that only decodes (its [`encode_to`](Self::encode_to) returns
+    /// [`Error::Unsupported`]): tools list it as such and do not offer it as an output.
+    fn can_encode(&self) -> bool {
+        true
+    }
     /// Size, channels and colour of an encoded image, read from its header without decoding
     /// the pixels (for `info` and for planning the memory of a batch). Never panics.
     ///

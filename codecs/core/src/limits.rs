@@ -24,6 +24,8 @@ pub struct Limits {
     pub max_alloc_bytes: u64,
     /// Bytes charged and not yet returned, shared by clones.
     in_use: Arc<AtomicU64>,
+    /// The most bytes ever in use at once, shared by clones.
+    peak: Arc<AtomicU64>,
 }
 
 impl PartialEq for Limits {
@@ -45,7 +47,7 @@ impl Default for Limits {
 impl Limits {
     /// Limits of these sizes, with a budget of its own.
     pub fn new(max_width: u32, max_height: u32, max_pixels: u64, max_alloc_bytes: u64) -> Self {
-        Limits { max_width, max_height, max_pixels, max_alloc_bytes, in_use: Arc::default() }
+        Limits { max_width, max_height, max_pixels, max_alloc_bytes, in_use: Arc::default(), peak: Arc::default() }
     }
 
     /// No limits at all (for trusted input only).
@@ -72,12 +74,18 @@ impl Limits {
 
     /// The same limits with a fresh budget of their own (not shared with `self`).
     pub fn with_own_budget(&self) -> Self {
-        Limits { in_use: Arc::default(), ..self.clone() }
+        Limits { in_use: Arc::default(), peak: Arc::default(), ..self.clone() }
     }
 
     /// Bytes charged against the budget and not yet returned.
     pub fn in_use(&self) -> u64 {
         self.in_use.load(Ordering::Relaxed)
+    }
+
+    /// The most bytes charged at once since the budget was made: what the decodes sharing it
+    /// really held at their peak (for planning a batch, and for tests of a decoder's memory).
+    pub fn peak(&self) -> u64 {
+        self.peak.load(Ordering::Relaxed)
     }
 
     /// Charges `bytes` (a buffer about to be allocated, described as `what`) against the
@@ -99,7 +107,10 @@ impl Limits {
                 }));
             }
             match self.in_use.compare_exchange_weak(current, total, Ordering::AcqRel, Ordering::Relaxed) {
-                Ok(_) => return Ok(Allocation { in_use: Arc::clone(&self.in_use), bytes }),
+                Ok(_) => {
+                    self.peak.fetch_max(total, Ordering::Relaxed);
+                    return Ok(Allocation { in_use: Arc::clone(&self.in_use), bytes });
+                }
                 Err(now) => current = now,
             }
         }

@@ -94,6 +94,10 @@ impl ImageCodec for JxrCodec {
         ColorSignalling::None
     }
     /// The headers only (see [`probe_jxr`]).
+    /// Decoding only, for now: the encoder is the next issue.
+    fn can_encode(&self) -> bool {
+        false
+    }
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe_jxr(data, limits)
     }
