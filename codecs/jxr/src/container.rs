@@ -10,6 +10,7 @@
 //! [`parse_container`] returns the codestream slices ([`Container::image`],
 //! [`Container::alpha`]), the [`PixelFormat`] the GUID names and the metadata worth keeping.
 
+use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::tiff::{Entry, FieldType, Ifd, Tiff, MAGIC_HD_PHOTO, MAGIC_JPEG_XR};
 use hdrcodec_core::{Error, Result};
 
@@ -407,21 +408,6 @@ fn blob<'a>(tiff: &Tiff<'a>, ifd: &Ifd, t: u16) -> Result<Option<&'a [u8]>> {
     ifd.get(t).map(|e| e.value_bytes(tiff)).transpose()
 }
 
-/// `data[offset..offset + len]`, or a truncation error naming `what`.
-fn slice<'a>(data: &'a [u8], offset: u32, len: u64, what: &str) -> Result<&'a [u8]> {
-    let start = u64::from(offset);
-    start
-        .checked_add(len)
-        .filter(|&end| end <= data.len() as u64)
-        .and_then(|end| data.get(start as usize..end as usize))
-        .ok_or_else(|| {
-            Error::truncated(format!(
-                "the JPEG XR {what} codestream ({len} bytes at offset {offset}, file of {} bytes)",
-                data.len()
-            ))
-        })
-}
-
 /// Parses the container of a JPEG XR file (T.832 Annex A): header, first IFD, pixel format and
 /// codestream locations. Every offset and count is checked against `data`; a file cut anywhere
 /// gives an error, never a panic.
@@ -493,7 +479,8 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
     if image_len == 0 {
         return Err(Error::invalid("the JPEG XR image codestream is empty (IMAGE_BYTE_COUNT 0)"));
     }
-    let image = slice(data, image_offset, image_len, "image")?;
+    let file = ByteReader::le(data);
+    let image = file.bytes_at(u64::from(image_offset), image_len, "the JPEG XR image codestream")?;
 
     let alpha = match (alpha_offset, alpha_count) {
         (None, None) => None,
@@ -510,7 +497,7 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
             if len == 0 {
                 return Err(Error::invalid("the JPEG XR alpha codestream is empty"));
             }
-            Some(slice(data, off, len, "alpha")?)
+            Some(file.bytes_at(u64::from(off), len, "the JPEG XR alpha codestream")?)
         }
         (None, Some(_)) => return Err(Error::invalid("JPEG XR ALPHA_BYTE_COUNT without ALPHA_OFFSET")),
     };
