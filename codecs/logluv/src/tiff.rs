@@ -182,6 +182,9 @@ impl<'a> StripRows<'a> {
         let required =
             |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
         let height = info.height;
+        if info.width == 0 || height == 0 {
+            return Err(Error::invalid(format!("the TIFF image is empty ({}x{height})", info.width)));
+        }
         let rows_per_strip =
             find(tag::ROWS_PER_STRIP).map(|e| e.first_u32(&r)).transpose()?.unwrap_or(u32::MAX).clamp(1, height);
         let strips = height.div_ceil(rows_per_strip) as usize;
