@@ -1,10 +1,69 @@
-// The `intel_tex_2` peer (a dev-dependency of the BC6H tests and benches) links Intel's ISPC
-// kernels, which need the C++ runtime on Linux. `rustc-link-lib` would reach only this package's
-// (empty) library, which the test binaries never link, so the tests and benches get the flag
-// themselves.
+// Native peers of the tests and benches.
+//
+// - The `intel_tex_2` peer (a dev-dependency of the BC6H tests and benches) links Intel's ISPC
+//   kernels, which need the C++ runtime on Linux.
+// - jxrlib, the JPEG XR peer of benches/jxr_decode.rs, is called in-process through a small C
+//   shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers and `pkg-config libjxr`;
+//   scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
+//   bench says jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
+//
+// `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
+// binaries never link, so they get the link flags themselves.
+use std::path::PathBuf;
+use std::process::Command;
+
 fn main() {
+    println!("cargo::rustc-check-cfg=cfg(jxrlib)");
+    println!("cargo::rerun-if-changed=build.rs");
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("linux") {
-        println!("cargo:rustc-link-arg-tests=-lstdc++");
-        println!("cargo:rustc-link-arg-benches=-lstdc++");
+        println!("cargo::rustc-link-arg-tests=-lstdc++");
+        println!("cargo::rustc-link-arg-benches=-lstdc++");
     }
+    jxrlib_shim();
+}
+
+/// jxrlib's compiler flags from `pkg-config --cflags libjxr` (`-I…/jxrlib -D__ANSI__
+/// -DDISABLE_PERF_MEASUREMENT` on Debian), else the same by hand if the header is where
+/// Debian puts it; `None` if jxrlib's development files are not installed.
+fn jxrlib_cflags() -> Option<Vec<String>> {
+    println!("cargo::rerun-if-env-changed=PKG_CONFIG_PATH");
+    if let Ok(out) = Command::new("pkg-config").args(["--cflags", "libjxr"]).output() {
+        if out.status.success() {
+            return Some(String::from_utf8_lossy(&out.stdout).split_whitespace().map(str::to_string).collect());
+        }
+    }
+    let include = "/usr/include/jxrlib";
+    println!("cargo::rerun-if-changed={include}/JXRGlue.h");
+    std::path::Path::new(include)
+        .join("JXRGlue.h")
+        .is_file()
+        .then(|| vec![format!("-I{include}"), "-D__ANSI__".into(), "-DDISABLE_PERF_MEASUREMENT".into()])
+}
+
+fn jxrlib_shim() {
+    println!("cargo::rerun-if-changed=peers/jxrlib_shim.c");
+    let Some(cflags) = jxrlib_cflags() else {
+        println!("cargo::warning=jxrlib (Debian libjxr-dev) not found: benches/jxr_decode.rs runs without its peer");
+        return;
+    };
+    let mut build = cc::Build::new();
+    build.file("peers/jxrlib_shim.c").cargo_metadata(false);
+    for flag in &cflags {
+        if let Some(dir) = flag.strip_prefix("-I") {
+            build.include(dir);
+        } else if let Some(def) = flag.strip_prefix("-D") {
+            let (name, value) = def.split_once('=').map_or((def, None), |(n, v)| (n, Some(v)));
+            build.define(name, value);
+        } else {
+            build.flag(flag);
+        }
+    }
+    build.compile("jxrlib_shim");
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo::rustc-link-arg-benches=-L{}", out.display());
+    // The shim first, then the glue library it calls, then the codec library both call.
+    for lib in ["-ljxrlib_shim", "-ljxrglue", "-ljpegxr"] {
+        println!("cargo::rustc-link-arg-benches={lib}");
+    }
+    println!("cargo::rustc-cfg=jxrlib");
 }

@@ -1,0 +1,247 @@
+//! JPEG XR decode speed in one run: our decoder (`hdrcodec_jxr::decode_raw`) against jxrlib,
+//! the reference codec, called in-process through a small C shim over Debian `libjxr-dev`
+//! (tests/peers/jxrlib_shim.c, built by tests/build.rs). Both decode a file held in memory to
+//! the file's own pixel format (jxrlib's raw samples); jxrlib writes into a buffer allocated
+//! once, ours returns a new `Vec` each time (its allocation is in our time).
+//!
+//! Files: the three corpus `.jxr` files and, if JxrEncApp (Debian `libjxr-tools`) is on PATH, a
+//! larger lossy one made at bench time: the GoldenGate corpus image (our decode, half floats)
+//! mirrored into a 4x3 mosaic of 5048x2580 (13 MP), written as a half-float TIFF and encoded by
+//! JxrEncApp at quality 0.6 (48bppRGBHalf, one tile). Before anything is timed, jxrlib's samples
+//! must equal ours, byte for byte, on every file.
+//!
+//! jxrlib is single-threaded: `jxrlib_1thread` and `hdrcodec_1thread` are the like-for-like
+//! pair; `hdrcodec_2threads` is ours on a pool of two threads. Criterion's throughput is in
+//! pixels (elements), so Melem/s = MP/s.
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
+use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
+use hdrcodec_jxr::{decode_raw, JxrCodec};
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// In CI a missing peer or corpus is a failure; elsewhere the bench says what it skips.
+fn missing(what: &str) {
+    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
+        panic!("{what} is missing; CI must have it (run scripts/setup-reference-tools.sh)");
+    }
+    eprintln!("jxr_decode bench: {what} is missing (run scripts/setup-reference-tools.sh); skipped");
+}
+
+/// jxrlib through tests/peers/jxrlib_shim.c.
+#[cfg(jxrlib)]
+mod jxrlib {
+    use std::os::raw::c_int;
+
+    extern "C" {
+        fn jxrlib_shim_info(data: *const u8, len: usize, width: *mut u32, height: *mut u32, bits: *mut u32) -> c_int;
+        fn jxrlib_shim_decode(data: *const u8, len: usize, out: *mut u8, out_len: usize, stride: usize) -> c_int;
+    }
+
+    /// The size of a file's image in its own pixel format, rows packed.
+    pub struct Layout {
+        pub width: u32,
+        pub height: u32,
+        pub stride: usize,
+    }
+
+    impl Layout {
+        pub fn bytes(&self) -> usize {
+            self.stride * self.height as usize
+        }
+    }
+
+    /// Reads the header (jxrlib's error code on failure).
+    pub fn layout(data: &[u8]) -> Result<Layout, i32> {
+        let (mut width, mut height, mut bits) = (0u32, 0u32, 0u32);
+        // SAFETY: `data` is valid for `data.len()` bytes and only read; the three out-pointers
+        // point to live locals. The shim keeps no pointer after it returns.
+        let err = unsafe { jxrlib_shim_info(data.as_ptr(), data.len(), &mut width, &mut height, &mut bits) };
+        if err != 0 {
+            return Err(err);
+        }
+        let stride = (width as usize * bits as usize).div_ceil(8);
+        Ok(Layout { width, height, stride })
+    }
+
+    /// Decodes the whole image into `out` (at least `layout.bytes()` long).
+    pub fn decode(data: &[u8], layout: &Layout, out: &mut [u8]) -> Result<(), i32> {
+        assert!(out.len() >= layout.bytes());
+        // SAFETY: `data` is valid for reads of `data.len()` bytes and `out` for writes of
+        // `out.len()` bytes for the whole call; the shim refuses (before writing) an image whose
+        // `height` rows of `stride` bytes do not fit in `out.len()`, and keeps no pointer after
+        // it returns.
+        let err = unsafe { jxrlib_shim_decode(data.as_ptr(), data.len(), out.as_mut_ptr(), out.len(), layout.stride) };
+        if err == 0 {
+            Ok(())
+        } else {
+            Err(err)
+        }
+    }
+}
+
+/// The shared corpus, found as tests/common does: `$HDRCODEC_CORPUS`, else `../shared/corpus`
+/// beside the workspace.
+fn corpus_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("HDRCODEC_CORPUS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
+    dir.join("MANIFEST.tsv").is_file().then_some(dir)
+}
+
+struct File {
+    name: String,
+    data: Vec<u8>,
+}
+
+fn corpus_files() -> Vec<File> {
+    let Some(dir) = corpus_dir() else {
+        missing("the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
+        return Vec::new();
+    };
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir.join("jxr"))
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    paths.retain(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("jxr")));
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| File {
+            name: p.file_stem().unwrap().to_string_lossy().into_owned(),
+            data: std::fs::read(p).expect("read a corpus .jxr"),
+        })
+        .collect()
+}
+
+fn tool(name: &str) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
+}
+
+/// A little-endian, uncompressed, single-strip RGB TIFF of 16-bit IEEE floats (what JxrEncApp
+/// reads as 48bppRGBHalf).
+fn half_rgb_tiff(width: u32, height: u32, samples: &[u8]) -> Vec<u8> {
+    assert_eq!(samples.len(), width as usize * height as usize * 6);
+    const ENTRIES: u32 = 11;
+    let ifd_end = 8 + 2 + ENTRIES * 12 + 4;
+    let (bits_at, format_at, data_at) = (ifd_end, ifd_end + 6, ifd_end + 12);
+    let mut t = Vec::with_capacity(data_at as usize + samples.len());
+    t.extend_from_slice(b"II*\0");
+    t.extend_from_slice(&8u32.to_le_bytes());
+    t.extend_from_slice(&(ENTRIES as u16).to_le_bytes());
+    // (tag, type: 3 SHORT / 4 LONG, count, value or offset), in tag order.
+    let entries: [(u16, u16, u32, u32); ENTRIES as usize] = [
+        (256, 4, 1, width),
+        (257, 4, 1, height),
+        (258, 3, 3, bits_at),
+        (259, 3, 1, 1),
+        (262, 3, 1, 2),
+        (273, 4, 1, data_at),
+        (277, 3, 1, 3),
+        (278, 4, 1, height),
+        (279, 4, 1, samples.len() as u32),
+        (284, 3, 1, 1),
+        (339, 3, 3, format_at),
+    ];
+    for (tag, ty, count, value) in entries {
+        t.extend_from_slice(&tag.to_le_bytes());
+        t.extend_from_slice(&ty.to_le_bytes());
+        t.extend_from_slice(&count.to_le_bytes());
+        if ty == 3 && count == 1 {
+            t.extend_from_slice(&(value as u16).to_le_bytes());
+            t.extend_from_slice(&[0, 0]);
+        } else {
+            t.extend_from_slice(&value.to_le_bytes());
+        }
+    }
+    t.extend_from_slice(&0u32.to_le_bytes());
+    for v in [16u16, 16, 16, 3, 3, 3] {
+        t.extend_from_slice(&v.to_le_bytes());
+    }
+    t.extend_from_slice(samples);
+    t
+}
+
+/// The larger lossy file (see the top of this file), if JxrEncApp is there.
+fn large_lossy(corpus: &[File]) -> Option<File> {
+    let Some(enc) = tool("JxrEncApp") else {
+        missing("JxrEncApp (Debian libjxr-tools), which makes the 13 MP file");
+        return None;
+    };
+    let src = corpus.iter().find(|f| f.name.starts_with("GoldenGate_48bppRGBHalf"))?;
+    let info = JxrCodec.probe(&src.data, &Limits::default()).expect("probe GoldenGate");
+    let (w, h) = (info.width as usize, info.height as usize);
+    let raw = decode_raw(&src.data, &DecodeOptions::new(Limits::default())).expect("decode GoldenGate");
+    assert_eq!(raw.len(), w * h * 6, "GoldenGate decodes to 48bppRGBHalf");
+    let (tx, ty) = (4, 3);
+    let (big_w, big_h) = (w * tx, h * ty);
+    let mut big = vec![0u8; big_w * big_h * 6];
+    for y in 0..big_h {
+        let (ty_i, yy) = (y / h, y % h);
+        let sy = if ty_i % 2 == 1 { h - 1 - yy } else { yy };
+        for x in 0..big_w {
+            let (tx_i, xx) = (x / w, x % w);
+            let sx = if tx_i % 2 == 1 { w - 1 - xx } else { xx };
+            let (s, d) = ((sy * w + sx) * 6, (y * big_w + x) * 6);
+            big[d..d + 6].copy_from_slice(&raw[s..s + 6]);
+        }
+    }
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_decode_bench");
+    std::fs::create_dir_all(&dir).expect("create the bench's temp dir");
+    let (tif, jxr) = (dir.join("mosaic.tif"), dir.join("mosaic_q0.6.jxr"));
+    std::fs::write(&tif, half_rgb_tiff(big_w as u32, big_h as u32, &big)).expect("write the mosaic TIFF");
+    encode(&enc, &tif, &jxr, "0.6");
+    let data = std::fs::read(&jxr).expect("read the encoded mosaic");
+    let _ = std::fs::remove_file(&tif);
+    Some(File { name: format!("GoldenGate_mosaic_{big_w}x{big_h}_48bppRGBHalf_q0.6"), data })
+}
+
+fn encode(enc: &Path, tif: &Path, jxr: &Path, quality: &str) {
+    let out =
+        Command::new(enc).arg("-i").arg(tif).arg("-o").arg(jxr).args(["-q", quality]).output().expect("run JxrEncApp");
+    assert!(out.status.success() && jxr.is_file(), "JxrEncApp failed: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+fn bench(c: &mut Criterion) {
+    let mut files = corpus_files();
+    if !files.is_empty() {
+        files.extend(large_lossy(&files));
+    }
+    #[cfg(not(jxrlib))]
+    missing("jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
+
+    let single = DecodeOptions::new(Limits::default());
+    let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
+    let mut group = c.benchmark_group("jxr_decode");
+    group.sample_size(10).sampling_mode(SamplingMode::Flat);
+    for f in &files {
+        let info = JxrCodec.probe(&f.data, &Limits::default()).expect("probe");
+        group.throughput(Throughput::Elements(info.width as u64 * info.height as u64));
+        let ours = decode_raw(&f.data, &single).expect("our decode");
+        assert_eq!(decode_raw(&f.data, &two).expect("our decode on two threads"), ours, "{}: 1 vs 2 threads", f.name);
+        #[cfg(jxrlib)]
+        {
+            let layout = jxrlib::layout(&f.data).unwrap_or_else(|e| panic!("{}: jxrlib error {e}", f.name));
+            assert_eq!((layout.width, layout.height), (info.width, info.height), "{}", f.name);
+            let mut theirs = vec![0u8; layout.bytes()];
+            jxrlib::decode(&f.data, &layout, &mut theirs).unwrap_or_else(|e| panic!("{}: jxrlib error {e}", f.name));
+            assert_eq!(theirs.len(), ours.len(), "{}: jxrlib's and our raw sizes", f.name);
+            let differ = theirs.iter().zip(&ours).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{}: {differ} bytes of jxrlib's samples differ from ours", f.name);
+            eprintln!("jxr_decode bench: {} ({}x{}): jxrlib's samples equal ours", f.name, info.width, info.height);
+            group.bench_with_input(BenchmarkId::new("jxrlib_1thread", &f.name), f, |b, f| {
+                b.iter(|| jxrlib::decode(black_box(&f.data), &layout, black_box(&mut theirs)).unwrap())
+            });
+        }
+        group.bench_with_input(BenchmarkId::new("hdrcodec_1thread", &f.name), f, |b, f| {
+            b.iter(|| decode_raw(black_box(&f.data), &single).unwrap())
+        });
+        group.bench_with_input(BenchmarkId::new("hdrcodec_2threads", &f.name), f, |b, f| {
+            b.iter(|| decode_raw(black_box(&f.data), &two).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
