@@ -19,7 +19,7 @@ fn surfaces() -> Vec<Surface> {
     let mut v = Vec::new();
     let corpus = std::env::var_os("HDRCODEC_CORPUS")
         .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus"));
+        .unwrap_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
     for name in ["Desk_BC6H_UF16_mips.dds", "Desk_BC6H_SF16_mips.dds"] {
         match std::fs::read(corpus.join("dds").join(name)) {
             Ok(data) => {
