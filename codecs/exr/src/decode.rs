@@ -433,12 +433,13 @@ fn color_info(meta: &MetaData) -> ColorInfo {
 
 /// What `hdrcodec info` shows and the pixels alone do not say.
 fn metadata(header: &Header) -> Vec<(String, String)> {
-    let mut image = HdrImage::zeroed(0, 0, Channels::Rgb);
-    image.set_metadata("exr.compression", compression_name(header.compression));
+    let mut out = Vec::new();
+    let mut set = |k: &str, v: String| out.push((k.to_string(), v));
+    set("exr.compression", compression_name(header.compression).to_string());
     let types: Vec<&str> = header.channels.list.iter().map(|c| type_name(c.sample_type)).collect();
     let mut dedup = types.clone();
     dedup.dedup();
-    image.set_metadata("exr.pixel", if dedup.len() == 1 { dedup[0].to_string() } else { types.join(",") });
+    set("exr.pixel", if dedup.len() == 1 { dedup[0].to_string() } else { types.join(",") });
     let data = header.data_window();
     let display = header.shared_attributes.display_window;
     if data != display {
@@ -446,11 +447,11 @@ fn metadata(header: &Header) -> Vec<(String, String)> {
             let end = b.max();
             format!("{} {} {} {}", b.position.x(), b.position.y(), end.x(), end.y())
         };
-        image.set_metadata("exr.data_window", rect(data));
-        image.set_metadata("exr.display_window", rect(display));
+        set("exr.data_window", rect(data));
+        set("exr.display_window", rect(display));
     }
     if let exr::meta::BlockDescription::Tiles(t) = header.blocks {
-        image.set_metadata("exr.tiles", format!("{}x{}", t.tile_size.x(), t.tile_size.y()));
+        set("exr.tiles", format!("{}x{}", t.tile_size.x(), t.tile_size.y()));
     }
-    image.metadata
+    out
 }

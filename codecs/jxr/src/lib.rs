@@ -117,3 +117,18 @@ impl ImageCodec for JxrCodec {
         Err(Error::unsupported("JPEG XR encoding (not implemented yet)"))
     }
 }
+
+/// What the unit tests of several modules share.
+#[cfg(test)]
+mod testing {
+    /// A small deterministic generator (xorshift) for the random tests.
+    pub(crate) fn rng(seed: u64) -> impl FnMut() -> u64 {
+        let mut s = seed | 1;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        }
+    }
+}

@@ -772,20 +772,10 @@ impl OutputParams {
 mod tests {
     use super::*;
     use crate::container::PIXEL_FORMATS;
+    use crate::testing::rng;
 
     fn format(name: &str) -> &'static PixelFormat {
         PIXEL_FORMATS.iter().find(|f| f.name == name).unwrap()
-    }
-
-    /// A small deterministic generator (xorshift) for the random tests.
-    fn rng(seed: u64) -> impl FnMut() -> u64 {
-        let mut s = seed | 1;
-        move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        }
     }
 
     fn params(

@@ -1189,17 +1189,7 @@ pub fn forward_plane(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A small deterministic generator (xorshift).
-    fn rng(seed: u64) -> impl FnMut() -> u64 {
-        let mut s = seed | 1;
-        move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        }
-    }
+    use crate::testing::rng;
 
     /// Random samples of about `bits` bits, signed.
     fn sample(r: &mut impl FnMut() -> u64, bits: u32) -> i32 {
