@@ -68,6 +68,9 @@ for f in exr pfm dds; do
   measure "$dir/big.$f" convert "$dir/big.$f" "$dir/out.hdr"
   rm -f "$dir/out.hdr"
 done
+measure "$dir/big.hdr" convert "$dir/big.hdr" "$dir/out.exr"
+measure "$dir/big.exr" convert "$dir/big.exr" "$dir/out.dds" --effort 0
+measure "$dir/big.tif" convert "$dir/big.tif" "$dir/out.hdrc" --opt tile=512
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.exr" --opt pixel=half
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.tif"
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.dds" --effort 0

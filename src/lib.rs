@@ -237,6 +237,51 @@ pub fn prepare_colour<'a>(
     image: &'a HdrImage,
     settings: &EncodeSettings,
 ) -> Result<PreparedImage<'a>> {
+    let ColourPlan { target, settings, notes } = plan_colour(codec, &image.color.primaries, settings)?;
+    let image = match target {
+        Some(ColourTarget::Label(to)) => {
+            let mut labelled = image.clone();
+            labelled.color.primaries = to;
+            Cow::Owned(labelled)
+        }
+        Some(ColourTarget::Convert(to)) => Cow::Owned(crate::core::color::convert_primaries(image, to)),
+        // A format that cannot say "unspecified" notes what it recorded instead (EncodeReport).
+        None => Cow::Borrowed(image),
+    };
+    Ok(PreparedImage { image, settings, notes })
+}
+
+/// What [`prepare_colour`] does to samples in some primaries, decided before any sample is seen
+/// (so that a conversion band by band, [`convert_file`], decides as a whole image would).
+#[derive(Clone, Debug)]
+struct ColourPlan {
+    target: Option<ColourTarget>,
+    /// The settings without the facade's `primaries` option.
+    settings: EncodeSettings,
+    notes: Vec<String>,
+}
+
+/// A change of the image's primaries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ColourTarget {
+    /// Unspecified samples labelled with these primaries, unchanged.
+    Label(ColorPrimaries),
+    /// The samples converted to these primaries.
+    Convert(ColorPrimaries),
+}
+
+impl ColourTarget {
+    /// The primaries the encoded image carries.
+    fn primaries(self) -> ColorPrimaries {
+        match self {
+            ColourTarget::Label(p) | ColourTarget::Convert(p) => p,
+        }
+    }
+}
+
+/// [`prepare_colour`]'s decision for samples in `from`.
+fn plan_colour(codec: &dyn ImageCodec, from: &ColorPrimaries, settings: &EncodeSettings) -> Result<ColourPlan> {
+    let from = *from;
     let requested = match settings.option(PRIMARIES_OPTION) {
         None => None,
         Some(name) => Some(ColorPrimaries::from_name(name).ok_or_else(|| {
@@ -247,7 +292,6 @@ pub fn prepare_colour<'a>(
     };
     let settings = settings.clone().without_option(PRIMARIES_OPTION);
     let signalling = codec.color_signalling();
-    let from = image.color.primaries;
     let mut notes = Vec::new();
     let target = match (requested, signalling) {
         (Some(p), ColorSignalling::None) => {
@@ -293,18 +337,15 @@ pub fn prepare_colour<'a>(
         }
         (None, _) => None,
     };
-    let image = match target {
+    let target = match target {
         Some(to) if !from.is_specified() => {
             notes.push(format!("the input records no primaries: its samples are labelled {} as asked", to.name()));
-            let mut labelled = image.clone();
-            labelled.color.primaries = to;
-            Cow::Owned(labelled)
+            Some(ColourTarget::Label(to))
         }
-        Some(to) if to != from => Cow::Owned(crate::core::color::convert_primaries(image, to)),
-        // A format that cannot say "unspecified" notes what it recorded instead (EncodeReport).
-        _ => Cow::Borrowed(image),
+        Some(to) if to != from => Some(ColourTarget::Convert(to)),
+        _ => None,
     };
-    Ok(PreparedImage { image, settings, notes })
+    Ok(ColourPlan { target, settings, notes })
 }
 
 /// The note for samples in `from` stored by a format that records no primaries.
@@ -399,6 +440,187 @@ pub fn encode_file(
     let mut notes = prepared.notes;
     notes.extend(report.notes);
     Ok(notes)
+}
+
+/// Decodes `data` with `decoder` and encodes it with `encoder` into the file at `path`
+/// ([`write_atomic_with`]), row band by row band when the encoder can take rows
+/// ([`ImageCodec::row_encoder`]): then neither the decoded image nor the encoded file is held
+/// whole, only the bands in flight. The colour is prepared as [`prepare_colour`] would prepare
+/// the whole image (the decision is taken from the header; conversions are applied per band),
+/// and the bytes written are those [`encode_file`] writes for the decoded image. Rows that a
+/// decoder delivers out of order wait (charged to the limits) until the rows above them came.
+/// Otherwise the image is decoded whole, then encoded. Returns the notes of the colour
+/// preparation and of the encoder.
+pub fn convert_file(
+    decoder: &dyn ImageCodec,
+    data: &[u8],
+    options: &DecodeOptions,
+    encoder: &dyn ImageCodec,
+    settings: &EncodeSettings,
+    path: &Path,
+) -> Result<Vec<String>> {
+    write_atomic_with(path, |out| {
+        let mut sink = ConvertSink { encoder, settings, limits: &options.limits, out, state: ConvertState::Waiting };
+        decoder.decode_rows(data, options, &mut sink)?;
+        sink.finish()
+    })
+}
+
+/// The [`RowSink`](crate::core::sink::RowSink) of [`convert_file`].
+struct ConvertSink<'a, 'w> {
+    encoder: &'a dyn ImageCodec,
+    settings: &'a EncodeSettings,
+    limits: &'a Limits,
+    out: &'w mut dyn WriteSeek,
+    state: ConvertState,
+}
+
+enum ConvertState {
+    /// Before the decoder's header.
+    Waiting,
+    /// Rows go to the encoder as they come.
+    Streaming(Box<RowStream>),
+    /// The encoder needs the whole image: it is decoded in place, then encoded.
+    Whole(Box<crate::core::sink::ImageSink>),
+}
+
+/// The state of a conversion band by band.
+struct RowStream {
+    encoder: Box<dyn crate::core::RowEncoder>,
+    /// The primaries conversion applied to each band, if any.
+    matrix: Option<[[f32; 3]; 3]>,
+    channels: usize,
+    row_len: usize,
+    height: u32,
+    /// The next row the encoder takes.
+    next: u32,
+    /// Rows that came early, by first row, each charged to the limits while held.
+    early: std::collections::BTreeMap<u32, (Vec<f32>, crate::core::Allocation)>,
+    /// The converted band (when a matrix applies).
+    band: Vec<f32>,
+    notes: Vec<String>,
+}
+
+impl RowStream {
+    /// Converts and encodes rows that follow the last ones encoded.
+    fn encode(&mut self, samples: &[f32], out: &mut dyn WriteSeek) -> Result<()> {
+        match &self.matrix {
+            Some(m) => {
+                self.band.clear();
+                self.band.extend_from_slice(samples);
+                for px in self.band.chunks_exact_mut(self.channels) {
+                    let v = crate::core::color::mat_apply_f32s(m, [px[0], px[1], px[2]]);
+                    px[..3].copy_from_slice(&v);
+                }
+                self.encoder.write_rows(&self.band, out)?;
+            }
+            None => self.encoder.write_rows(samples, out)?,
+        }
+        self.next += (samples.len() / self.row_len) as u32;
+        Ok(())
+    }
+}
+
+impl crate::core::sink::RowSink for ConvertSink<'_, '_> {
+    fn start(&mut self, info: &ImageInfo) -> Result<()> {
+        let plan = plan_colour(self.encoder, &info.color.primaries, self.settings)?;
+        let mut encoded = info.clone();
+        if let Some(target) = plan.target {
+            encoded.color.primaries = target.primaries();
+        }
+        self.state = match self.encoder.row_encoder(&encoded, &plan.settings)? {
+            Some(encoder) => {
+                let matrix = match plan.target {
+                    Some(ColourTarget::Convert(to)) => Some(crate::core::color::mat_to_f32(
+                        &crate::core::color::rgb_to_rgb(&info.color.primaries, &to),
+                    )),
+                    _ => None,
+                };
+                let channels = info.channels.count();
+                ConvertState::Streaming(Box::new(RowStream {
+                    encoder,
+                    matrix,
+                    channels,
+                    row_len: info.width as usize * channels,
+                    height: info.height,
+                    next: 0,
+                    early: Default::default(),
+                    band: Vec::new(),
+                    notes: plan.notes,
+                }))
+            }
+            None => {
+                let mut whole = Box::new(crate::core::sink::ImageSink::new(self.limits));
+                whole.start(info)?;
+                ConvertState::Whole(whole)
+            }
+        };
+        Ok(())
+    }
+
+    fn rows_mut(&mut self, y: u32, rows: u32) -> Option<&mut [f32]> {
+        match &mut self.state {
+            ConvertState::Whole(whole) => whole.rows_mut(y, rows),
+            _ => None,
+        }
+    }
+
+    fn put_rows(&mut self, y: u32, samples: &[f32]) -> Result<()> {
+        let stream = match &mut self.state {
+            ConvertState::Whole(whole) => return whole.put_rows(y, samples),
+            ConvertState::Waiting => {
+                return Err(Error::invalid("a decoder delivered rows before its header (a bug in the decoder)"))
+            }
+            ConvertState::Streaming(stream) => stream,
+        };
+        let rows = samples.len() / stream.row_len.max(1);
+        if samples.len() % stream.row_len.max(1) != 0 || u64::from(y) + rows as u64 > u64::from(stream.height) {
+            return Err(Error::invalid(format!(
+                "a decoder delivered {} samples at row {y}, not whole rows inside the image (a bug in the decoder)",
+                samples.len()
+            )));
+        }
+        if y != stream.next {
+            if y < stream.next || stream.early.contains_key(&y) {
+                return Err(Error::invalid(format!("a decoder delivered row {y} twice (a bug in the decoder)")));
+            }
+            let charge = self.limits.charge(samples.len() as u64 * 4, "rows decoded ahead of the rows above them")?;
+            stream.early.insert(y, (samples.to_vec(), charge));
+            return Ok(());
+        }
+        stream.encode(samples, self.out)?;
+        while let Some((rows, _charge)) = stream.early.remove(&stream.next) {
+            stream.encode(&rows, self.out)?;
+        }
+        Ok(())
+    }
+}
+
+impl ConvertSink<'_, '_> {
+    /// Completes the file once the decoder is done; returns the notes.
+    fn finish(self) -> Result<Vec<String>> {
+        match self.state {
+            ConvertState::Waiting => Err(Error::invalid("the decoder delivered no image (a bug in the decoder)")),
+            ConvertState::Streaming(stream) => {
+                let RowStream { encoder, height, next, mut notes, .. } = *stream;
+                if next != height {
+                    return Err(Error::invalid(format!(
+                        "the decoder delivered {next} of the image's {height} rows in order (a bug in the decoder)"
+                    )));
+                }
+                notes.extend(encoder.finish(self.out)?.notes);
+                Ok(notes)
+            }
+            ConvertState::Whole(whole) => {
+                let image = whole.finish()?;
+                let prepared = prepare_colour(self.encoder, &image, self.settings)?;
+                let report = self.encoder.encode_to_seekable(&prepared.image, &prepared.settings, self.out)?;
+                let mut notes = prepared.notes;
+                notes.extend(report.notes);
+                Ok(notes)
+            }
+        }
+    }
 }
 
 /// The absolute luminance of every pixel of `image`, in cd/m² (alpha is ignored).

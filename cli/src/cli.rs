@@ -126,10 +126,10 @@ pub fn convert(
     }
     let data = hdrcodec::read_file(input)?;
     let options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
-    let (_, image) = reg.decode_with(input, &data, &options)?;
-    drop(data);
-    // Streamed into the output file: the encoded bytes are never held whole beside the image.
-    let notes = hdrcodec::encode_file(out_codec.as_ref(), &image, &settings, output)?;
+    let in_codec = reg.for_input(input, &data)?;
+    // Band by band when the output format allows it: neither the decoded image nor the encoded
+    // file is held whole.
+    let notes = hdrcodec::convert_file(in_codec.as_ref(), &data, &options, out_codec.as_ref(), &settings, output)?;
     for n in notes {
         note(&n);
     }

@@ -8,8 +8,8 @@ use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
 use hdrcodec_core::sink::{fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
-    ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo,
-    Limits, Result,
+    Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec,
+    ImageInfo, Limits, Result, RowCounter,
 };
 use std::sync::Arc;
 
@@ -172,15 +172,8 @@ fn write_frames_reporting(
     }
     let tiles: Vec<(usize, DataHeader)> =
         frames.iter().enumerate().flat_map(|(i, _)| head.frame_tiles(i as u32).map(move |t| (i, t))).collect();
-    let mut w = Writer::new(out, &head)?;
-    w.write_color(&first.color)?;
-    if let Some(h) = &first.color.hdr10 {
-        w.write_hdr10(h)?;
-    }
-    if !first.metadata.is_empty() {
-        w.write_meta(&first.metadata)?;
-    }
-    let (mut notes, mut more) = (Vec::new(), Vec::new());
+    let mut w = start_file(out, &head, &first.color, &first.metadata)?;
+    let mut notes = TileNotes::default();
     let batch = settings.pool.threads().max(1) * 2;
     for group in tiles.chunks(batch) {
         let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = settings.pool.map(group.len(), |k| {
@@ -190,23 +183,139 @@ fn write_frames_reporting(
         for ((_, t), p) in group.iter().zip(payloads) {
             let (bytes, tile_notes) = p?;
             w.write_data(t, &bytes)?;
-            for n in tile_notes {
-                if notes.contains(&n) || more.contains(&n) {
-                    continue;
-                }
-                if notes.len() < MAX_TILE_NOTES {
-                    notes.push(n);
-                } else {
-                    more.push(n);
-                }
+            notes.add(tile_notes);
+        }
+    }
+    w.finish()?;
+    Ok(notes.finish(payload_codec.name()))
+}
+
+/// Starts a file: the signature, HEAD, and the COLR, HDRM and META of the (first) frame.
+fn start_file<W: std::io::Write>(
+    out: W,
+    head: &Head,
+    color: &ColorInfo,
+    metadata: &[(String, String)],
+) -> Result<Writer<W>> {
+    let mut w = Writer::new(out, head)?;
+    w.write_color(color)?;
+    if let Some(h) = &color.hdr10 {
+        w.write_hdr10(h)?;
+    }
+    if !metadata.is_empty() {
+        w.write_meta(metadata)?;
+    }
+    Ok(w)
+}
+
+/// What the payload codec said about the tiles: each distinct note once, the first
+/// [`MAX_TILE_NOTES`] kept, the rest counted.
+#[derive(Default)]
+struct TileNotes {
+    notes: Vec<String>,
+    more: Vec<String>,
+}
+
+impl TileNotes {
+    fn add(&mut self, tile_notes: Vec<String>) {
+        for n in tile_notes {
+            if self.notes.contains(&n) || self.more.contains(&n) {
+                continue;
+            }
+            if self.notes.len() < MAX_TILE_NOTES {
+                self.notes.push(n);
+            } else {
+                self.more.push(n);
             }
         }
     }
-    if !more.is_empty() {
-        notes.push(format!("{} more notes of the {} payload on other tiles", more.len(), payload_codec.name()));
+
+    fn finish(mut self, payload: &str) -> Vec<String> {
+        if !self.more.is_empty() {
+            self.notes.push(format!("{} more notes of the {payload} payload on other tiles", self.more.len()));
+        }
+        self.notes
     }
-    w.finish()?;
-    Ok(notes)
+}
+
+/// A tiled still image encoded as its rows come: each row of tiles is gathered, its tiles
+/// encoded in parallel on the settings' pool and written, in the order
+/// [`write_frames_reporting`] writes them, so the file is the same. The chunks are assembled in
+/// a buffer of one row of tiles' payloads and passed on to the caller's writer.
+struct TiledRowEncoder {
+    writer: Writer<Vec<u8>>,
+    head: Head,
+    payload_codec: Arc<dyn ImageCodec>,
+    settings: EncodeSettings,
+    color: ColorInfo,
+    channels: Channels,
+    rows: RowCounter,
+    /// Rows of the row of tiles being gathered, which starts at row `band_y`.
+    band: Vec<f32>,
+    band_y: u32,
+    notes: TileNotes,
+}
+
+impl TiledRowEncoder {
+    /// Encodes and writes the tiles of the gathered rows.
+    fn write_band(&mut self, out: &mut dyn hdrcodec_core::WriteSeek) -> Result<()> {
+        let row_len = self.head.width as usize * self.channels.count();
+        let rows = (self.band.len() / row_len) as u32;
+        if rows > 0 {
+            let band = HdrImage::new(
+                self.head.width,
+                rows,
+                self.channels,
+                std::mem::take(&mut self.band),
+                self.color.clone(),
+            )?;
+            let tiles: Vec<DataHeader> = self.head.frame_tiles(0).filter(|t| t.y == self.band_y).collect();
+            let payloads: Vec<Result<(Vec<u8>, Vec<String>)>> = self.settings.pool.map(tiles.len(), |k| {
+                // The tile's place in the band.
+                let within = DataHeader { y: 0, ..tiles[k] };
+                encode_tile(&band, &within, self.payload_codec.as_ref(), &self.settings)
+            });
+            for (t, p) in tiles.iter().zip(payloads) {
+                let (bytes, tile_notes) = p?;
+                self.writer.write_data(t, &bytes)?;
+                self.notes.add(tile_notes);
+            }
+            self.band = band.into_samples();
+            self.band.clear();
+            self.band_y += rows;
+        }
+        out.write_all(&std::mem::take(self.writer.output_mut()))?;
+        Ok(())
+    }
+}
+
+impl hdrcodec_core::RowEncoder for TiledRowEncoder {
+    fn write_rows(&mut self, mut samples: &[f32], out: &mut dyn hdrcodec_core::WriteSeek) -> Result<()> {
+        self.rows.take(samples)?;
+        let row_len = self.head.width as usize * self.channels.count();
+        let band_len = self.head.tile_height as usize * row_len;
+        while !samples.is_empty() {
+            let take = (band_len - self.band.len()).min(samples.len());
+            self.band.extend_from_slice(&samples[..take]);
+            samples = &samples[take..];
+            if self.band.len() == band_len {
+                self.write_band(out)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>, out: &mut dyn hdrcodec_core::WriteSeek) -> Result<hdrcodec_core::EncodeReport> {
+        self.rows.check_complete()?;
+        self.write_band(out)?;
+        let TiledRowEncoder { writer, payload_codec, notes, .. } = *self;
+        out.write_all(&writer.finish()?)?;
+        let mut report = hdrcodec_core::EncodeReport::new();
+        for n in notes.finish(payload_codec.name()) {
+            report.note(format!("{} payload: {n}", payload_codec.name()));
+        }
+        Ok(report)
+    }
 }
 
 /// Encodes the tile `t` of `frame` with the payload codec, in colour the payload can record
@@ -504,6 +613,29 @@ impl ImageCodec for HdrcCodec {
             report.note(format!("{} payload: {n}", codec.name()));
         }
         Ok(report)
+    }
+    /// Tiled images, a row of tiles at a time; an image in one tile needs the whole image.
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        let p = self.payload_settings(settings)?;
+        let Some(tile) = p.tile else { return Ok(None) };
+        let head = Head::new(p.codec.id(), info.width, info.height, info.channels).with_tiles(tile, tile);
+        let writer = start_file(Vec::new(), &head, &info.color, &info.metadata)?;
+        Ok(Some(Box::new(TiledRowEncoder {
+            writer,
+            head,
+            payload_codec: p.codec,
+            settings: p.settings,
+            color: info.color.clone(),
+            channels: info.channels,
+            rows: RowCounter::new(info.width as usize * info.channels.count(), info.height),
+            band: Vec::new(),
+            band_y: 0,
+            notes: TileNotes::default(),
+        })))
     }
 }
 

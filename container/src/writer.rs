@@ -106,6 +106,11 @@ impl<W: Write> Writer<W> {
         self.chunk(chunk_type, &[payload])
     }
 
+    /// The output written so far (for a writer into a buffer that is passed on as it fills).
+    pub(crate) fn output_mut(&mut self) -> &mut W {
+        &mut self.out
+    }
+
     /// Writes INDX and END and returns the output. Fails if a tile of a frame is missing.
     pub fn finish(mut self) -> Result<W> {
         let expected = self.head.total_tiles();

@@ -11,7 +11,7 @@ use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, ImageInfo,
-    Limits, Result,
+    Limits, PendingHeader, RangeCount, Result, RowCounter, WriteSeek,
 };
 use std::borrow::Cow;
 
@@ -103,18 +103,10 @@ struct Levels<'a> {
 impl<'a> Levels<'a> {
     /// Checks the options, and reports the samples BC6H cannot hold (see [`clip_note`]).
     fn new(image: &'a HdrImage, settings: &EncodeSettings, codec: &str) -> Result<(Self, EncodeReport)> {
-        settings.check_options(codec, OPTIONS)?;
-        let signed = settings.bool_option("signed")?.unwrap_or(false);
-        let mips = settings.bool_option("mips")?.unwrap_or(false);
-        let options = EncodeOptions {
-            signed,
-            effort: settings.effort.min(EncodeSettings::MAX_EFFORT),
-            pool: settings.pool.clone(),
-        };
+        let (options, mips) = encode_options(settings, codec)?;
+        let signed = options.signed;
         let (width, height) = (image.width(), image.height());
-        if width == 0 || height == 0 {
-            return Err(hdrcodec_core::Error::invalid(format!("BC6H texture size {width}x{height} is empty")));
-        }
+        check_size(width, height)?;
         let level0: Cow<'a, [f32]> = match image.channels() {
             Channels::Rgb => Cow::Borrowed(image.samples()),
             _ => Cow::Owned(image.with_channels(Channels::Rgb).into_samples()),
@@ -155,14 +147,120 @@ impl<'a> Levels<'a> {
     }
 }
 
+/// The encoder options of `settings` (checked against what `codec` understands), and whether
+/// a mip chain was asked for.
+fn encode_options(settings: &EncodeSettings, codec: &str) -> Result<(EncodeOptions, bool)> {
+    settings.check_options(codec, OPTIONS)?;
+    let signed = settings.bool_option("signed")?.unwrap_or(false);
+    let mips = settings.bool_option("mips")?.unwrap_or(false);
+    let options =
+        EncodeOptions { signed, effort: settings.effort.min(EncodeSettings::MAX_EFFORT), pool: settings.pool.clone() };
+    Ok((options, mips))
+}
+
+/// The encoder options for a texture encoded from its rows, `None` when a mip chain is asked
+/// for (it needs the whole image).
+fn row_options(info: &ImageInfo, settings: &EncodeSettings, codec: &str) -> Result<Option<EncodeOptions>> {
+    let (options, mips) = encode_options(settings, codec)?;
+    check_size(info.width, info.height)?;
+    Ok((!mips).then_some(options))
+}
+
+/// An error for an empty texture.
+fn check_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(hdrcodec_core::Error::invalid(format!("BC6H texture size {width}x{height} is empty")));
+    }
+    Ok(())
+}
+
+/// The largest value BC6H holds (the largest finite half).
+const HALF_MAX: f32 = 65504.0;
+
+/// The range BC6H holds with or without a sign.
+fn range(signed: bool) -> (f32, f32) {
+    (if signed { -HALF_MAX } else { 0.0 }, HALF_MAX)
+}
+
 /// What the encoder replaced (NaN by 0, values beyond the half range by ±65504, negatives in
 /// UF16 by 0; Direct3D 11 functional specification, BC6H), as a sentence, if anything.
 fn clip_note(image: &HdrImage, signed: bool) -> Option<String> {
-    const MAX: f32 = 65504.0;
-    let lo = if signed { -MAX } else { 0.0 };
-    let counts = image.count_outside(lo, MAX, false);
+    let (lo, hi) = range(signed);
+    describe_clipped(&image.count_outside(lo, hi, false), signed)
+}
+
+/// [`clip_note`] from samples counted (over the whole image, or band by band).
+fn describe_clipped(counts: &RangeCount, signed: bool) -> Option<String> {
+    let (lo, hi) = range(signed);
     let below_as = if signed { "-65504" } else { "0 (--opt signed=true keeps negatives)" };
-    counts.describe(if signed { "BC6H SF16" } else { "BC6H UF16" }, lo, MAX, below_as, "65504", "0")
+    counts.describe(if signed { "BC6H SF16" } else { "BC6H UF16" }, lo, hi, below_as, "65504", "0")
+}
+
+/// Level 0 of a texture without mips encoded as its rows come, a band of [`BAND_ROWS`] rows at
+/// a time (the same bands [`Levels::write_level`] cuts from a whole image, so the bytes are the
+/// same), after the header its container wrote.
+struct RowWriter {
+    header: PendingHeader,
+    width: u32,
+    channels: Channels,
+    options: EncodeOptions,
+    rows: RowCounter,
+    /// RGB rows of the band being gathered.
+    band: Vec<f32>,
+    outside: RangeCount,
+    report: EncodeReport,
+}
+
+impl RowWriter {
+    fn new(info: &ImageInfo, options: EncodeOptions, header: Vec<u8>, report: EncodeReport) -> Self {
+        RowWriter {
+            header: PendingHeader::new(header),
+            width: info.width,
+            channels: info.channels,
+            options,
+            rows: RowCounter::new(info.width as usize * info.channels.count(), info.height),
+            band: Vec::new(),
+            outside: RangeCount::default(),
+            report,
+        }
+    }
+
+    /// Encodes and writes the gathered band.
+    fn flush(&mut self, out: &mut dyn WriteSeek) -> Result<()> {
+        self.header.write(out)?;
+        let rows = (self.band.len() / (self.width as usize * 3)) as u32;
+        if rows > 0 {
+            out.write_all(&encode_surface(self.width, rows, &self.band, &self.options)?)?;
+            self.band.clear();
+        }
+        Ok(())
+    }
+}
+
+impl hdrcodec_core::RowEncoder for RowWriter {
+    fn write_rows(&mut self, samples: &[f32], out: &mut dyn WriteSeek) -> Result<()> {
+        self.rows.take(samples)?;
+        let (lo, hi) = range(self.options.signed);
+        self.outside.add(samples, self.channels, lo, hi, false);
+        let n = self.channels.count();
+        let band_len = BAND_ROWS as usize * self.width as usize * 3;
+        for px in samples.chunks_exact(n) {
+            self.band.extend_from_slice(&px[..3]);
+            if self.band.len() == band_len {
+                self.flush(out)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>, out: &mut dyn WriteSeek) -> Result<EncodeReport> {
+        self.rows.check_complete()?;
+        self.flush(out)?;
+        if let Some(note) = describe_clipped(&self.outside, self.options.signed) {
+            self.report.note(note);
+        }
+        Ok(self.report)
+    }
 }
 
 /// Level 0 of `tex` as an image in `primaries`, block rows decoded on `options.pool`.
@@ -255,6 +353,18 @@ impl ImageCodec for Bc6hDdsCodec {
         }
         Ok(report)
     }
+    /// Without mips: the header, then level 0 a band of rows at a time. A mip chain needs the
+    /// whole image.
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        let Some(options) = row_options(info, settings, self.name())? else { return Ok(None) };
+        let mut header = ByteWriter::new(ByteOrder::Little);
+        dds_header(&mut header, info.width, info.height, options.signed, 1);
+        Ok(Some(Box::new(RowWriter::new(info, options, header.as_slice().to_vec(), EncodeReport::new()))))
+    }
 }
 
 /// BC6H in a KTX2 file (vkFormat 143/144). Decoding returns mip level 0.
@@ -302,17 +412,7 @@ impl ImageCodec for Bc6hKtx2Codec {
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
         let (levels, mut report) = Levels::new(image, settings, self.name())?;
-        let primaries = match khr_df_primaries(&image.color.primaries) {
-            Some(code) => code,
-            None => {
-                report.note(format!(
-                    "KTX2 cannot record {} primaries: the samples are stored as they are and the file says \
-                     unspecified (--opt primaries=NAME converts them)",
-                    image.color.primaries.name()
-                ));
-                0
-            }
-        };
+        let primaries = ktx2_primaries(&image.color.primaries, &mut report);
         let n = levels.count();
         let (header, offsets) = ktx2_header(levels.width, levels.height, levels.options.signed, n, primaries)?;
         out.write_all(&header)?;
@@ -325,6 +425,38 @@ impl ImageCodec for Bc6hKtx2Codec {
             pos = offsets[i] + surface_bytes(w, h).unwrap_or(0) as u64;
         }
         Ok(report)
+    }
+    /// Without mips: the header, then level 0 a band of rows at a time. A mip chain needs the
+    /// whole image.
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        let Some(options) = row_options(info, settings, self.name())? else { return Ok(None) };
+        let mut report = EncodeReport::new();
+        let primaries = ktx2_primaries(&info.color.primaries, &mut report);
+        let (mut header, offsets) = ktx2_header(info.width, info.height, options.signed, 1, primaries)?;
+        // Level 0 starts at its offset (a multiple of 16).
+        header.resize(offsets[0] as usize, 0);
+        Ok(Some(Box::new(RowWriter::new(info, options, header, report))))
+    }
+}
+
+/// The DFD's colorPrimaries code for `primaries`: 0 (unspecified) for primaries KTX2 cannot
+/// name (the facade converts before calling, but a direct caller or the container may not),
+/// whose samples are then stored as they are, and `report` says so.
+fn ktx2_primaries(primaries: &ColorPrimaries, report: &mut EncodeReport) -> u32 {
+    match khr_df_primaries(primaries) {
+        Some(code) => code,
+        None => {
+            report.note(format!(
+                "KTX2 cannot record {} primaries: the samples are stored as they are and the file says \
+                 unspecified (--opt primaries=NAME converts them)",
+                primaries.name()
+            ));
+            0
+        }
     }
 }
 

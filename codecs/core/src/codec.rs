@@ -58,9 +58,7 @@ pub trait ImageCodec: Send + Sync {
     /// implements `decode_with` as [`decode_image`]`(self, ..)`.
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         let image = self.decode_with(data, options)?;
-        let mut info = ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone());
-        info.metadata = image.metadata.clone();
-        sink.start(&info)?;
+        sink.start(&ImageInfo::of(&image))?;
         sink.put_rows(0, image.samples())
     }
     /// Decodes into a caller's buffer of `f32` or `f16` samples with a stride (see
@@ -92,6 +90,19 @@ pub trait ImageCodec: Send + Sync {
     ) -> Result<EncodeReport> {
         self.encode_to(image, settings, out)
     }
+    /// An encoder that takes the image `info` describes row band by row band, top to bottom,
+    /// and writes the file as the rows come (see [`RowEncoder`]): what lets a tool convert a
+    /// file without holding the decoded image. `None` (the provided answer, and the answer of a
+    /// codec whose choices need the whole image, such as a mip chain or a scale chosen from the
+    /// image's range) means: encode the whole image with
+    /// [`encode_to_seekable`](Self::encode_to_seekable).
+    ///
+    /// The samples it is given are in `info`'s layout and colour; the bytes it writes are those
+    /// `encode_to_seekable` writes for the same image and settings. Options are checked here.
+    fn row_encoder(&self, info: &ImageInfo, settings: &EncodeSettings) -> Result<Option<Box<dyn RowEncoder>>> {
+        let _ = (info, settings);
+        Ok(None)
+    }
     /// Encodes an image to a whole file in memory.
     fn encode(&self, image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<u8>> {
         let mut out = Vec::new();
@@ -122,6 +133,105 @@ pub fn encode_via_seekable<C: ImageCodec + ?Sized>(
     let report = codec.encode_to_seekable(image, settings, &mut file)?;
     out.write_all(file.get_ref())?;
     Ok(report)
+}
+
+/// An image being encoded a band of rows at a time ([`ImageCodec::row_encoder`]): rows arrive
+/// top to bottom, each once, as interleaved `f32` samples (`width × channels` per row), and the
+/// file goes to `out`, the same writer at every call, where the file starts at the position
+/// `out` has at the first call. The encoder holds no borrow, so that a caller can decide how to
+/// encode before it has somewhere to write.
+pub trait RowEncoder: Send {
+    /// Encodes the rows that follow the last ones given (any number of whole rows).
+    fn write_rows(&mut self, samples: &[f32], out: &mut dyn WriteSeek) -> Result<()>;
+    /// Writes what remains of the file once every row has been given (an error if some are
+    /// missing), leaves `out` at its end, and reports what the whole image needed saying
+    /// (values clipped, and so on).
+    fn finish(self: Box<Self>, out: &mut dyn WriteSeek) -> Result<EncodeReport>;
+}
+
+/// Feeds a whole image to a [`RowEncoder`] and finishes it: how a codec's
+/// [`encode_to_seekable`](ImageCodec::encode_to_seekable) can share its row encoder.
+pub fn encode_rows(
+    mut encoder: Box<dyn RowEncoder>,
+    image: &HdrImage,
+    out: &mut dyn WriteSeek,
+) -> Result<EncodeReport> {
+    encoder.write_rows(image.samples(), out)?;
+    encoder.finish(out)
+}
+
+/// The bytes a [`RowEncoder`] writes before its first rows (a header), kept until it has
+/// somewhere to write them, with the position where they went (the start of the file, which
+/// formats that seek count from).
+#[derive(Clone, Debug, Default)]
+pub struct PendingHeader {
+    bytes: Option<Vec<u8>>,
+    start: u64,
+}
+
+impl PendingHeader {
+    /// `bytes`, to be written first.
+    pub fn new(bytes: Vec<u8>) -> Self {
+        PendingHeader { bytes: Some(bytes), start: 0 }
+    }
+    /// Writes the header to `out` if it has not been written yet; returns where the file starts.
+    pub fn write(&mut self, out: &mut dyn WriteSeek) -> Result<u64> {
+        if let Some(bytes) = self.bytes.take() {
+            self.start = out.stream_position()?;
+            out.write_all(&bytes)?;
+        }
+        Ok(self.start)
+    }
+}
+
+/// Counts whole rows given to a [`RowEncoder`]: checks that `samples` holds whole rows that fit
+/// in what remains of the image, and at the end that every row came.
+#[derive(Clone, Copy, Debug)]
+pub struct RowCounter {
+    row_len: usize,
+    height: u32,
+    next: u32,
+}
+
+impl RowCounter {
+    /// Rows of `row_len` samples, `height` of them.
+    pub fn new(row_len: usize, height: u32) -> Self {
+        RowCounter { row_len, height, next: 0 }
+    }
+    /// The first row `samples` holds, and how many rows that is.
+    pub fn take(&mut self, samples: &[f32]) -> Result<(u32, u32)> {
+        if self.row_len == 0 || samples.len() % self.row_len != 0 {
+            return Err(Error::invalid(format!(
+                "{} samples given to an encoder are not whole rows of {}",
+                samples.len(),
+                self.row_len
+            )));
+        }
+        let rows = samples.len() / self.row_len;
+        if rows as u64 > u64::from(self.height - self.next) {
+            return Err(Error::invalid(format!(
+                "rows {}..{} given to an encoder of an image {} rows high",
+                self.next,
+                self.next as usize + rows,
+                self.height
+            )));
+        }
+        let first = self.next;
+        self.next += rows as u32;
+        Ok((first, rows as u32))
+    }
+    /// The next row expected.
+    pub fn next(&self) -> u32 {
+        self.next
+    }
+    /// An error unless every row has been given.
+    pub fn check_complete(&self) -> Result<()> {
+        if self.next == self.height {
+            Ok(())
+        } else {
+            Err(Error::invalid(format!("the encoder was given {} of the image's {} rows", self.next, self.height)))
+        }
+    }
 }
 
 /// A writer that can also seek: what [`ImageCodec::encode_to_seekable`] writes into.
@@ -230,6 +340,18 @@ impl ImageInfo {
     /// One frame of `width` × `height` with these channels and colour.
     pub fn new(width: u32, height: u32, channels: Channels, color: ColorInfo) -> Self {
         ImageInfo { width, height, channels, color, frames: 1, format: String::new(), metadata: Vec::new() }
+    }
+
+    /// What a header describing `image` says: its size, channels, colour and metadata.
+    pub fn of(image: &HdrImage) -> Self {
+        let mut info = ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone());
+        info.metadata = image.metadata.clone();
+        info
+    }
+
+    /// The value of metadata `key`, if present.
+    pub fn metadata_value(&self, key: &str) -> Option<&str> {
+        self.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
     }
 
     /// The same with one more metadata entry.

@@ -157,20 +157,8 @@ impl HdrImage {
     /// and, if `alpha`, the alpha channel too: what an encoder with a fixed range tells its
     /// caller it clipped (see [`RangeCount::describe`]).
     pub fn count_outside(&self, lo: f32, hi: f32, alpha: bool) -> RangeCount {
-        let n = self.channels.count();
-        let take = if alpha { n } else { 3 };
         let mut c = RangeCount::default();
-        for px in self.samples.chunks_exact(n) {
-            for &v in &px[..take] {
-                if v < lo {
-                    c.below += 1;
-                } else if v > hi {
-                    c.above += 1;
-                } else if v.is_nan() {
-                    c.nan += 1;
-                }
-            }
-        }
+        c.add(&self.samples, self.channels, lo, hi, alpha);
         c
     }
 
@@ -185,6 +173,26 @@ impl HdrImage {
         match self.metadata.iter_mut().find(|(k, _)| *k == key) {
             Some(entry) => entry.1 = value,
             None => self.metadata.push((key, value)),
+        }
+    }
+}
+
+impl RangeCount {
+    /// Adds the samples of `pixels` (interleaved, `channels` per pixel: an image or a band of
+    /// its rows) outside `[lo, hi]`, as [`HdrImage::count_outside`] counts them.
+    pub fn add(&mut self, pixels: &[f32], channels: Channels, lo: f32, hi: f32, alpha: bool) {
+        let n = channels.count();
+        let take = if alpha { n } else { 3 };
+        for px in pixels.chunks_exact(n) {
+            for &v in &px[..take] {
+                if v < lo {
+                    self.below += 1;
+                } else if v > hi {
+                    self.above += 1;
+                } else if v.is_nan() {
+                    self.nan += 1;
+                }
+            }
         }
     }
 }

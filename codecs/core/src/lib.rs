@@ -7,6 +7,8 @@
 //!   that decoders charge as they allocate.
 //! - [`sink`]: where decoders put rows: an [`HdrImage`], a caller's `f32`/`f16` buffer with a
 //!   stride ([`ImageCodec::decode_into`]), or a consumer that keeps nothing.
+//! - [`RowEncoder`] ([`ImageCodec::row_encoder`]): encoders that take rows band by band, so
+//!   that a conversion holds neither the decoded image nor the encoded file.
 //! - [`ThreadPool`]: the one handle to worker threads, passed down through encode and decode.
 //! - [`cpu`]: CPU features detected once; `HDRCODEC_CPU=scalar` selects the portable kernels.
 //! - [`Error`]: the one error enum of the family.
@@ -39,8 +41,8 @@ pub mod tonemap;
 pub mod transfer;
 
 pub use codec::{
-    decode_image, encode_via_seekable, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec,
-    ImageInfo, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
+    decode_image, encode_rows, encode_via_seekable, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings,
+    ImageCodec, ImageInfo, PendingHeader, RowCounter, RowEncoder, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};

@@ -39,7 +39,7 @@ pub use decode::{decode_exr, decode_exr_rows, decode_exr_with, probe_exr};
 pub use encode::{encode_exr, write_exr};
 
 use exr::compression::Compression;
-use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, Result};
+use hdrcodec_core::{EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Result};
 use std::fmt;
 use std::str::FromStr;
 
@@ -280,34 +280,28 @@ impl ImageCodec for ExrCodec {
         out: &mut dyn hdrcodec_core::WriteSeek,
     ) -> Result<hdrcodec_core::EncodeReport> {
         let options = ExrEncodeOptions::from_settings(settings)?;
-        write_exr(image, &options, &settings.pool, out)?;
-        let mut report = hdrcodec_core::EncodeReport::new();
-        if !image.color.primaries.is_specified() {
-            // Without a chromaticities attribute OpenEXR means BT.709; it cannot say "unknown".
-            report.note("the input records no primaries: OpenEXR stores them as BT.709, its default (--opt primaries=NAME labels them)");
-        }
-        if options.pixel == ExrPixelType::Half {
-            if let Some(note) = half_overflow_note(image) {
-                report.note(note);
-            }
-        }
-        Ok(report)
+        let writer = encode::ExrWriter::new(&ImageInfo::of(image), &options, &settings.pool)?;
+        hdrcodec_core::encode_rows(Box::new(writer), image, out)
+    }
+    /// Blocks are compressed and written as their rows come; the offset table is filled in last.
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        let options = ExrEncodeOptions::from_settings(settings)?;
+        Ok(Some(Box::new(encode::ExrWriter::new(info, &options, &settings.pool)?)))
     }
 }
 
 /// The largest finite half float.
 const HALF_MAX: f32 = 65504.0;
 
-/// How many finite samples (alpha included) lie beyond ±65504, the largest half float, as a
-/// sentence for the encode report, if any. Rounding to nearest makes those from ±65520 on
-/// ±infinity and those between ±65504 (IEEE 754 binary16). Infinities and NaN are stored as
-/// they are, so they are not counted.
-fn half_overflow_note(image: &HdrImage) -> Option<String> {
-    let mut counts = image.count_outside(-HALF_MAX, HALF_MAX, true);
-    let infinite = image.count_outside(f32::MIN, f32::MAX, true);
-    counts.below -= infinite.below;
-    counts.above -= infinite.above;
-    counts.nan = 0;
+/// The samples (alpha included) found beyond ±65504, the largest half float, as a sentence for
+/// the encode report, if any. Rounding to nearest makes those from ±65520 on ±infinity and those
+/// between ±65504 (IEEE 754 binary16). Infinities and NaN are stored as they are, so they are
+/// not counted.
+fn describe_half_overflow(counts: hdrcodec_core::RangeCount) -> Option<String> {
     counts
         .describe(
             "OpenEXR half",

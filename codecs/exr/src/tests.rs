@@ -423,3 +423,56 @@ fn probe_reads_the_headers_as_decode_would() {
         }
     }
 }
+
+/// The files written (header, offset table, chunks; whole or row band by row band) are the
+/// bytes `exr`'s own image writer produces for the same channels and compression.
+#[test]
+fn files_are_the_bytes_exrs_own_writer_writes() {
+    use exr::image::{Encoding, SpecificChannels};
+    use exr::meta::attribute::LineOrder;
+    let (w, h) = (97u32, 75u32);
+    let img = picture(w, h, Channels::Rgba);
+    for c in
+        [ExrCompression::None, ExrCompression::Rle, ExrCompression::Zip1, ExrCompression::Zip16, ExrCompression::Piz]
+    {
+        for pixel in ["half", "float"] {
+            let ours = ExrCodec.encode(&img, &settings(c, pixel)).unwrap();
+            let at = |x: usize, y: usize, k: usize| img.samples()[(y * w as usize + x) * 4 + k];
+            let encoding = Encoding {
+                compression: c.to_exr(),
+                blocks: exr::image::Blocks::ScanLines,
+                line_order: LineOrder::Increasing,
+            };
+            let mut theirs = std::io::Cursor::new(Vec::new());
+            let size = Vec2(w as usize, h as usize);
+            if pixel == "half" {
+                let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
+                    (0..4)
+                        .map(|k| f16::from_f32(at(x, y, k)))
+                        .collect::<Vec<_>>()
+                        .try_into()
+                        .map(|a: [f16; 4]| (a[0], a[1], a[2], a[3]))
+                        .unwrap()
+                });
+                let layer = Layer::new(size, LayerAttributes::default(), encoding, channels);
+                Image::from_layer(layer).write().non_parallel().to_buffered(&mut theirs).unwrap();
+            } else {
+                let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
+                    (at(x, y, 0), at(x, y, 1), at(x, y, 2), at(x, y, 3))
+                });
+                let layer = Layer::new(size, LayerAttributes::default(), encoding, channels);
+                Image::from_layer(layer).write().non_parallel().to_buffered(&mut theirs).unwrap();
+            }
+            assert!(ours == theirs.into_inner(), "{c} {pixel}: other bytes than exr's writer");
+            // Band by band, in bands that do not fall on block boundaries.
+            let info = hdrcodec_core::ImageInfo::of(&img);
+            let mut banded = std::io::Cursor::new(Vec::new());
+            let mut enc = ExrCodec.row_encoder(&info, &settings(c, pixel)).unwrap().unwrap();
+            for band in img.samples().chunks(w as usize * 4 * 7) {
+                enc.write_rows(band, &mut banded).unwrap();
+            }
+            enc.finish(&mut banded).unwrap();
+            assert!(banded.into_inner() == ours, "{c} {pixel}: bands write other bytes");
+        }
+    }
+}

@@ -206,19 +206,76 @@ pub fn write_pfm(image: &HdrImage, out: &mut dyn std::io::Write) -> Result<()> {
     if w == 0 || h == 0 {
         return Err(Error::invalid(format!("cannot write an empty {w}x{h} image")));
     }
-    out.write_all(format!("PF\n{w} {h}\n-1\n").as_bytes())?;
+    out.write_all(header(w, h).as_bytes())?;
     let n = image.channels().count();
-    let mut row_bytes = Vec::with_capacity(w * 12);
+    let mut bytes = Vec::with_capacity(w * 12);
     for y in (0..h).rev() {
-        row_bytes.clear();
-        for px in image.row(y as u32).chunks_exact(n) {
-            for v in &px[..3] {
-                row_bytes.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        out.write_all(&row_bytes)?;
+        bytes.clear();
+        push_row(image.row(y as u32), n, &mut bytes);
+        out.write_all(&bytes)?;
     }
     Ok(())
+}
+
+/// The header of a little-endian RGB file.
+fn header(w: usize, h: usize) -> String {
+    format!("PF\n{w} {h}\n-1\n")
+}
+
+/// Appends one row (`n` samples per pixel, alpha dropped) as the file stores it: RGB,
+/// little-endian `f32`.
+fn push_row(row: &[f32], n: usize, out: &mut Vec<u8>) {
+    for px in row.chunks_exact(n) {
+        for v in &px[..3] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+}
+
+/// The rows of an image written as they come, top to bottom, into a file that stores them
+/// bottom up: each band is reversed in a buffer of its size and written where it belongs (the
+/// header's length and the row size give every row's place).
+struct PfmRowEncoder {
+    header: hdrcodec_core::PendingHeader,
+    width: usize,
+    channels: usize,
+    rows: hdrcodec_core::RowCounter,
+    height: u32,
+    header_len: u64,
+    bytes: Vec<u8>,
+}
+
+impl PfmRowEncoder {
+    /// Where row `y` of the file (counted from the bottom) starts in `out`.
+    fn file_row(&self, start: u64, y: u32) -> u64 {
+        start + self.header_len + u64::from(y) * self.width as u64 * 12
+    }
+}
+
+impl hdrcodec_core::RowEncoder for PfmRowEncoder {
+    fn write_rows(&mut self, samples: &[f32], out: &mut dyn hdrcodec_core::WriteSeek) -> Result<()> {
+        let start = self.header.write(out)?;
+        let (y, rows) = self.rows.take(samples)?;
+        if rows == 0 {
+            return Ok(());
+        }
+        self.bytes.clear();
+        for row in samples.chunks_exact(self.width * self.channels).rev() {
+            push_row(row, self.channels, &mut self.bytes);
+        }
+        // The band's last row is the first of the rows it fills in the file.
+        out.seek(std::io::SeekFrom::Start(self.file_row(start, self.height - y - rows)))?;
+        out.write_all(&self.bytes)?;
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>, out: &mut dyn hdrcodec_core::WriteSeek) -> Result<hdrcodec_core::EncodeReport> {
+        let start = self.header.write(out)?;
+        self.rows.check_complete()?;
+        // Leave the writer at the end of the file, as a writer that wrote it in order would.
+        out.seek(std::io::SeekFrom::Start(self.file_row(start, self.height)))?;
+        Ok(hdrcodec_core::EncodeReport::new())
+    }
 }
 
 impl ImageCodec for PfmCodec {
@@ -258,6 +315,30 @@ impl ImageCodec for PfmCodec {
         settings.check_options("pfm", &[])?;
         write_pfm(image, out)?;
         Ok(hdrcodec_core::EncodeReport::new())
+    }
+    /// Rows are placed from the end of the file back, by seeking (the file stores them bottom
+    /// up).
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        settings.check_options("pfm", &[])?;
+        let (w, h) = (info.width as usize, info.height as usize);
+        if w == 0 || h == 0 {
+            return Err(Error::invalid(format!("cannot write an empty {w}x{h} image")));
+        }
+        let head = header(w, h);
+        let channels = info.channels.count();
+        Ok(Some(Box::new(PfmRowEncoder {
+            header_len: head.len() as u64,
+            header: hdrcodec_core::PendingHeader::new(head.into_bytes()),
+            width: w,
+            channels,
+            rows: hdrcodec_core::RowCounter::new(w * channels, info.height),
+            height: info.height,
+            bytes: Vec::new(),
+        })))
     }
 }
 

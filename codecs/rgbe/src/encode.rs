@@ -10,7 +10,10 @@ mod rle;
 use crate::decode::{MAX_RLE_LEN, MIN_RLE_LEN};
 use crate::header::{self, PixelFormat, WriteHeader};
 use crate::{RgbeEncodeOptions, Rounding};
-use hdrcodec_core::{ColorPrimaries, Error, HdrImage, Result};
+use hdrcodec_core::{
+    Channels, ColorPrimaries, EncodeReport, Error, HdrImage, ImageInfo, Mat3, RangeCount, Result, RowCounter,
+    RowEncoder, WriteSeek,
+};
 
 /// Below this the pixel is written as zero, as rgbe.c does (`v < 1e-32`).
 const ZERO_THRESHOLD: f64 = 1e-32;
@@ -94,37 +97,6 @@ pub fn encode_pixel(rgb: [f32; 3], rounding: Rounding) -> [u8; 4] {
 /// 255 · 2^(127 - 8) ≈ 1.69e38 (with the truncating decode).
 pub const RGBE_MAX: f32 = 255.0 * (1u128 << 119) as f32;
 
-/// What the encoder cannot hold, as a sentence for the encode report, if anything: negative
-/// samples and NaN become 0 (RGBE has no sign), values above [`RGBE_MAX`] (+∞ included)
-/// saturate to it. Counted on the stored components: R, G, B, or X, Y, Z for XYZE (converted as
-/// [`encode`] converts them). Alpha is not stored, so it is not counted.
-pub(crate) fn range_note(image: &HdrImage, format: PixelFormat) -> Option<String> {
-    let counts = match format {
-        PixelFormat::Rgbe => image.count_outside(0.0, RGBE_MAX, false),
-        PixelFormat::Xyze => {
-            let m = hdrcodec_core::color::mat_to_f32(&image.color.primaries.rgb_to_xyz());
-            let mut c = hdrcodec_core::RangeCount::default();
-            for p in image.rgb() {
-                for v in hdrcodec_core::color::mat_apply_f32s(&m, p) {
-                    if v < 0.0 {
-                        c.below += 1;
-                    } else if v > RGBE_MAX {
-                        c.above += 1;
-                    } else if v.is_nan() {
-                        c.nan += 1;
-                    }
-                }
-            }
-            c
-        }
-    };
-    let (name, neg) = match format {
-        PixelFormat::Rgbe => ("Radiance RGBE", "0 (RGBE has no sign)"),
-        PixelFormat::Xyze => ("Radiance XYZE", "0 (XYZE has no sign)"),
-    };
-    counts.describe(name, 0.0, RGBE_MAX, neg, &format!("{RGBE_MAX:e}"), "0")
-}
-
 /// Writes one scanline of RGBE pixels given as four planes (`stride` bytes apart), flat
 /// (interleaved pixels).
 ///
@@ -152,89 +124,175 @@ const WRITE_BAND: usize = 1 << 20;
 /// [`encode`] streamed into `sink` in bands of scanlines of about 1 MB: nothing of the file's
 /// size is held.
 pub fn write(image: &HdrImage, opts: &RgbeEncodeOptions, sink: &mut dyn std::io::Write) -> Result<()> {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    if w == 0 || h == 0 {
-        return Err(Error::invalid(format!("cannot write an empty {w}x{h} image as Radiance RGBE")));
-    }
-    let stride = image.channels().count();
-    let primaries = image.color.primaries;
-    // Without a PRIMARIES line a Radiance file means the standard primaries (BT.709/sRGB): unspecified
-    // samples are written that way too, as no line can say "unknown".
-    let declare =
-        (!matches!(primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified)).then(|| primaries.chromaticities());
-    let to_xyz = match opts.format {
-        PixelFormat::Rgbe => None,
-        PixelFormat::Xyze => {
-            if let ColorPrimaries::Custom(ch) = primaries {
-                if !ch.is_valid() {
-                    return Err(Error::invalid("the image's custom primaries cannot be converted to XYZ"));
+    let mut writer = RgbeWriter::new(&ImageInfo::of(image), opts)?;
+    writer.write_rows(image.samples(), sink)?;
+    writer.finish(sink).map(drop)
+}
+
+/// The scanline writer: the header, then rows as they come, top to bottom, gathered into bands
+/// of about 1 MB of encoded bytes before they go to the sink. Serves whole
+/// images ([`write`]) and conversions that never hold the image ([`RgbeCodec`]'s row encoder).
+///
+/// [`RgbeCodec`]: crate::RgbeCodec
+pub(crate) struct RgbeWriter {
+    opts: RgbeEncodeOptions,
+    width: usize,
+    channels: Channels,
+    stride: usize,
+    rows: RowCounter,
+    /// RGB → XYZ, for XYZE files.
+    to_xyz: Option<Mat3>,
+    /// The primaries were unspecified (written as Radiance's standard ones).
+    unlabelled: bool,
+    rle: bool,
+    pstride: usize,
+    planes: Vec<u8>,
+    eq: Vec<u64>,
+    line_bound: usize,
+    xyz: Vec<f32>,
+    out: Vec<u8>,
+    /// Stored components outside what RGBE holds, for the report.
+    outside: RangeCount,
+}
+
+impl RgbeWriter {
+    /// Checks the image `info` describes and writes the header into the first band.
+    pub(crate) fn new(info: &ImageInfo, opts: &RgbeEncodeOptions) -> Result<Self> {
+        let (w, h) = (info.width as usize, info.height as usize);
+        if w == 0 || h == 0 {
+            return Err(Error::invalid(format!("cannot write an empty {w}x{h} image as Radiance RGBE")));
+        }
+        let stride = info.channels.count();
+        let primaries = info.color.primaries;
+        // Without a PRIMARIES line a Radiance file means the standard primaries (BT.709/sRGB): unspecified
+        // samples are written that way too, as no line can say "unknown".
+        let declare = (!matches!(primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified))
+            .then(|| primaries.chromaticities());
+        let to_xyz = match opts.format {
+            PixelFormat::Rgbe => None,
+            PixelFormat::Xyze => {
+                if let ColorPrimaries::Custom(ch) = primaries {
+                    if !ch.is_valid() {
+                        return Err(Error::invalid("the image's custom primaries cannot be converted to XYZ"));
+                    }
                 }
+                Some(primaries.rgb_to_xyz())
             }
-            Some(primaries.rgb_to_xyz())
-        }
-    };
-    // Values decoded without undoing EXPOSURE still contain it: say so in the file.
-    let raw = image.metadata_value("exposure_in_pixels") == Some("true");
-    let factor = |t: &str| t.parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0);
-    let exposure = raw.then(|| image.metadata_value("exposure").and_then(|v| factor(v.trim()))).flatten();
-    let colorcorr = raw
-        .then(|| {
-            let v: Vec<f64> = image.metadata_value("colorcorr")?.split_ascii_whitespace().filter_map(factor).collect();
-            <[f64; 3]>::try_from(v).ok()
+        };
+        // Values decoded without undoing EXPOSURE still contain it: say so in the file.
+        let raw = info.metadata_value("exposure_in_pixels") == Some("true");
+        let factor = |t: &str| t.parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0);
+        let exposure = raw.then(|| info.metadata_value("exposure").and_then(|v| factor(v.trim()))).flatten();
+        let colorcorr = raw
+            .then(|| {
+                let v: Vec<f64> =
+                    info.metadata_value("colorcorr")?.split_ascii_whitespace().filter_map(factor).collect();
+                <[f64; 3]>::try_from(v).ok()
+            })
+            .flatten();
+        let mut out = Vec::with_capacity(WRITE_BAND + 4 * w + 256);
+        header::write(
+            &WriteHeader {
+                format: opts.format,
+                primaries: declare,
+                exposure,
+                colorcorr,
+                metadata: &info.metadata,
+                width: w as u32,
+                height: h as u32,
+            },
+            &mut out,
+        );
+        let rle = opts.rle && (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&w);
+        // Four planes with room for the RLE writer's fixed-size reads past their ends, and the
+        // writer's masks. Each RLE scanline is written in place: the output grows by the
+        // scanline's worst case (reserved once for all), is written with plain indexing, and is
+        // cut back to what was written.
+        let pstride = w + rle::PAD;
+        Ok(RgbeWriter {
+            opts: *opts,
+            width: w,
+            channels: info.channels,
+            stride,
+            rows: RowCounter::new(w * stride, info.height),
+            to_xyz,
+            unlabelled: !primaries.is_specified(),
+            rle,
+            pstride,
+            planes: vec![0u8; 4 * pstride],
+            eq: vec![0u64; rle::mask_words(w)],
+            line_bound: 4 + 4 * rle::plane_bound(w),
+            xyz: Vec::new(),
+            out,
+            outside: RangeCount::default(),
         })
-        .flatten();
-    let mut out = Vec::with_capacity(WRITE_BAND + 4 * w + 256);
-    header::write(
-        &WriteHeader {
-            format: opts.format,
-            primaries: declare,
-            exposure,
-            colorcorr,
-            metadata: &image.metadata,
-            width: w as u32,
-            height: h as u32,
-        },
-        &mut out,
-    );
-    let rle = opts.rle && (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&w);
-    // Four planes with room for the RLE writer's fixed-size reads past their ends, and the
-    // writer's masks. Each RLE scanline is written in place: the output grows by the
-    // scanline's worst case (reserved once for all), is written with plain indexing, and is
-    // cut back to what was written.
-    let pstride = w + rle::PAD;
-    let mut planes = vec![0u8; 4 * pstride];
-    let mut eq = vec![0u64; rle::mask_words(w)];
-    let line_bound = 4 + 4 * rle::plane_bound(w);
-    let mut xyz = Vec::new();
-    for y in 0..h {
-        let mut row = image.row(y as u32);
-        if let Some(m) = &to_xyz {
-            xyz.clear();
-            xyz.extend_from_slice(row);
-            crate::apply_matrix(m, &mut xyz, stride);
-            row = &xyz;
-        }
-        fill_planes(row, stride, opts.rounding, &mut planes, w, pstride);
-        if rle {
-            let start = out.len();
-            out.resize(start + line_bound + rle::PAD, 0);
-            let line = &mut out[start..];
-            line[..4].copy_from_slice(&[2, 2, (w >> 8) as u8, (w & 0xff) as u8]);
-            let mut o = 4;
-            for plane in planes.chunks_exact(pstride) {
-                o = rle::write_channel(plane, w, &mut eq, line, o);
-            }
-            out.truncate(start + o);
-        } else {
-            write_flat(&planes, w, pstride, &mut out);
-        }
-        if out.len() >= WRITE_BAND {
-            sink.write_all(&out)?;
-            out.clear();
-        }
     }
-    sink.write_all(&out)?;
-    Ok(())
+
+    /// Encodes the next rows (whole rows, in the layout the header described).
+    pub(crate) fn write_rows(&mut self, samples: &[f32], sink: &mut dyn std::io::Write) -> Result<()> {
+        self.rows.take(samples)?;
+        let (w, stride) = (self.width, self.stride);
+        for row in samples.chunks_exact(w * stride) {
+            let mut row = row;
+            if let Some(m) = &self.to_xyz {
+                self.xyz.clear();
+                self.xyz.extend_from_slice(row);
+                crate::apply_matrix(m, &mut self.xyz, stride);
+                row = &self.xyz;
+            }
+            // Counted on the stored components: R, G, B, or X, Y, Z. Alpha is not stored.
+            self.outside.add(row, self.channels, 0.0, RGBE_MAX, false);
+            fill_planes(row, stride, self.opts.rounding, &mut self.planes, w, self.pstride);
+            if self.rle {
+                let start = self.out.len();
+                self.out.resize(start + self.line_bound + rle::PAD, 0);
+                let line = &mut self.out[start..];
+                line[..4].copy_from_slice(&[2, 2, (w >> 8) as u8, (w & 0xff) as u8]);
+                let mut o = 4;
+                for plane in self.planes.chunks_exact(self.pstride) {
+                    o = rle::write_channel(plane, w, &mut self.eq, line, o);
+                }
+                self.out.truncate(start + o);
+            } else {
+                write_flat(&self.planes, w, self.pstride, &mut self.out);
+            }
+            if self.out.len() >= WRITE_BAND {
+                sink.write_all(&self.out)?;
+                self.out.clear();
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the last band once every row has come, and reports what RGBE could not hold:
+    /// negative samples and NaN become 0 (RGBE has no sign), values above [`RGBE_MAX`] (+∞
+    /// included) saturate to it; unspecified primaries are written as Radiance's standard ones.
+    pub(crate) fn finish(self, sink: &mut dyn std::io::Write) -> Result<EncodeReport> {
+        self.rows.check_complete()?;
+        sink.write_all(&self.out)?;
+        let mut report = EncodeReport::new();
+        if self.unlabelled {
+            // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
+            report.note("the input records no primaries: Radiance stores them as its standard (BT.709) primaries (--opt primaries=NAME labels them)");
+        }
+        let (name, neg) = match self.opts.format {
+            PixelFormat::Rgbe => ("Radiance RGBE", "0 (RGBE has no sign)"),
+            PixelFormat::Xyze => ("Radiance XYZE", "0 (XYZE has no sign)"),
+        };
+        if let Some(note) = self.outside.describe(name, 0.0, RGBE_MAX, neg, &format!("{RGBE_MAX:e}"), "0") {
+            report.note(note);
+        }
+        Ok(report)
+    }
+}
+
+impl RowEncoder for RgbeWriter {
+    fn write_rows(&mut self, samples: &[f32], out: &mut dyn WriteSeek) -> Result<()> {
+        RgbeWriter::write_rows(self, samples, out)
+    }
+    fn finish(self: Box<Self>, out: &mut dyn WriteSeek) -> Result<EncodeReport> {
+        RgbeWriter::finish(*self, out)
+    }
 }
 
 /// Converts one row of `n` pixels (`stride` samples each) into four byte planes (R, G, B, E)

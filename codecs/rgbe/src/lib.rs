@@ -239,16 +239,18 @@ impl ImageCodec for RgbeCodec {
         out: &mut dyn std::io::Write,
     ) -> Result<hdrcodec_core::EncodeReport> {
         let options = RgbeEncodeOptions::from_settings(settings)?;
-        encode::write(image, &options, out)?;
-        let mut report = hdrcodec_core::EncodeReport::new();
-        if !image.color.primaries.is_specified() {
-            // Without a PRIMARIES line Radiance means its standard primaries; no line says "unknown".
-            report.note("the input records no primaries: Radiance stores them as its standard (BT.709) primaries (--opt primaries=NAME labels them)");
-        }
-        if let Some(note) = encode::range_note(image, options.format) {
-            report.note(note);
-        }
-        Ok(report)
+        let mut writer = encode::RgbeWriter::new(&ImageInfo::of(image), &options)?;
+        writer.write_rows(image.samples(), out)?;
+        writer.finish(out)
+    }
+    /// Scanlines are written as they come (the header says everything before the first).
+    fn row_encoder(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+    ) -> Result<Option<Box<dyn hdrcodec_core::RowEncoder>>> {
+        let options = RgbeEncodeOptions::from_settings(settings)?;
+        Ok(Some(Box::new(encode::RgbeWriter::new(info, &options)?)))
     }
 }
 
