@@ -410,3 +410,79 @@ fn corpus_files_keep_the_family_contracts() {
         );
     }
 }
+
+/// `file` with its container rewritten: the same pixel format and codestream, and
+/// PTM_COLOR_INFO set to `ptm` (T.832 A.7.4; jxrlib neither reads nor writes it).
+fn with_colour_info(file: &[u8], ptm: [u8; 4]) -> Vec<u8> {
+    use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
+    use hdrcodec_core::tiff::{write_header, IfdWriter, MAGIC_JPEG_XR};
+    use hdrcodec_jxr::container::tag;
+    let c = parse_container(file).unwrap();
+    assert!(c.alpha.is_none(), "a file without a planar alpha codestream");
+    let mut w = ByteWriter::new(ByteOrder::Little);
+    let link = write_header(&mut w, MAGIC_JPEG_XR);
+    let mut ifd = IfdWriter::new();
+    ifd.bytes(tag::PIXEL_FORMAT, &c.pixel_format_guid);
+    ifd.bytes(tag::PTM_COLOR_INFO, &ptm);
+    ifd.long(tag::IMAGE_OFFSET, 0);
+    ifd.long(tag::IMAGE_BYTE_COUNT, c.image.len() as u32);
+    let image_at = (8 + ifd.size() as usize).next_multiple_of(2);
+    ifd.long(tag::IMAGE_OFFSET, image_at as u32);
+    ifd.write(&mut w, link).unwrap();
+    while w.len() < image_at {
+        w.u8(0);
+    }
+    w.bytes(c.image);
+    w.into_vec()
+}
+
+/// A PQ / BT.2020 file (the layout of HDR10 captures: 10-bit or 16-bit integer codes): the
+/// decoded image says BT.2020 and its samples are jxrlib's codes through the ST 2084 EOTF, in
+/// units of 80 cd/m². jxrlib's codes are ours (`samples_match_jxrlib_end_to_end`).
+#[test]
+fn ptm_color_info_pq_bt2020_decodes_to_absolute_linear_light() {
+    use hdrcodec_core::transfer::PqTransfer;
+    use hdrcodec_core::ColorPrimaries;
+    let Some((_, streams)) = matrix_streams() else { return };
+    let options = DecodeOptions::new(Limits::default());
+    for (name, _, path) in streams.iter().filter(|(n, _, _)| ["r101010", "r16", "gray16"].contains(n)) {
+        let file = with_colour_info(&std::fs::read(path).unwrap(), [9, 16, 9, 1]);
+        let image = JxrCodec.decode_with(&file, &options).unwrap();
+        assert_eq!((image.color.primaries, image.color.nits_per_unit), (ColorPrimaries::Bt2020, 80.0), "{name}");
+        assert_eq!(
+            JxrCodec.probe(&file, &Limits::default()).unwrap().color,
+            image.color,
+            "{name}: probe says what decode gives"
+        );
+        let raw = decode_raw(&file, &options).unwrap();
+        let n = (image.width() * image.height()) as usize;
+        // The codes of each pixel's R, G, B.
+        let codes: Vec<[f64; 3]> = match *name {
+            "r101010" => raw
+                .chunks_exact(4)
+                .map(|p| {
+                    let v = u32::from_le_bytes(p.try_into().unwrap());
+                    [0, 10, 20].map(|s| f64::from((v >> s) & 1023) / 1023.0)
+                })
+                .collect(),
+            "r16" => raw
+                .chunks_exact(6)
+                .map(|p| [0, 2, 4].map(|i| f64::from(u16::from_le_bytes([p[i], p[i + 1]])) / 65535.0))
+                .collect(),
+            _ => raw.chunks_exact(2).map(|p| [f64::from(u16::from_le_bytes([p[0], p[1]])) / 65535.0; 3]).collect(),
+        };
+        assert_eq!(codes.len(), n, "{name}");
+        let mut worst = 0.0f64;
+        for (px, code) in image.samples().chunks_exact(3).zip(&codes) {
+            for c in 0..3 {
+                let want = PqTransfer::decode(code[c]) / 80.0;
+                worst = worst.max((f64::from(px[c]) - want).abs() / want.max(1e-3));
+            }
+        }
+        assert!(worst < 1e-5, "{name}: relative error {worst}");
+        // Brighter than SDR: the colour crops' PQ codes reach far above 1.0 (80 cd/m²).
+        if *name != "gray16" {
+            assert!(image.samples().iter().any(|&v| v > 1.5), "{name}");
+        }
+    }
+}

@@ -57,6 +57,29 @@ pub enum ColorPrimaries {
 }
 
 impl ColorPrimaries {
+    /// The primaries of `ColourPrimaries` code `code` of ITU-T H.273 (Table 2), the code points
+    /// video streams, ISOBMFF `colr` boxes and JPEG XR's PTM_COLOR_INFO use: 1 BT.709,
+    /// 2 unspecified, 9 BT.2020, 10 CIE XYZ (SMPTE ST 428-1), 11 DCI-P3 (SMPTE RP 431-2),
+    /// 12 Display P3 (SMPTE EG 432-1). `None` for codes naming other primaries (the older TV
+    /// systems, EBU 3213) and reserved codes.
+    pub fn from_h273(code: u8) -> Option<Self> {
+        Some(match code {
+            1 => ColorPrimaries::Bt709,
+            2 => ColorPrimaries::Unspecified,
+            9 => ColorPrimaries::Bt2020,
+            10 => ColorPrimaries::Xyz,
+            11 => ColorPrimaries::DciP3,
+            12 => ColorPrimaries::DisplayP3,
+            _ => return None,
+        })
+    }
+
+    /// The ITU-T H.273 code of these primaries, for those [`from_h273`](Self::from_h273)
+    /// knows.
+    pub fn h273(&self) -> Option<u8> {
+        (1..=12).find(|&c| Self::from_h273(c).as_ref() == Some(self))
+    }
+
     /// The chromaticities that define this space, from its standard.
     pub fn chromaticities(&self) -> Chromaticities {
         let c =
@@ -511,6 +534,21 @@ mod tests {
                 assert!((m[i][j] - want[i][j]).abs() <= tol, "{what}[{i}][{j}] = {} want {}", m[i][j], want[i][j]);
             }
         }
+    }
+
+    #[test]
+    fn h273_codes_name_the_standard_primaries() {
+        // H.273 Table 2: code 9 is BT.2020's red at (0.708, 0.292), code 12 EG 432-1's D65 P3.
+        assert_eq!(ColorPrimaries::from_h273(9).unwrap().chromaticities().red, [0.708, 0.292]);
+        assert_eq!(ColorPrimaries::from_h273(12), Some(ColorPrimaries::DisplayP3));
+        assert_eq!(ColorPrimaries::from_h273(2), Some(ColorPrimaries::Unspecified));
+        for code in [0, 3, 4, 5, 6, 7, 8, 13, 22, 255] {
+            assert_eq!(ColorPrimaries::from_h273(code), None, "{code}");
+        }
+        for p in [ColorPrimaries::Bt709, ColorPrimaries::Bt2020, ColorPrimaries::DciP3, ColorPrimaries::Xyz] {
+            assert_eq!(ColorPrimaries::from_h273(p.h273().unwrap()), Some(p));
+        }
+        assert_eq!(ColorPrimaries::AcesAp0.h273(), None);
     }
 
     #[test]

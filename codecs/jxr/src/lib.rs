@@ -11,14 +11,15 @@
 //! predicted coefficients the inverse transform reads ([`decode_coefficients`], layout in
 //! [`mb`]); it matches the ITU reference software T.835 coefficient for coefficient.
 //!
-//! Colour: JPEG XR files carry no colour signalling the decoder reads. By the WIC convention
-//! the fixed-point, half and float formats are linear scRGB (BT.709 primaries, 1.0 = 80 nits),
-//! and the integer formats sRGB-encoded (linearised when decoded to `f32`, reference white
-//! 80 nits as sRGB's reference display).
+//! Colour: the primaries and transfer of PTM_COLOR_INFO when the container has it; else, by
+//! the WIC convention, the fixed-point, half and float formats are linear scRGB (BT.709
+//! primaries, 1.0 = 80 nits) and the integer formats sRGB-encoded (linearised when decoded to
+//! `f32`, reference white 80 nits as sRGB's reference display). See the `colour` module.
 
 #![forbid(unsafe_code)]
 
 mod bits;
+mod colour;
 pub mod container;
 pub mod decoder;
 pub mod header;
@@ -37,18 +38,13 @@ pub use render::decode_raw;
 
 use hdrcodec_core::sink::RowSink;
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage,
-    ImageCodec, ImageInfo, Limits, Result,
+    Channels, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo,
+    Limits, Result,
 };
 
 /// The JPEG XR codec of the family (`jxr`, id `JXR `).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct JxrCodec;
-
-/// The colour every decoded JPEG XR image carries (see the crate documentation).
-fn jxr_color() -> ColorInfo {
-    ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 80.0, hdr10: None }
-}
 
 /// Reads the container and codestream headers of a `.jxr` file: size, channels, colour and a
 /// description ("48bppRGBHalf, 1262x860, frequency order, OL1, 1x1 tiles"). Allocates
@@ -71,7 +67,10 @@ pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         i.tile_heights.len(),
         if i.hard_tiling { " (hard)" } else { "" },
     );
-    Ok(ImageInfo::new(i.width, i.height, channels, jxr_color()).with_format(description))
+    let colour = colour::file_colour(&container);
+    let mut info = ImageInfo::new(i.width, i.height, channels, colour.color).with_format(description);
+    info.metadata = colour.metadata;
+    Ok(info)
 }
 
 impl ImageCodec for JxrCodec {
@@ -88,8 +87,8 @@ impl ImageCodec for JxrCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.len() >= 4 && head[..3] == *b"II\xBC" && head[3] <= 1
     }
-    /// None for now: the samples of the HDR formats are scRGB by convention (see the crate
-    /// documentation), which decoded images state as BT.709 with 80 nits per unit.
+    /// Decoding reads PTM_COLOR_INFO (H.273 primaries); without it the samples are scRGB by
+    /// convention (see the crate documentation). Files are not written yet.
     fn color_signalling(&self) -> ColorSignalling {
         ColorSignalling::None
     }
@@ -105,7 +104,7 @@ impl ImageCodec for JxrCodec {
         hdrcodec_core::decode_image(self, data, options)
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-        render::decode_rows(data, options, sink, jxr_color())
+        render::decode_rows(data, options, sink)
     }
     /// The encoder is the next issue.
     fn encode_to(

@@ -16,7 +16,7 @@
 //! of JXR-NOTES §8.
 
 use crate::container::{OutputBitDepth, OutputColorFormat, PixelFormat};
-use hdrcodec_core::transfer::SrgbTransfer;
+use hdrcodec_core::transfer::{PqTransfer, SrgbTransfer};
 use hdrcodec_core::{Error, Result};
 use std::sync::OnceLock;
 
@@ -277,6 +277,43 @@ pub struct OutputParams {
     pub red_blue_flag: bool,
     /// The alpha channel's rounding, when the pixel format has alpha.
     pub alpha: Option<AlphaParams>,
+    /// How the integer formats' colour samples become linear light in
+    /// [`row_to_f32`](Self::row_to_f32) (sRGB unless the file says otherwise).
+    pub transfer: SampleTransfer,
+}
+
+/// How the colour samples of the integer formats (BD1, BD8, BD16, BD5, BD565, BD10) map to
+/// linear light. The half, float, fixed-point and RGBE formats are linear by definition.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleTransfer {
+    /// The sRGB EOTF (IEC 61966-2-1): WIC's convention for files that say nothing.
+    Srgb,
+    /// Code / maximum code, as it is: linear samples, or the signal of a transfer function
+    /// this decoder does not apply (the caller says so).
+    Linear,
+    /// SMPTE ST 2084 (PQ), absolute, in units of 80 cd/m² (scRGB's 1.0).
+    Pq,
+}
+
+/// The luminance of scRGB's 1.0, the unit of every linear sample this crate returns.
+pub const NITS_PER_UNIT: f32 = 80.0;
+
+impl SampleTransfer {
+    /// Linear light of a signal in [0, 1].
+    pub fn decode(self, signal: f64) -> f64 {
+        match self {
+            SampleTransfer::Srgb => SrgbTransfer::decode(signal),
+            SampleTransfer::Linear => signal,
+            SampleTransfer::Pq => PqTransfer::decode(signal) / f64::from(NITS_PER_UNIT),
+        }
+    }
+
+    /// [`decode`](Self::decode) of every 16-bit code (8-bit codes use every 257th entry).
+    fn table_u16(self) -> &'static [f32] {
+        static TABLES: [OnceLock<Vec<f32>>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+        TABLES[self as usize]
+            .get_or_init(|| (0..=65535u32).map(|c| self.decode(f64::from(c) / 65535.0) as f32).collect())
+    }
 }
 
 impl OutputParams {
@@ -349,7 +386,18 @@ impl OutputParams {
         if alpha.is_some() && !matches!(color, C::Rgb | C::Cmyk | C::NComponent | C::Yuv444 | C::CmykDirect) {
             return Err(Error::unsupported(format!("alpha with output colour format {color:?}")));
         }
-        Ok(OutputParams { format, bit_depth, color, internal, scaled, shift, exp_bias, red_blue_flag, alpha })
+        Ok(OutputParams {
+            format,
+            bit_depth,
+            color,
+            internal,
+            scaled,
+            shift,
+            exp_bias,
+            red_blue_flag,
+            alpha,
+            transfer: SampleTransfer::Srgb,
+        })
     }
 
     /// Bytes one output row of `width` pixels takes.
@@ -645,12 +693,6 @@ fn put32(px: &mut [u8], i: usize, v: u32) {
     px[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
 }
 
-/// The sRGB EOTF for every 16-bit code (8-bit codes use every 257th entry).
-fn srgb_table_u16() -> &'static [f32] {
-    static T: OnceLock<Vec<f32>> = OnceLock::new();
-    T.get_or_init(|| (0..=65535u32).map(|c| SrgbTransfer::decode(f64::from(c) / 65535.0) as f32).collect())
-}
-
 impl OutputParams {
     /// Channels of the linear rows [`row_to_f32`](Self::row_to_f32) produces: 3 (RGB) or 4
     /// (RGBA); an error for formats with no linear RGB meaning here (CMYK, N-channel, YCC).
@@ -668,8 +710,9 @@ impl OutputParams {
     /// linear-light f32, RGB or RGBA interleaved ([`linear_channels`](Self::linear_channels)); grey is replicated and BGR
     /// reordered. Half and float are taken as they are; fixed point s2.13 (BD16S) and s7.24
     /// (BD32S) scaled by 2^-13 and 2^-24; RGBE as Radiance decodes it, `(m + 0.5) · 2^(E − 136)`
-    /// (0 when E = 0); integer formats (BD1, BD8, BD16, BD5, BD565, BD10) as sRGB-encoded
-    /// (the WIC convention, JXR-NOTES §7) and alpha linearly.
+    /// (0 when E = 0); the colour of integer formats (BD8, BD16, BD5, BD565, BD10) through
+    /// [`transfer`](Self::transfer) (sRGB by the WIC convention, JXR-NOTES §7, unless the file
+    /// says otherwise) and alpha linearly.
     pub fn row_to_f32(&self, raw: &[u8], width: usize, out: &mut [f32]) -> Result<()> {
         use OutputBitDepth::*;
         let format = self.format;
@@ -682,19 +725,19 @@ impl OutputParams {
         let colour = if gray { 1 } else { 3 };
         let spp = colour + usize::from(format.alpha) + usize::from(format.padded);
         let order: [usize; 3] = if format.bgr { [2, 1, 0] } else { [0, 1, 2] };
-        let srgb = srgb_table_u16();
+        let table = self.transfer.table_u16();
         // Sample `i` of pixel `x` (stored order) as a linear f32; `alpha` selects linear scaling.
         let sample = |x: usize, i: usize, alpha: bool| -> f32 {
             let k = x * spp + i;
             match format.bit_depth {
                 Bd8 if alpha => f32::from(raw[k]) / 255.0,
-                Bd8 => srgb[usize::from(raw[k]) * 257],
+                Bd8 => table[usize::from(raw[k]) * 257],
                 Bd16 => {
                     let v = u16::from_le_bytes([raw[2 * k], raw[2 * k + 1]]);
                     if alpha {
                         f32::from(v) / 65535.0
                     } else {
-                        srgb[usize::from(v)]
+                        table[usize::from(v)]
                     }
                 }
                 Bd16S => f32::from(i16::from_le_bytes([raw[2 * k], raw[2 * k + 1]])) / 8192.0,
@@ -731,7 +774,7 @@ impl OutputParams {
                     let field = |shift: u32, w: u32| {
                         let max = (1u32 << w) - 1;
                         let c = (v >> shift) & max;
-                        SrgbTransfer::decode(f64::from(c) / f64::from(max)) as f32
+                        self.transfer.decode(f64::from(c) / f64::from(max)) as f32
                     };
                     // The first channel (R) sits in the low field when the RED_BLUE flag is 0.
                     let (r, b) = if self.red_blue_flag { (2, 0) } else { (0, 2) };

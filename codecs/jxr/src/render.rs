@@ -11,7 +11,7 @@ use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, Outpu
 use crate::tiles::MbSide;
 use crate::transform::{self, HardEdges, OverlapMode, PlaneKind, TransformParams};
 use hdrcodec_core::sink::{fill_rows, RowSink, Scratch};
-use hdrcodec_core::{Channels, ColorInfo, DecodeOptions, Error, ImageInfo, Result};
+use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 
 fn clr_code(fmt: ClrFmt) -> u8 {
     match fmt {
@@ -65,15 +65,15 @@ impl Window {
 }
 
 /// Decodes a whole `.jxr` file into `sink`.
-pub fn decode_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink, color: ColorInfo) -> Result<()> {
-    decode_impl(data, options, Some(sink), color, &mut |_, _| {})
+pub fn decode_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+    decode_impl(data, options, Some(sink), &mut |_, _| {})
 }
 
 /// Decodes a whole `.jxr` file to jxrlib's output samples (the pixel format's bytes, row by
 /// row), for comparing with jxrlib.
 pub fn decode_raw(data: &[u8], options: &DecodeOptions) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
-    decode_impl(data, options, None, ColorInfo::default(), &mut |_, raw| bytes.extend_from_slice(raw))?;
+    decode_impl(data, options, None, &mut |_, raw| bytes.extend_from_slice(raw))?;
     Ok(bytes)
 }
 
@@ -81,7 +81,6 @@ fn decode_impl(
     data: &[u8],
     options: &DecodeOptions,
     sink: Option<&mut dyn RowSink>,
-    color: ColorInfo,
     raw_rows: &mut dyn FnMut(usize, &[u8]),
 ) -> Result<()> {
     let container = parse_container(data)?;
@@ -107,7 +106,8 @@ fn decode_impl(
         (None, Some(p)) => Some(AlphaParams { scaled: p.primary.scaled, jxrlib_interleaved: false }),
         (None, None) => None,
     };
-    let out = OutputParams::new(
+    let colour = crate::colour::file_colour(&container);
+    let mut out = OutputParams::new(
         format,
         bit_depth,
         clr,
@@ -123,7 +123,9 @@ fn decode_impl(
         (Some(_), n) => Channels::from_count(n?).ok_or_else(|| Error::unsupported("channels"))?,
         (None, _) => Channels::Rgb,
     };
-    let info = ImageInfo::new(img.width, img.height, channels, color).with_format(format.name);
+    out.transfer = colour.transfer;
+    let mut info = ImageInfo::new(img.width, img.height, channels, colour.color).with_format(format.name);
+    info.metadata = colour.metadata;
     let (width, height) = (img.width as usize, img.height as usize);
     let (mb_w, mb_h) = (img.mb_width as usize, img.mb_height as usize);
     let overlap = [OverlapMode::None, OverlapMode::One, OverlapMode::Two][usize::from(img.overlap.min(2))];
