@@ -486,3 +486,65 @@ fn ptm_color_info_pq_bt2020_decodes_to_absolute_linear_light() {
         }
     }
 }
+
+/// `file` with the container's SPATIAL_XFRM_PRIMARY (which JxrEncApp writes, as 0) set to `o`.
+fn with_orientation(file: &[u8], o: u32) -> Vec<u8> {
+    let mut file = file.to_vec();
+    let ifd = u32::from_le_bytes(file[4..8].try_into().unwrap()) as usize;
+    let n = usize::from(u16::from_le_bytes([file[ifd], file[ifd + 1]]));
+    let entry = (0..n)
+        .map(|i| ifd + 2 + 12 * i)
+        .find(|&e| u16::from_le_bytes([file[e], file[e + 1]]) == 0xBC02)
+        .expect("JxrEncApp writes SPATIAL_XFRM_PRIMARY");
+    file[entry + 8..entry + 12].copy_from_slice(&o.to_le_bytes());
+    file
+}
+
+/// The container's orientation is applied as jxrlib's library applies it: the flips (1-3) match
+/// imagecodecs' `jpegxr_decode` (jxrlib's glue) sample for sample. jxrlib cannot rotate these
+/// formats (JxrDecApp `-O 4..7` and imagecodecs fail on half, float and 8-bit RGB files), so
+/// the rotations (4-7) are checked against the stored image rotated by 90° clockwise and then
+/// flipped (T.832's SPATIAL_XFRM; `core::sink::Orientation`'s own test checks the mapping).
+#[test]
+fn container_orientation_is_applied() {
+    let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
+    let Some((dir, streams)) = matrix_streams() else { return };
+    let (_, _, path) = streams.iter().find(|(n, _, _)| *n == "h_q07").unwrap();
+    let file = std::fs::read(path).unwrap();
+    let options = DecodeOptions::new(Limits::default());
+    let stored = JxrCodec.decode_with(&file, &options).unwrap();
+    let (w, h) = (stored.width() as usize, stored.height() as usize);
+    let at = |x: usize, y: usize| &stored.samples()[(y * w + x) * 3..(y * w + x) * 3 + 3];
+    for o in 1..8u32 {
+        let oriented = with_orientation(&file, o);
+        let image = JxrCodec.decode_with(&oriented, &options).unwrap();
+        let info = JxrCodec.probe(&oriented, &Limits::default()).unwrap();
+        assert_eq!((info.width, info.height), (image.width(), image.height()), "orientation {o}");
+        let (ow, oh) = (image.width() as usize, image.height() as usize);
+        assert_eq!((ow, oh), if o >= 4 { (h, w) } else { (w, h) }, "orientation {o}");
+        for v in 0..oh {
+            for u in 0..ow {
+                let (u0, v0) = (if o & 2 != 0 { ow - 1 - u } else { u }, if o & 1 != 0 { oh - 1 - v } else { v });
+                // Before the flips: rotated (source x = v0, y = h-1-u0) or not.
+                let want = if o >= 4 { at(v0, h - 1 - u0) } else { at(u0, v0) };
+                assert_eq!(
+                    &image.samples()[(v * ow + u) * 3..(v * ow + u) * 3 + 3],
+                    want,
+                    "orientation {o} at {u},{v}"
+                );
+            }
+        }
+        if o < 4 {
+            // jxrlib's glue applies the flips: its half samples, as f32, are ours.
+            let out = dir.join(format!("oriented{o}.jxr"));
+            std::fs::write(&out, &oriented).unwrap();
+            let script = "import imagecodecs, sys, numpy as np\n\
+                a = imagecodecs.jpegxr_decode(open(sys.argv[1], 'rb').read())\n\
+                sys.stdout.buffer.write(np.ascontiguousarray(a[:, :, :3]).astype(np.float32).tobytes())\n";
+            let res = common::run_python(&py, script, &[out.as_os_str()]);
+            let theirs: Vec<f32> =
+                res.stdout.chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect();
+            assert!(theirs == image.samples(), "orientation {o}: jxrlib's glue gives other samples");
+        }
+    }
+}

@@ -304,10 +304,189 @@ impl RowSink for FrameSink<'_> {
     }
 }
 
+/// A change of orientation applied to a decoded image: a rotation by 90° clockwise first (if
+/// `rotate_cw`), then flips of the result. The eight combinations are the orientations JPEG XR
+/// (T.832 SPATIAL_XFRM) and EXIF name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Orientation {
+    /// Rotate by 90° clockwise (the width and height swap).
+    pub rotate_cw: bool,
+    /// Then mirror left to right.
+    pub flip_h: bool,
+    /// Then mirror top to bottom.
+    pub flip_v: bool,
+}
+
+impl Orientation {
+    /// True when nothing changes.
+    pub fn is_identity(&self) -> bool {
+        *self == Orientation::default()
+    }
+
+    /// The size of an image of `width` × `height` once oriented.
+    pub fn size(&self, width: u32, height: u32) -> (u32, u32) {
+        if self.rotate_cw {
+            (height, width)
+        } else {
+            (width, height)
+        }
+    }
+}
+
+/// Orients the rows a decoder delivers before passing them on to `inner`. Flips go band by
+/// band (a flipped band is written where it belongs, rows in any order being allowed); a
+/// rotation needs the whole image first: it is held (charged to the limits) until
+/// [`finish`](Self::finish), then delivered in bands.
+pub struct OrientSink<'a> {
+    inner: &'a mut dyn RowSink,
+    orientation: Orientation,
+    limits: Limits,
+    /// The source's size and channels (from `start`).
+    width: usize,
+    height: usize,
+    channels: usize,
+    /// The whole source image, for a rotation.
+    held: Vec<f32>,
+    _charge: Option<Allocation>,
+    band: Vec<f32>,
+}
+
+impl<'a> OrientSink<'a> {
+    /// Rows oriented by `orientation` go to `inner`; what is held is charged to `limits`.
+    pub fn new(inner: &'a mut dyn RowSink, orientation: Orientation, limits: &Limits) -> Self {
+        OrientSink {
+            inner,
+            orientation,
+            limits: limits.clone(),
+            width: 0,
+            height: 0,
+            channels: 0,
+            held: Vec::new(),
+            _charge: None,
+            band: Vec::new(),
+        }
+    }
+
+    /// Delivers a rotated image once every row has come (nothing to do otherwise).
+    pub fn finish(mut self) -> Result<()> {
+        if !self.orientation.rotate_cw {
+            return Ok(());
+        }
+        let Orientation { flip_h, flip_v, .. } = self.orientation;
+        let (w, h, n) = (self.width, self.height, self.channels);
+        // The rotated image is h wide and w high; its pixel (u, v) is the source's (v, h-1-u)
+        // before the flips.
+        let rows = band_rows(h * n, 1 << 20) as usize;
+        let _charge = self.limits.charge((rows.min(w) * h * n * 4) as u64, "a band of oriented rows")?;
+        let mut v0 = 0;
+        while v0 < w {
+            let count = rows.min(w - v0);
+            self.band.clear();
+            for v_out in v0..v0 + count {
+                let v = if flip_v { w - 1 - v_out } else { v_out };
+                for u_out in 0..h {
+                    let u = if flip_h { h - 1 - u_out } else { u_out };
+                    let (x, y) = (v, h - 1 - u);
+                    let at = (y * w + x) * n;
+                    self.band.extend_from_slice(&self.held[at..at + n]);
+                }
+            }
+            self.inner.put_rows(v0 as u32, &self.band)?;
+            v0 += count;
+        }
+        Ok(())
+    }
+}
+
+impl RowSink for OrientSink<'_> {
+    fn start(&mut self, info: &ImageInfo) -> Result<()> {
+        self.width = info.width as usize;
+        self.height = info.height as usize;
+        self.channels = info.channels.count();
+        let mut oriented = info.clone();
+        (oriented.width, oriented.height) = self.orientation.size(info.width, info.height);
+        if self.orientation.rotate_cw {
+            self._charge = Some(info.charge(&self.limits)?);
+            self.held = vec![0.0; self.width * self.height * self.channels];
+        }
+        self.inner.start(&oriented)
+    }
+
+    fn put_rows(&mut self, y: u32, samples: &[f32]) -> Result<()> {
+        let row_len = self.width * self.channels;
+        let rows = whole_rows(y, samples.len(), row_len, self.height as u32)?;
+        let y = y as usize;
+        if self.orientation.rotate_cw {
+            self.held[y * row_len..y * row_len + samples.len()].copy_from_slice(samples);
+            return Ok(());
+        }
+        let Orientation { flip_h, flip_v, .. } = self.orientation;
+        self.band.clear();
+        let source: Box<dyn Iterator<Item = &[f32]>> = if flip_v {
+            Box::new(samples.chunks_exact(row_len).rev())
+        } else {
+            Box::new(samples.chunks_exact(row_len))
+        };
+        for row in source {
+            if flip_h {
+                for px in row.chunks_exact(self.channels).rev() {
+                    self.band.extend_from_slice(px);
+                }
+            } else {
+                self.band.extend_from_slice(row);
+            }
+        }
+        let to = if flip_v { self.height - y - rows as usize } else { y };
+        self.inner.put_rows(to as u32, &self.band)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::{Channels, ColorInfo};
+
+    /// Rotates a grid of pixel numbers by 90° clockwise, then flips it, step by step.
+    fn reference(grid: Vec<Vec<u32>>, o: Orientation) -> Vec<Vec<u32>> {
+        let mut g = grid;
+        if o.rotate_cw {
+            let (h, w) = (g.len(), g[0].len());
+            // Clockwise: the new first row is the old first column read bottom up.
+            g = (0..w).map(|x| (0..h).rev().map(|y| g[y][x]).collect()).collect();
+        }
+        if o.flip_h {
+            g.iter_mut().for_each(|row| row.reverse());
+        }
+        if o.flip_v {
+            g.reverse();
+        }
+        g
+    }
+
+    #[test]
+    fn every_orientation_places_every_pixel() {
+        let (w, h) = (5u32, 3u32);
+        let info = ImageInfo::new(w, h, Channels::Rgb, ColorInfo::default());
+        let pixels: Vec<f32> = (0..w * h).flat_map(|p| [p as f32, 0.5, -1.0]).collect();
+        let grid: Vec<Vec<u32>> = (0..h).map(|y| (0..w).map(|x| y * w + x).collect()).collect();
+        for code in 0..8u8 {
+            let o = Orientation { rotate_cw: code & 4 != 0, flip_h: code & 2 != 0, flip_v: code & 1 != 0 };
+            let want = reference(grid.clone(), o);
+            let limits = Limits::default();
+            let mut image = ImageSink::new(&limits);
+            let mut sink = OrientSink::new(&mut image, o, &limits);
+            sink.start(&info).unwrap();
+            // Bands of two rows, last band first.
+            sink.put_rows(2, &pixels[2 * 15..]).unwrap();
+            sink.put_rows(0, &pixels[..2 * 15]).unwrap();
+            sink.finish().unwrap();
+            let got = image.finish().unwrap();
+            assert_eq!((got.width(), got.height()), o.size(w, h), "{o:?}");
+            let got: Vec<Vec<u32>> =
+                (0..got.height()).map(|y| got.row(y).chunks_exact(3).map(|p| p[0] as u32).collect()).collect();
+            assert_eq!(got, want, "{o:?}");
+        }
+    }
 
     fn info(w: u32, h: u32) -> ImageInfo {
         ImageInfo::new(w, h, Channels::Rgb, ColorInfo::default())

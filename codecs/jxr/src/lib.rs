@@ -67,8 +67,13 @@ pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         i.tile_heights.len(),
         if i.hard_tiling { " (hard)" } else { "" },
     );
+    let description = match container.orientation {
+        Some(o) if o != 0 => format!("{description}, orientation {o}"),
+        _ => description,
+    };
     let colour = colour::file_colour(&container);
-    let mut info = ImageInfo::new(i.width, i.height, channels, colour.color).with_format(description);
+    let (width, height) = render::orientation(&container).size(i.width, i.height);
+    let mut info = ImageInfo::new(width, height, channels, colour.color).with_format(description);
     info.metadata = colour.metadata;
     Ok(info)
 }

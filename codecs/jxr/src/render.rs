@@ -2,7 +2,7 @@
 //! coefficients, the inverse transform of each channel, chroma upsampling and output
 //! formatting as jxrlib's (its raw samples), then the conversion to linear f32.
 
-use crate::container::{parse_container, OutputBitDepth, OutputColorFormat};
+use crate::container::{parse_container, Container, OutputBitDepth, OutputColorFormat};
 use crate::decoder::{RowCompleter, RowDecoder};
 use crate::header;
 use crate::header::ClrFmt;
@@ -10,7 +10,7 @@ use crate::mb::MbCoeffs;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
 use crate::tiles::MbSide;
 use crate::transform::{self, HardEdges, OverlapMode, PlaneKind, TransformParams};
-use hdrcodec_core::sink::{fill_rows, RowSink, Scratch};
+use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 
 fn clr_code(fmt: ClrFmt) -> u8 {
@@ -64,13 +64,30 @@ impl Window {
     }
 }
 
-/// Decodes a whole `.jxr` file into `sink`.
+/// Decodes a whole `.jxr` file into `sink`, in the orientation the container's
+/// SPATIAL_XFRM_PRIMARY gives ([`orientation`]; as jxrlib's library and WIC do, the
+/// codestream's own field is ignored). Flips cost nothing; a rotation holds the image once.
 pub fn decode_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-    decode_impl(data, options, Some(sink), &mut |_, _| {})
+    let o = orientation(&parse_container(data)?);
+    if o.is_identity() {
+        return decode_impl(data, options, Some(sink), &mut |_, _| {});
+    }
+    let mut oriented = OrientSink::new(sink, o, &options.limits);
+    decode_impl(data, options, Some(&mut oriented), &mut |_, _| {})?;
+    oriented.finish()
+}
+
+/// The orientation a decoded image is given: the container's SPATIAL_XFRM_PRIMARY (bit 2
+/// rotate 90° clockwise first, bit 1 flip horizontally, bit 0 flip vertically); none without
+/// it. jxrlib's glue does the same (JXR-NOTES §7), though its JxrDecApp overrides the result
+/// with its `-O` option (default none), and [`decode_raw`] keeps the stored orientation.
+pub fn orientation(container: &Container) -> Orientation {
+    let code = container.orientation.unwrap_or(0);
+    Orientation { rotate_cw: code & 4 != 0, flip_h: code & 2 != 0, flip_v: code & 1 != 0 }
 }
 
 /// Decodes a whole `.jxr` file to jxrlib's output samples (the pixel format's bytes, row by
-/// row), for comparing with jxrlib.
+/// row, in the stored orientation, as JxrDecApp writes them), for comparing with jxrlib.
 pub fn decode_raw(data: &[u8], options: &DecodeOptions) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
     decode_impl(data, options, None, &mut |_, raw| bytes.extend_from_slice(raw))?;
