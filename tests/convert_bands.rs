@@ -10,7 +10,7 @@ use hdrcodec::core::{
     ImageCodec, ImageInfo, Limits, Result,
 };
 use std::io::Cursor;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A picture with negatives, NaN, huge values and a smooth part, so that every encoder has
 /// something to clip and note.
@@ -136,7 +136,7 @@ fn temp_dir(name: &str) -> PathBuf {
 
 /// Converts `file` (decoded by `from`) into `to` both ways, band by band and whole, and checks
 /// that the bytes and notes agree.
-fn check_conversion(from: &dyn ImageCodec, file: &[u8], to: &dyn ImageCodec, settings: &EncodeSettings, dir: &PathBuf) {
+fn check_conversion(from: &dyn ImageCodec, file: &[u8], to: &dyn ImageCodec, settings: &EncodeSettings, dir: &Path) {
     let what = format!("{} -> {} {settings:?}", from.name(), to.name());
     let banded_path = dir.join("banded");
     let whole_path = dir.join("whole");
