@@ -1067,20 +1067,28 @@ pub fn inverse_band(
     let mut cm = vec![0i32; 16 * n];
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
-        cm[..dw].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
-        for xb in 0..dw {
-            let b = jy * bx + xb % bx;
-            for (k, &h) in mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].iter().enumerate() {
-                cm[(k + 1) * n + xb] = h;
+        {
+            // The 16 rows of the scratch, each cut to the block row's width, so that the
+            // loops below index them without bounds checks.
+            let mut rows = cm.chunks_exact_mut(n).map(|r| &mut r[..dw]);
+            let mut rows: [&mut [i32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+            rows[0].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
+            for xb in 0..dw {
+                let b = jy * bx + xb % bx;
+                let block: &[i32; 15] =
+                    mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].try_into().expect("a block is 15 coefficients");
+                for (row, &h) in rows[1..].iter_mut().zip(block) {
+                    row[xb] = h;
+                }
             }
         }
         run_lanes(&mut cm, n, dw, ipct4x4_g);
-        for j in 0..4 {
+        let rows: [&[i32]; 16] = std::array::from_fn(|k| &cm[k * n..][..dw]);
+        for (j, quad) in rows.chunks_exact(4).enumerate() {
             let row = &mut data[((y - b0) * 4 + j) * width..][..width];
-            for (xb, px) in row.chunks_exact_mut(4).enumerate() {
-                for i in 0..4 {
-                    px[i] = cm[(4 * j + i) * n + xb];
-                }
+            let samples = quad[0].iter().zip(quad[1]).zip(quad[2].iter().zip(quad[3]));
+            for (px, ((&a, &b), (&c, &d))) in row.chunks_exact_mut(4).zip(samples) {
+                px.copy_from_slice(&[a, b, c, d]);
             }
         }
     }
