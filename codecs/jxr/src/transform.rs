@@ -829,24 +829,24 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
     cm.resize(16 * n, 0);
     let top = p.at(r.x0 + 2, y - 2);
     let stride = p.stride;
-    for j in 0..4 {
+    // Scratch row 4j + i holds sample i of row j of every window: the rows cut to `count`
+    // and zipped with the sample row, so that no access needs a bounds check.
+    for (k, dst) in cm.chunks_exact_mut(n).enumerate() {
+        let (j, i) = (k / 4, k % 4);
         let row = &p.data[top + j * stride..][..4 * count];
-        for (w, px) in row.chunks_exact(4).enumerate() {
-            for i in 0..4 {
-                cm[(4 * j + i) * n + w] = px[i];
-            }
+        for (d, px) in dst[..count].iter_mut().zip(row.chunks_exact(4)) {
+            *d = px[i];
         }
     }
     match dir {
         Dir::Inverse => run_lanes(cm, n, count, post4x4_g),
         Dir::Forward => run_lanes(cm, n, count, pre4x4_g),
     }
-    for j in 0..4 {
+    for (k, src) in cm.chunks_exact(n).enumerate() {
+        let (j, i) = (k / 4, k % 4);
         let row = &mut p.data[top + j * stride..][..4 * count];
-        for (w, px) in row.chunks_exact_mut(4).enumerate() {
-            for i in 0..4 {
-                px[i] = cm[(4 * j + i) * n + w];
-            }
+        for (px, &v) in row.chunks_exact_mut(4).zip(&src[..count]) {
+            px[i] = v;
         }
     }
 }
