@@ -1073,12 +1073,23 @@ pub fn inverse_band(
             let mut rows = cm.chunks_exact_mut(n).map(|r| &mut r[..dw]);
             let mut rows: [&mut [i32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or_default());
             rows[0].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
-            for xb in 0..dw {
-                let b = jy * bx + xb % bx;
-                let block: &[i32; 15] =
-                    mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].try_into().expect("a block is 15 coefficients");
-                for (row, &h) in rows[1..].iter_mut().zip(block) {
-                    row[xb] = h;
+            if bx == 4 {
+                // Full planes: a macroblock's four blocks of the block row are 60 consecutive
+                // coefficients, transposed into four consecutive columns of each row.
+                for mx in 0..mb_w {
+                    let quad: &[i32; 60] = mb(mx, my)[hp(4 * jy, 1)..][..60].try_into().expect("four blocks");
+                    for (k, row) in rows[1..].iter_mut().enumerate() {
+                        row[4 * mx..4 * mx + 4].copy_from_slice(&[quad[k], quad[15 + k], quad[30 + k], quad[45 + k]]);
+                    }
+                }
+            } else {
+                for xb in 0..dw {
+                    let b = jy * bx + xb % bx;
+                    let block: &[i32; 15] =
+                        mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].try_into().expect("a block is 15 coefficients");
+                    for (row, &h) in rows[1..].iter_mut().zip(block) {
+                        row[xb] = h;
+                    }
                 }
             }
         }
