@@ -330,7 +330,7 @@ fn transform_band(
     let k = kind(fmt, ch);
     let (bx, by) = k.blocks();
     let (w, unit) = (bx * 4 * mb_w, by * 4);
-    data.clear();
+    // inverse_band writes every sample: only a buffer that grows needs its new part zeroed.
     data.resize(w * unit * rows.len(), 0);
     transform::inverse_band(params, k, ch, mb_w, mb_h, &win.channels[ch], win.first, rows.clone(), &mut data)?;
     Ok(transform::Plane { width: w, height: unit * rows.len(), data })
