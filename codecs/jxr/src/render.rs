@@ -40,8 +40,10 @@ struct Window {
 }
 
 impl Window {
-    fn new(channels: usize) -> Self {
-        Window { first: 0, channels: vec![Vec::new(); channels] }
+    /// A window of `channels` channels with room for `mbs` macroblocks each, allocated
+    /// once: a window that grew by doubling would copy its rows at each step.
+    fn new(channels: usize, mbs: usize) -> Self {
+        Window { first: 0, channels: (0..channels).map(|_| Vec::with_capacity(mbs)).collect() }
     }
 
     /// Appends one decoded macroblock row (`mb_w × channels` arrays, channels inner).
@@ -148,14 +150,15 @@ fn decode_impl(
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
     let prim_params = params(primary.scaled);
     let alpha_params = params(alpha_scaled);
-    let mut win = Window::new(primary.channels);
-    let mut awin = with_alpha.then(|| Window::new(1));
     // Working memory: the windows (band + halo of coefficients) and the band's samples.
     let band = transform::BAND_MB_ROWS;
     let window_rows = band + 5;
     let coeff_bytes = (window_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
     let sample_bytes = ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
+    let window_mbs = window_rows.min(mb_h) * mb_w;
+    let mut win = Window::new(primary.channels, window_mbs);
+    let mut awin = with_alpha.then(|| Window::new(1, window_mbs));
     let mut sink = sink;
     if let Some(s) = sink.as_deref_mut() {
         s.start(&info)?;
