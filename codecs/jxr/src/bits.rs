@@ -78,6 +78,23 @@ impl<'a> BitReader<'a> {
         }
     }
 
+    /// Tops the buffer up to at least 56 bits, so that the next reads, up to 56 bits in all,
+    /// can use [`peek_buffered`](Self::peek_buffered) instead of checking for a refill each.
+    #[inline]
+    pub fn fill(&mut self) {
+        if self.avail < 56 {
+            self.refill();
+        }
+    }
+
+    /// The next `n` bits (1 ≤ `n` ≤ 32) without consuming them, from the buffer alone: the
+    /// caller made sure, with [`fill`](Self::fill), that at least `n` bits are buffered.
+    #[inline]
+    pub fn peek_buffered(&self, n: u32) -> u32 {
+        debug_assert!((1..=32).contains(&n) && n <= self.avail);
+        (self.buf >> ((64 - n) & 63)) as u32
+    }
+
     /// Consumes `n` bits (`n` ≤ 32) that were peeked.
     #[inline]
     pub fn skip(&mut self, n: u32) {

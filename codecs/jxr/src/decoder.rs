@@ -121,8 +121,8 @@ pub struct RowDecoder<'a> {
     ty: usize,
     my: u32,
     left: u32,
-    /// The current tile row's decoders and their row buffers (one per plane).
-    tiles: Vec<TileRow<'a>>,
+    /// The current tile row's decoders.
+    tiles: Vec<TileDecoder<'a>>,
     _charge: Allocation,
 }
 
@@ -173,46 +173,47 @@ impl<'a> RowDecoder<'a> {
         let planes: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
         if self.left == 0 {
             let ty = self.ty;
-            self.tiles = (0..img.tile_widths.len())
-                .map(|tx| {
-                    let w = img.tile_widths[tx] as usize;
-                    let rows = planes.iter().map(|p| vec![0; w * p.channels * MB_COEFFS]).collect();
-                    let sides = planes.iter().map(|_| vec![MbSide::default(); w]).collect();
-                    Ok((TileDecoder::new(cs, data, tx, ty)?, rows, sides))
-                })
-                .collect::<Result<_>>()?;
+            self.tiles =
+                (0..img.tile_widths.len()).map(|tx| TileDecoder::new(cs, data, tx, ty)).collect::<Result<_>>()?;
             self.left = img.tile_heights[ty];
             self.ty += 1;
         }
-        let deferred = side.is_some();
-        let decode = |t: &mut TileRow<'a>| {
-            let mut rows: Vec<&mut [i32]> = t.1.iter_mut().map(|r| &mut r[..]).collect();
-            if deferred {
-                let mut sides: Vec<&mut [MbSide]> = t.2.iter_mut().map(|s| &mut s[..]).collect();
-                t.0.next_row_deferred(&mut rows, &mut sides)
-            } else {
-                t.0.next_row(&mut rows)
-            }
-        };
-        if self.tiles.len() > 1 && self.pool.is_parallel() {
-            self.pool.try_for_each_chunk_mut(&mut self.tiles, 1, |_, t| decode(&mut t[0]))?;
-        } else {
-            self.tiles.iter_mut().try_for_each(decode)?;
-        }
-        for (p, (o, hdr)) in out.iter_mut().zip(&planes).enumerate() {
-            o.clear();
-            o.reserve(img.mb_width as usize * hdr.channels * MB_COEFFS);
-            for (_, rows, _) in &self.tiles {
-                o.extend_from_slice(&rows[p]);
+        // Every tile column decodes straight into its part of the row (a tile column's
+        // macroblocks are contiguous in it): no row buffers per tile to copy from.
+        let mb_w = img.mb_width as usize;
+        let mut jobs: Vec<TileJob<'_, 'a>> =
+            self.tiles.iter_mut().map(|t| (t, Vec::new(), side.is_some().then(Vec::new))).collect();
+        let short = || Error::invalid("JPEG XR: the tile widths exceed the image width");
+        for (o, hdr) in out.iter_mut().zip(&planes) {
+            let stride = hdr.channels * MB_COEFFS;
+            o.resize(mb_w * stride, 0);
+            let mut rest = &mut o[..];
+            for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                let (part, tail) =
+                    std::mem::take(&mut rest).split_at_mut_checked(w as usize * stride).ok_or_else(short)?;
+                job.1.push(part);
+                rest = tail;
             }
         }
         if let Some(side) = side {
-            for (p, s) in side.iter_mut().enumerate().take(planes.len()) {
-                s.clear();
-                for (_, _, sides) in &self.tiles {
-                    s.extend_from_slice(&sides[p]);
+            for s in side.iter_mut().take(planes.len()) {
+                s.resize(mb_w, MbSide::default());
+                let mut rest = &mut s[..];
+                for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                    let (part, tail) = std::mem::take(&mut rest).split_at_mut_checked(w as usize).ok_or_else(short)?;
+                    job.2.as_mut().ok_or_else(short)?.push(part);
+                    rest = tail;
                 }
             }
+        }
+        let decode = |job: &mut TileJob<'_, 'a>| match &mut job.2 {
+            Some(sides) => job.0.next_row_deferred(&mut job.1, sides),
+            None => job.0.next_row(&mut job.1),
+        };
+        if jobs.len() > 1 && self.pool.is_parallel() {
+            self.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| decode(&mut j[0]))?;
+        } else {
+            jobs.iter_mut().try_for_each(decode)?;
         }
         self.left -= 1;
         self.my += 1;
@@ -220,8 +221,9 @@ impl<'a> RowDecoder<'a> {
     }
 }
 
-/// One tile column's decoder in a [`RowDecoder`], its row buffers and side buffers (per plane).
-type TileRow<'a> = (TileDecoder<'a>, Vec<Vec<i32>>, Vec<Vec<MbSide>>);
+/// One tile column's share of a row in [`RowDecoder::advance`]: its decoder, its part of each
+/// plane's row and (deferred flexbits) of each plane's side information.
+type TileJob<'t, 'a> = (&'t mut TileDecoder<'a>, Vec<&'t mut [i32]>, Option<Vec<&'t mut [MbSide]>>);
 
 /// The FLEXBITS half of a deferred [`RowDecoder`]: completes its rows (flexbits, HP
 /// prediction, dequantization), in order, tile column by tile column.

@@ -549,29 +549,46 @@ impl PlaneDecoder {
 
 /// BLOCK_FLEXBITS (`r_BLOCK_FLEXBITS`): the refinement bits of all 15 HP coefficients of block
 /// `b` of channel `ch`, coded or not, `model_bits − trim` each (none when trim ≥ model bits).
-#[inline]
+#[inline(always)]
 pub fn block_flex(r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32, trim: u32) {
     if trim >= model_bits {
         return;
     }
-    let n = model_bits - trim;
-    let o = ch * MB_COEFFS + hp(b, 1) - 1;
-    for &k in &TRANSPOSE444[1..] {
-        let coeff = &mut c[o + k];
-        let cur = *coeff;
-        // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
-        // sign bit: peek both, consume what is there.
-        let v = r.peek(n + 1);
-        let fine = (v >> 1) as i32;
-        let zero = cur == 0;
-        let signed = zero && fine != 0;
-        r.skip(n + u32::from(signed));
-        // The sign to apply, as a mask: the coefficient's own, or the bit read.
-        let mask = if zero { -((signed && v & 1 != 0) as i32) } else { cur >> 31 };
-        let f = fine.wrapping_shl(trim);
-        *coeff = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
+    // Model bits are at most 15: a coefficient takes at most 16 bits (15 and a sign), so one
+    // refill to 56 bits serves three coefficients.
+    let n = (model_bits - trim).min(15);
+    let base = ch * MB_COEFFS + hp(b, 1);
+    let block: &mut [i32; 15] = (&mut c[base..base + 15]).try_into().expect("a block is 15 coefficients");
+    for group in &FLEX_ORDER {
+        r.fill();
+        for &i in group {
+            let cur = block[usize::from(i)];
+            // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
+            // sign bit: peek both, consume what is there.
+            let v = r.peek_buffered(n + 1);
+            let fine = (v >> 1) as i32;
+            let signed = u32::from(cur == 0) & u32::from(fine != 0);
+            r.skip(n + signed);
+            // The sign to apply, as a mask: the coefficient's own (zero for a zero coefficient),
+            // or the bit read (only read for a zero coefficient).
+            let mask = (cur >> 31) | -((signed & v & 1) as i32);
+            let f = fine.wrapping_shl(trim);
+            block[usize::from(i)] = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
+        }
     }
 }
+
+/// The HP coefficients of a block in refinement order ([`TRANSPOSE444`] without the DC), as
+/// indices into the block's 15 coefficients, in groups of three (one refill each).
+const FLEX_ORDER: [[u8; 3]; 5] = {
+    let mut order = [[0; 3]; 5];
+    let mut i = 0;
+    while i < 15 {
+        order[i / 3][i % 3] = (TRANSPOSE444[i + 1] - 1) as u8;
+        i += 1;
+    }
+    order
+};
 
 /// MB_FLEXBITS (`_jxr_r_MB_FLEXBITS`): the flexbits of every block of a macroblock (`c`, all
 /// `channels`), from a FLEXBITS packet, with the HP model bits the macroblock was coded with.

@@ -40,8 +40,10 @@ struct Window {
 }
 
 impl Window {
-    fn new(channels: usize) -> Self {
-        Window { first: 0, channels: vec![Vec::new(); channels] }
+    /// A window of `channels` channels with room for `mbs` macroblocks each, allocated
+    /// once: a window that grew by doubling would copy its rows at each step.
+    fn new(channels: usize, mbs: usize) -> Self {
+        Window { first: 0, channels: (0..channels).map(|_| Vec::with_capacity(mbs)).collect() }
     }
 
     /// Appends one decoded macroblock row (`mb_w × channels` arrays, channels inner).
@@ -167,14 +169,15 @@ fn decode_impl(
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
     let prim_params = params(primary.scaled);
     let alpha_params = params(alpha_scaled);
-    let mut win = Window::new(primary.channels);
-    let mut awin = with_alpha.then(|| Window::new(1));
     // Working memory: the windows (band + halo of coefficients) and the band's samples.
     let band = transform::BAND_MB_ROWS;
     let window_rows = band + 5;
     let coeff_bytes = (window_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
     let sample_bytes = ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
+    let window_mbs = window_rows.min(mb_h) * mb_w;
+    let mut win = Window::new(primary.channels, window_mbs);
+    let mut awin = with_alpha.then(|| Window::new(1, window_mbs));
     let mut sink = sink;
     if let Some(s) = sink.as_deref_mut() {
         s.start(&info)?;
@@ -192,20 +195,26 @@ fn decode_impl(
     // (thread B), a band behind the DC, LP and HP packets (thread A).
     let deferred = RowDecoder::can_defer_flex(&cs);
     let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image));
+    // Row and sample buffers go back to these once used, so that a band reuses the memory of
+    // the band before (fresh allocations of this size cost page faults and zeroing).
+    let mut spare_rows: Vec<Fetched> = Vec::new();
+    let mut spare_samples: Vec<Vec<i32>> = Vec::new();
     let mut decoded = need(band.min(mb_h));
-    let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded)?;
+    let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded, &mut spare_rows)?;
     for r0 in (0..mb_h).step_by(band) {
         let r1 = (r0 + band).min(mb_h);
         let next = need((r1 + band).min(mb_h));
         let rows_in = std::mem::take(&mut pending);
+        let mut sample_bufs = std::mem::take(&mut spare_samples);
         let (win_ref, awin_ref, completer_ref) = (&mut win, &mut awin, &mut completer);
         let (prim_params, alpha_params) = (&prim_params, &alpha_params);
-        let transform_all = move || -> Result<(Vec<transform::Plane>, Option<transform::Plane>)> {
+        let transform_all = move || -> Result<(Vec<transform::Plane>, Option<transform::Plane>, Vec<Fetched>)> {
             // The rows this band needs: completed (flexbits) and appended to the windows.
             win_ref.drop_before(r0.saturating_sub(2), mb_w);
             if let Some(a) = awin_ref.as_mut() {
                 a.drop_before(r0.saturating_sub(2), mb_w);
             }
+            let mut used = Vec::with_capacity(rows_in.len());
             for mut row in rows_in {
                 if let Some(c) = completer_ref.as_mut() {
                     c.complete(&mut row.planes, &row.side)?;
@@ -215,20 +224,28 @@ fn decode_impl(
                     let alpha = row.planar_alpha.as_deref().or(row.planes.get(1).map(|v| &v[..]));
                     a.push(alpha.ok_or_else(|| Error::invalid("JPEG XR: an alpha row is missing (a bug)"))?);
                 }
+                used.push(row);
             }
             let (win, awin) = (&*win_ref, &*awin_ref);
             let planes = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
-                    transform_band(win, prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end)
+                    let buf = sample_bufs.pop().unwrap_or_default();
+                    transform_band(win, prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end, buf)
                 })
                 .collect::<Result<_>>()?;
-            let alpha =
-                awin.as_ref().map(|a| transform_band(a, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1)).transpose()?;
-            Ok((planes, alpha))
+            let alpha = awin
+                .as_ref()
+                .map(|a| {
+                    let buf = sample_bufs.pop().unwrap_or_default();
+                    transform_band(a, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1, buf)
+                })
+                .transpose()?;
+            Ok((planes, alpha, used))
         };
         let count = next - decoded;
-        let mut fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count);
+        let spare = &mut spare_rows;
+        let mut fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare);
         let (fetched, transformed) = if options.pool.is_parallel() && count > 0 {
             options.pool.install(|| rayon::join(fetch_next, transform_all))
         } else {
@@ -236,7 +253,8 @@ fn decode_impl(
         };
         pending = fetched?;
         decoded = next;
-        let (planes, alpha_plane) = transformed?;
+        let (planes, alpha_plane, used) = transformed?;
+        spare_rows.extend(used);
         // Output rows: the band's rows inside the window.
         let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
         if y_start < y_end {
@@ -269,6 +287,7 @@ fn decode_impl(
                 None => render(&mut [])?,
             }
         }
+        spare_samples.extend(planes.into_iter().chain(alpha_plane).map(|p| p.data));
     }
     Ok(())
 }
@@ -282,23 +301,31 @@ struct Fetched {
     planar_alpha: Option<Vec<i32>>,
 }
 
-/// Decodes the next `n` macroblock rows (without their flexbits when `deferred`).
-fn fetch(prim: &mut RowDecoder, alpha: Option<&mut RowDecoder>, deferred: bool, n: usize) -> Result<Vec<Fetched>> {
+/// Decodes the next `n` macroblock rows (without their flexbits when `deferred`), into the
+/// buffers of rows from `spare` while there are some.
+fn fetch(
+    prim: &mut RowDecoder,
+    alpha: Option<&mut RowDecoder>,
+    deferred: bool,
+    n: usize,
+    spare: &mut Vec<Fetched>,
+) -> Result<Vec<Fetched>> {
     let mut alpha = alpha;
     let mut rows = Vec::with_capacity(n);
     let past = || Error::invalid("JPEG XR: rows past the image (a bug in the decoder)");
     for _ in 0..n {
-        let mut planes = vec![Vec::new(); 2];
-        let mut side = Vec::new();
+        let Fetched { mut planes, mut side, planar_alpha } =
+            spare.pop().unwrap_or_else(|| Fetched { planes: Vec::new(), side: Vec::new(), planar_alpha: None });
+        planes.resize_with(2, Vec::new);
         if deferred {
-            side = vec![Vec::new(); 2];
+            side.resize_with(2, Vec::new);
             prim.next_row_deferred(&mut planes, &mut side)?.ok_or_else(past)?;
         } else {
             prim.next_row(&mut planes)?.ok_or_else(past)?;
         }
         let planar_alpha = match alpha.as_deref_mut() {
             Some(dec) => {
-                let mut b = vec![Vec::new()];
+                let mut b = vec![planar_alpha.unwrap_or_default()];
                 dec.next_row(&mut b)?.ok_or_else(past)?;
                 b.pop()
             }
@@ -309,7 +336,8 @@ fn fetch(prim: &mut RowDecoder, alpha: Option<&mut RowDecoder>, deferred: bool, 
     Ok(rows)
 }
 
-/// The samples of macroblock rows `rows` of channel `ch` of a plane, from its window.
+/// The samples of macroblock rows `rows` of channel `ch` of a plane, from its window, in
+/// `data` (a buffer to reuse; its contents do not matter).
 #[allow(clippy::too_many_arguments)]
 fn transform_band(
     win: &Window,
@@ -319,11 +347,13 @@ fn transform_band(
     mb_w: usize,
     mb_h: usize,
     rows: std::ops::Range<usize>,
+    mut data: Vec<i32>,
 ) -> Result<transform::Plane> {
     let k = kind(fmt, ch);
     let (bx, by) = k.blocks();
     let (w, unit) = (bx * 4 * mb_w, by * 4);
-    let mut data = vec![0i32; w * unit * rows.len()];
+    // inverse_band writes every sample: only a buffer that grows needs its new part zeroed.
+    data.resize(w * unit * rows.len(), 0);
     transform::inverse_band(params, k, ch, mb_w, mb_h, &win.channels[ch], win.first, rows.clone(), &mut data)?;
     Ok(transform::Plane { width: w, height: unit * rows.len(), data })
 }

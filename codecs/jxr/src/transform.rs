@@ -829,24 +829,24 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
     cm.resize(16 * n, 0);
     let top = p.at(r.x0 + 2, y - 2);
     let stride = p.stride;
-    for j in 0..4 {
+    // Scratch row 4j + i holds sample i of row j of every window: the rows cut to `count`
+    // and zipped with the sample row, so that no access needs a bounds check.
+    for (k, dst) in cm.chunks_exact_mut(n).enumerate() {
+        let (j, i) = (k / 4, k % 4);
         let row = &p.data[top + j * stride..][..4 * count];
-        for (w, px) in row.chunks_exact(4).enumerate() {
-            for i in 0..4 {
-                cm[(4 * j + i) * n + w] = px[i];
-            }
+        for (d, px) in dst[..count].iter_mut().zip(row.chunks_exact(4)) {
+            *d = px[i];
         }
     }
     match dir {
         Dir::Inverse => run_lanes(cm, n, count, post4x4_g),
         Dir::Forward => run_lanes(cm, n, count, pre4x4_g),
     }
-    for j in 0..4 {
+    for (k, src) in cm.chunks_exact(n).enumerate() {
+        let (j, i) = (k / 4, k % 4);
         let row = &mut p.data[top + j * stride..][..4 * count];
-        for (w, px) in row.chunks_exact_mut(4).enumerate() {
-            for i in 0..4 {
-                px[i] = cm[(4 * j + i) * n + w];
-            }
+        for (px, &v) in row.chunks_exact_mut(4).zip(&src[..count]) {
+            px[i] = v;
         }
     }
 }
@@ -1067,20 +1067,39 @@ pub fn inverse_band(
     let mut cm = vec![0i32; 16 * n];
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
-        cm[..dw].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
-        for xb in 0..dw {
-            let b = jy * bx + xb % bx;
-            for (k, &h) in mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].iter().enumerate() {
-                cm[(k + 1) * n + xb] = h;
+        {
+            // The 16 rows of the scratch, each cut to the block row's width, so that the
+            // loops below index them without bounds checks.
+            let mut rows = cm.chunks_exact_mut(n).map(|r| &mut r[..dw]);
+            let mut rows: [&mut [i32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+            rows[0].copy_from_slice(&dc[(y - by * s0) * dw..][..dw]);
+            if bx == 4 {
+                // Full planes: a macroblock's four blocks of the block row are 60 consecutive
+                // coefficients, transposed into four consecutive columns of each row.
+                for mx in 0..mb_w {
+                    let quad: &[i32; 60] = mb(mx, my)[hp(4 * jy, 1)..][..60].try_into().expect("four blocks");
+                    for (k, row) in rows[1..].iter_mut().enumerate() {
+                        row[4 * mx..4 * mx + 4].copy_from_slice(&[quad[k], quad[15 + k], quad[30 + k], quad[45 + k]]);
+                    }
+                }
+            } else {
+                for xb in 0..dw {
+                    let b = jy * bx + xb % bx;
+                    let block: &[i32; 15] =
+                        mb(xb / bx, my)[hp(b, 1)..=hp(b, 15)].try_into().expect("a block is 15 coefficients");
+                    for (row, &h) in rows[1..].iter_mut().zip(block) {
+                        row[xb] = h;
+                    }
+                }
             }
         }
         run_lanes(&mut cm, n, dw, ipct4x4_g);
-        for j in 0..4 {
+        let rows: [&[i32]; 16] = std::array::from_fn(|k| &cm[k * n..][..dw]);
+        for (j, quad) in rows.chunks_exact(4).enumerate() {
             let row = &mut data[((y - b0) * 4 + j) * width..][..width];
-            for (xb, px) in row.chunks_exact_mut(4).enumerate() {
-                for i in 0..4 {
-                    px[i] = cm[(4 * j + i) * n + xb];
-                }
+            let samples = quad[0].iter().zip(quad[1]).zip(quad[2].iter().zip(quad[3]));
+            for (px, ((&a, &b), (&c, &d))) in row.chunks_exact_mut(4).zip(samples) {
+                px.copy_from_slice(&[a, b, c, d]);
             }
         }
     }

@@ -19,9 +19,11 @@ use crate::bits::BitReader;
 /// A code table: for every 8-bit window, `symbol << 4 | length`.
 pub type Lut = [u8; 256];
 
-/// Builds the lookup table of a prefix code given as one bit string per symbol.
+/// Builds the lookup table of a prefix code given as one bit string per symbol. A window no
+/// code matches (none for the complete codes here) reads as symbol 0 of length 8, so that
+/// every entry has a length.
 const fn lut(codes: &[&str]) -> Lut {
-    let mut t = [0u8; 256];
+    let mut t = [8u8; 256];
     let mut sym = 0;
     while sym < codes.len() {
         let bytes = codes[sym].as_bytes();
@@ -44,13 +46,11 @@ const fn lut(codes: &[&str]) -> Lut {
     t
 }
 
-/// Decodes one symbol of `table`. A window no code matches (impossible for the complete
-/// codes here) reads as symbol 0 of length 8.
+/// Decodes one symbol of `table`.
 #[inline]
 pub fn decode(r: &mut BitReader, table: &Lut) -> usize {
     let e = table[r.peek(8) as usize];
-    let len = (e & 15) as u32;
-    r.skip(if len == 0 { 8 } else { len });
+    r.skip(u32::from(e & 15));
     (e >> 4) as usize
 }
 
