@@ -34,7 +34,7 @@ pub mod transform;
 mod vlc;
 
 pub use decoder::{decode_coefficients, Coefficients, PlaneCoeffs, RowDecoder};
-pub use render::decode_raw;
+pub use render::{decode_raw, decode_raw_into, raw_layout};
 
 use hdrcodec_core::sink::RowSink;
 use hdrcodec_core::{

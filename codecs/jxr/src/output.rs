@@ -126,31 +126,40 @@ pub fn int_to_half_bits(h: i32) -> u16 {
 /// overflow is not checked, as in jxrlib. `len_mantissa` must be at most 23.
 #[inline(always)]
 pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
+    // Without branches on the value (dark and bright samples mix in every row, and a
+    // mispredicted branch per sample cost more than both paths): the normal and the
+    // denormal result are both computed, then one is chosen.
     let lm = len_mantissa.min(23);
     let lmshift = 1i32 << lm;
     let s = h >> 31;
     let a = (h ^ s).wrapping_sub(s); // |h|, wrapping for i32::MIN as C does
-    let mut e = ((a as u32) >> lm) as i32;
-    let mut m = (a & (lmshift - 1)) | lmshift;
-    if e == 0 {
-        m ^= lmshift;
-        e = 1;
-    }
-    e = e.wrapping_add(127 - i32::from(exp_bias));
-    // jxrlib normalises a denormal one bit at a time while the exponent allows
-    // (`while (m < lmshift && e > 1 && m > 0) { e--; m <<= 1; }`); the same in one step.
-    if m > 0 && m < lmshift && e > 1 {
-        let k = (m.leading_zeros() as i32 - (31 - lm as i32)).min(e - 1);
-        m <<= k;
-        e -= k;
-    }
-    if m < lmshift {
-        e = 0;
+    let e0 = ((a as u32) >> lm) as i32;
+    let m0 = a & (lmshift - 1);
+    let sign = (s as u32) & 0x8000_0000;
+    // A normal mini-float: the hidden bit is dropped, the exponent rebiased (no overflow
+    // check, as in jxrlib).
+    let e_norm = e0.wrapping_add(127 - i32::from(exp_bias));
+    let normal = sign | (e_norm as u32).wrapping_shl(23) | ((m0 as u32) << (23 - lm));
+    // A denormal mini-float (exponent field 0, read as 1): jxrlib shifts the mantissa up one
+    // bit at a time while the exponent stays above 1 (`while (m < lmshift && e > 1 && m > 0)
+    // { e--; m <<= 1; }`), which is one shift by at most e − 1. Whatever is below the hidden
+    // bit after that is an IEEE denormal (exponent 0). The shift is found and done in single
+    // precision, exactly (m0 < 2^23, and the shifted mantissa stays below 2^24), so that a
+    // loop of these vectorises: floor(log2 m0) is the exponent of m0 as a float (−127 for 0,
+    // whose shift is then cut to 24 and changes nothing).
+    let e_den = 128 - i32::from(exp_bias);
+    let log2 = ((m0 as f32).to_bits() >> 23) as i32 - 127;
+    let k = (lm as i32 - log2).min(e_den - 1).clamp(0, 24);
+    let m = ((m0 as f32) * f32::from_bits(((k + 127) as u32) << 23)) as i32;
+    let reached = m >= lmshift;
+    let e = if reached { e_den - k } else { 0 };
+    let m = if reached { m ^ lmshift } else { m };
+    let denormal = sign | (e as u32).wrapping_shl(23) | ((m as u32) << (23 - lm));
+    if e0 == 0 {
+        denormal
     } else {
-        m ^= lmshift;
+        normal
     }
-    let m = (m as u32) << (23 - lm);
-    ((s as u32) & 0x8000_0000) | (e as u32).wrapping_shl(23) | m
 }
 
 /// One channel of RGBE (jxrlib `inverseConvert`): (mantissa, exponent).
@@ -492,7 +501,14 @@ impl OutputParams {
             }
             (C::Rgb, Bd16F) => rgb!(2, |v: i32| int_to_half_bits(v >> s).to_le_bytes()),
             (C::Rgb, Bd32S) => rgb!(4, |v: i32| ((v >> s).wrapping_shl(nl)).to_le_bytes()),
-            (C::Rgb, Bd32F) => rgb!(4, |v: i32| int_to_float_bits(v >> s, self.exp_bias, nl).to_le_bytes()),
+            (C::Rgb, Bd32F) => {
+                let f = |v: i32| int_to_float_bits(v >> s, self.exp_bias, nl);
+                if gray_to_rgb {
+                    write_rgb_runs(out, spp, padded, (ri, bi), grey, f)
+                } else {
+                    write_rgb_runs(out, spp, padded, (ri, bi), colour, f)
+                }
+            }
             (C::Rgb, Bd5 | Bd565 | Bd10) => {
                 let (bits, gbits, shift_rb) = match self.bit_depth {
                     Bd5 => (5, 5, 0),
@@ -617,14 +633,17 @@ impl OutputParams {
                 }
             }
             _ => {
-                for (x, &v) in a.iter().enumerate() {
-                    let p = v.wrapping_add(round) >> s;
-                    let bits = if self.bit_depth == Bd32S {
-                        p.wrapping_shl(nl) as u32
-                    } else {
-                        int_to_float_bits(p, self.exp_bias, nl)
-                    };
-                    put32(&mut out[(x * spp + pos) * 4..], 0, bits);
+                // In runs, so that the conversion loop vectorises (see `write_rgb_runs`).
+                let float = self.bit_depth != Bd32S;
+                let mut bits = [0u32; 64];
+                for (run, samples) in a.chunks(64).enumerate() {
+                    for (b, &v) in bits.iter_mut().zip(samples) {
+                        let p = v.wrapping_add(round) >> s;
+                        *b = if float { int_to_float_bits(p, self.exp_bias, nl) } else { p.wrapping_shl(nl) as u32 };
+                    }
+                    for (i, &b) in bits[..samples.len()].iter().enumerate() {
+                        put32(&mut out[((run * 64 + i) * spp + pos) * 4..], 0, b);
+                    }
                 }
             }
         }
@@ -651,6 +670,44 @@ fn write_rgb<const B: usize>(
         p[bi * B..bi * B + B].copy_from_slice(&f(b));
         if padded {
             p[3 * B..4 * B].fill(0);
+        }
+    }
+}
+
+/// [`write_rgb`] for 4-byte conversions (single-precision output), in runs: the colour
+/// conversion of a run of pixels, then `f` over each channel's run (a loop the compiler can
+/// vectorise when `f` has no branches), then the bytes.
+#[inline(always)]
+fn write_rgb_runs(
+    out: &mut [u8],
+    spp: usize,
+    padded: bool,
+    order: (usize, usize),
+    px: impl Fn(usize) -> [i32; 3],
+    f: impl Fn(i32) -> u32,
+) {
+    const RUN: usize = 64;
+    let (ri, bi) = order;
+    let mut ints = [[0i32; RUN]; 3];
+    let mut bits = [[0u32; RUN]; 3];
+    for (run, chunk) in out.chunks_mut(4 * spp * RUN).enumerate() {
+        let n = chunk.len() / (4 * spp);
+        let [r_run, g_run, b_run] = &mut ints;
+        for (i, ((r, g), b)) in r_run.iter_mut().zip(g_run.iter_mut()).zip(b_run.iter_mut()).take(n).enumerate() {
+            [*r, *g, *b] = px(run * RUN + i);
+        }
+        for (src, dst) in ints.iter().zip(&mut bits) {
+            for (d, &v) in dst.iter_mut().zip(src) {
+                *d = f(v);
+            }
+        }
+        for (i, p) in chunk.chunks_exact_mut(4 * spp).enumerate() {
+            p[ri * 4..ri * 4 + 4].copy_from_slice(&bits[0][i].to_le_bytes());
+            p[4..8].copy_from_slice(&bits[1][i].to_le_bytes());
+            p[bi * 4..bi * 4 + 4].copy_from_slice(&bits[2][i].to_le_bytes());
+            if padded {
+                p[12..16].fill(0);
+            }
         }
     }
 }
@@ -867,6 +924,57 @@ mod tests {
         assert_eq!(int_to_half_bits(-0x8000), 0);
         assert_eq!(int_to_half_bits(-0x8005), 0x8005 - 0x8000 + 0x8000);
         assert_eq!(int_to_half_bits(i32::MIN), 0);
+    }
+
+    /// jxrlib's `pixel2float` as it reads, branch by branch: the reference the branch-free
+    /// [`int_to_float_bits`] is checked against.
+    fn int_to_float_bits_stepwise(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
+        let lm = len_mantissa.min(23);
+        let lmshift = 1i32 << lm;
+        let s = h >> 31;
+        let a = (h ^ s).wrapping_sub(s);
+        let mut e = ((a as u32) >> lm) as i32;
+        let mut m = (a & (lmshift - 1)) | lmshift;
+        if e == 0 {
+            m ^= lmshift;
+            e = 1;
+        }
+        e = e.wrapping_add(127 - i32::from(exp_bias));
+        while m < lmshift && e > 1 && m > 0 {
+            e -= 1;
+            m <<= 1;
+        }
+        if m < lmshift {
+            e = 0;
+        } else {
+            m ^= lmshift;
+        }
+        ((s as u32) & 0x8000_0000) | (e as u32).wrapping_shl(23) | ((m as u32) << (23 - lm))
+    }
+
+    #[test]
+    fn float_bits_match_the_stepwise_conversion() {
+        let mut next = crate::testing::rng(7);
+        for lm in 0..=23u32 {
+            for bias in [-128i8, -20, -1, 0, 1, 4, 10, 100, 126, 127] {
+                let special = [0, 1, -1, 2, 3, 1 << lm, (1 << lm) - 1, i32::MAX, i32::MIN, -(1 << lm)];
+                for h in special.into_iter().chain((0..2000).map(|i| {
+                    let v = next() as i32;
+                    // Small values (the denormal range) as often as large ones.
+                    if i % 2 == 0 {
+                        v >> (next() % 32)
+                    } else {
+                        v
+                    }
+                })) {
+                    assert_eq!(
+                        int_to_float_bits(h, bias, lm),
+                        int_to_float_bits_stepwise(h, bias, lm),
+                        "h {h}, bias {bias}, mantissa {lm}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -6,12 +6,12 @@ use crate::container::{parse_container, Container, OutputBitDepth, OutputColorFo
 use crate::decoder::{RowCompleter, RowDecoder};
 use crate::header;
 use crate::header::ClrFmt;
-use crate::mb::MbCoeffs;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
 use crate::tiles::MbSide;
-use crate::transform::{self, HardEdges, OverlapMode, PlaneKind, TransformParams};
+use crate::transform::{self, BandScratch, HardEdges, MbRows, OverlapMode, PlaneKind, TransformParams};
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
+use std::collections::VecDeque;
 
 fn clr_code(fmt: ClrFmt) -> u8 {
     match fmt {
@@ -32,38 +32,46 @@ fn kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
     }
 }
 
-/// Macroblock rows of coefficients of one plane, kept per channel for the band transform:
-/// rows `first .. first + n` (each `mb_width` macroblocks).
+/// The decoded macroblock rows the band transform reads, `first ..` (each row as the entropy
+/// decoder gave it: the transform reads the coefficients in place).
 struct Window {
     first: usize,
-    channels: Vec<Vec<MbCoeffs>>,
+    rows: VecDeque<Fetched>,
 }
 
 impl Window {
-    /// A window of `channels` channels with room for `mbs` macroblocks each, allocated
-    /// once: a window that grew by doubling would copy its rows at each step.
-    fn new(channels: usize, mbs: usize) -> Self {
-        Window { first: 0, channels: (0..channels).map(|_| Vec::with_capacity(mbs)).collect() }
-    }
-
-    /// Appends one decoded macroblock row (`mb_w × channels` arrays, channels inner).
-    fn push(&mut self, row: &[i32]) {
-        let n = self.channels.len();
-        for (i, mb) in row.chunks_exact(crate::mb::MB_COEFFS).enumerate() {
-            self.channels[i % n].push(mb.try_into().expect("a macroblock"));
-        }
-    }
-
-    /// Drops the rows before `row`.
-    fn drop_before(&mut self, row: usize, mb_w: usize) {
-        let k = row.saturating_sub(self.first);
-        if k > 0 {
-            for c in &mut self.channels {
-                c.drain(..(k * mb_w).min(c.len()));
+    /// Drops the rows before `row`, giving their buffers back to `spare`.
+    fn drop_before(&mut self, row: usize, spare: &mut Vec<Fetched>) {
+        while self.first < row {
+            match self.rows.pop_front() {
+                Some(r) => spare.push(r),
+                None => break,
             }
-            self.first += k;
+            self.first += 1;
         }
     }
+
+    /// The rows of one plane's coefficients: the primary codestream's (`Plane::Primary`), or
+    /// the alpha channel's (interleaved in the primary codestream, or planar).
+    fn plane_rows(&self, plane: WindowPlane) -> Result<Vec<&[i32]>> {
+        self.rows
+            .iter()
+            .map(|row| {
+                let r = match plane {
+                    WindowPlane::Primary => row.planes.first(),
+                    WindowPlane::Alpha => row.planar_alpha.as_ref().or(row.planes.get(1)),
+                };
+                r.map(|v| &v[..]).ok_or_else(|| Error::invalid("JPEG XR: an alpha row is missing (a bug)"))
+            })
+            .collect()
+    }
+}
+
+/// Which coefficients of the window a transform reads.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum WindowPlane {
+    Primary,
+    Alpha,
 }
 
 /// Decodes a whole `.jxr` file into `sink`, in the orientation the container's
@@ -72,10 +80,10 @@ impl Window {
 pub fn decode_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
     let o = orientation(&parse_container(data)?);
     if o.is_identity() {
-        return decode_impl(data, options, Some(sink), &mut |_, _| {});
+        return decode_impl(data, options, Some(sink), &mut |_, _| Ok(()));
     }
     let mut oriented = OrientSink::new(sink, o, &options.limits);
-    decode_impl(data, options, Some(&mut oriented), &mut |_, _| {})?;
+    decode_impl(data, options, Some(&mut oriented), &mut |_, _| Ok(()))?;
     oriented.finish()
 }
 
@@ -88,19 +96,56 @@ pub fn orientation(container: &Container) -> Orientation {
     Orientation { rotate_cw: code & 4 != 0, flip_h: code & 2 != 0, flip_v: code & 1 != 0 }
 }
 
+/// The size of [`decode_raw`]'s output: width, height and bytes per row (rows packed) of
+/// the image in its own pixel format, from the headers alone.
+pub fn raw_layout(data: &[u8]) -> Result<(u32, u32, usize)> {
+    let container = parse_container(data)?;
+    let cs = header::parse(container.image)?;
+    let (width, height) = (cs.image.width, cs.image.height);
+    let bits = u64::from(width) * u64::from(container.pixel_format.bits_per_pixel);
+    let row = usize::try_from(bits.div_ceil(8)).map_err(|_| Error::limit("JPEG XR: a row's size overflows"))?;
+    Ok((width, height, row))
+}
+
 /// Decodes a whole `.jxr` file to jxrlib's output samples (the pixel format's bytes, row by
 /// row, in the stored orientation, as JxrDecApp writes them), for comparing with jxrlib.
 pub fn decode_raw(data: &[u8], options: &DecodeOptions) -> Result<Vec<u8>> {
-    let mut bytes = Vec::new();
-    decode_impl(data, options, None, &mut |_, raw| bytes.extend_from_slice(raw))?;
+    let (_, height, row) = raw_layout(data)?;
+    let size = row as u64 * u64::from(height);
+    let _charge = options.limits.charge(size, "the decoded JPEG XR samples")?;
+    let mut bytes = Vec::with_capacity(size as usize);
+    decode_impl(data, options, None, &mut |_, raw| {
+        bytes.extend_from_slice(raw);
+        Ok(())
+    })?;
     Ok(bytes)
+}
+
+/// [`decode_raw`] into the caller's buffer: row `y` at `out[y · stride ..]`, [`raw_layout`]
+/// giving the size to allocate. A buffer too small for the image is refused before any row
+/// is written; bytes between rows are left as they are.
+pub fn decode_raw_into(data: &[u8], options: &DecodeOptions, out: &mut [u8], stride: usize) -> Result<()> {
+    let (_, height, row) = raw_layout(data)?;
+    let needed = (height as usize).checked_sub(1).map_or(Some(0), |h| h.checked_mul(stride)?.checked_add(row));
+    if stride < row || needed.is_none_or(|n| n > out.len()) {
+        return Err(Error::invalid(format!(
+            "a buffer of {} bytes with a stride of {stride} cannot hold {height} rows of {row} bytes",
+            out.len()
+        )));
+    }
+    decode_impl(data, options, None, &mut |y, raw| {
+        out.get_mut(y * stride..y * stride + raw.len())
+            .ok_or_else(|| Error::invalid("JPEG XR: a row past the caller's buffer (a bug in the decoder)"))?
+            .copy_from_slice(raw);
+        Ok(())
+    })
 }
 
 fn decode_impl(
     data: &[u8],
     options: &DecodeOptions,
     sink: Option<&mut dyn RowSink>,
-    raw_rows: &mut dyn FnMut(usize, &[u8]),
+    raw_rows: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
 ) -> Result<()> {
     let container = parse_container(data)?;
     let format = container.pixel_format;
@@ -169,15 +214,14 @@ fn decode_impl(
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
     let prim_params = params(primary.scaled);
     let alpha_params = params(alpha_scaled);
-    // Working memory: the windows (band + halo of coefficients) and the band's samples.
+    // Working memory: the window (band + halo of coefficient rows), the next band's rows
+    // being decoded meanwhile, and the band's samples.
     let band = transform::BAND_MB_ROWS;
-    let window_rows = band + 5;
-    let coeff_bytes = (window_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
+    let coeff_rows = 2 * band + 5;
+    let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
     let sample_bytes = ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
-    let window_mbs = window_rows.min(mb_h) * mb_w;
-    let mut win = Window::new(primary.channels, window_mbs);
-    let mut awin = with_alpha.then(|| Window::new(1, window_mbs));
+    let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     let mut sink = sink;
     if let Some(s) = sink.as_deref_mut() {
         s.start(&info)?;
@@ -198,7 +242,7 @@ fn decode_impl(
     // Row and sample buffers go back to these once used, so that a band reuses the memory of
     // the band before (fresh allocations of this size cost page faults and zeroing).
     let mut spare_rows: Vec<Fetched> = Vec::new();
-    let mut spare_samples: Vec<Vec<i32>> = Vec::new();
+    let mut spare_samples: Vec<BandScratch> = Vec::new();
     let mut decoded = need(band.min(mb_h));
     let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded, &mut spare_rows)?;
     for r0 in (0..mb_h).step_by(band) {
@@ -206,42 +250,39 @@ fn decode_impl(
         let next = need((r1 + band).min(mb_h));
         let rows_in = std::mem::take(&mut pending);
         let mut sample_bufs = std::mem::take(&mut spare_samples);
-        let (win_ref, awin_ref, completer_ref) = (&mut win, &mut awin, &mut completer);
+        let (win_ref, completer_ref) = (&mut win, &mut completer);
         let (prim_params, alpha_params) = (&prim_params, &alpha_params);
-        let transform_all = move || -> Result<(Vec<transform::Plane>, Option<transform::Plane>, Vec<Fetched>)> {
-            // The rows this band needs: completed (flexbits) and appended to the windows.
-            win_ref.drop_before(r0.saturating_sub(2), mb_w);
-            if let Some(a) = awin_ref.as_mut() {
-                a.drop_before(r0.saturating_sub(2), mb_w);
-            }
-            let mut used = Vec::with_capacity(rows_in.len());
+        let transform_all = move || -> Result<(Vec<BandPlane>, Option<BandPlane>, Vec<Fetched>)> {
+            // The rows this band needs: completed (flexbits) and appended to the window.
+            let mut dropped = Vec::new();
+            win_ref.drop_before(r0.saturating_sub(2), &mut dropped);
             for mut row in rows_in {
                 if let Some(c) = completer_ref.as_mut() {
                     c.complete(&mut row.planes, &row.side)?;
                 }
-                win_ref.push(&row.planes[0]);
-                if let Some(a) = awin_ref.as_mut() {
-                    let alpha = row.planar_alpha.as_deref().or(row.planes.get(1).map(|v| &v[..]));
-                    a.push(alpha.ok_or_else(|| Error::invalid("JPEG XR: an alpha row is missing (a bug)"))?);
-                }
-                used.push(row);
+                win_ref.rows.push_back(row);
             }
-            let (win, awin) = (&*win_ref, &*awin_ref);
+            let win = &*win_ref;
+            let prim_rows = win.plane_rows(WindowPlane::Primary)?;
+            let prim_src = |ch: usize| {
+                MbRows::new(&prim_rows, win.first, primary.channels * crate::mb::MB_COEFFS, ch * crate::mb::MB_COEFFS)
+            };
             let planes = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
                     let buf = sample_bufs.pop().unwrap_or_default();
-                    transform_band(win, prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end, buf)
+                    transform_band(&prim_src(ch), prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end, buf)
                 })
                 .collect::<Result<_>>()?;
-            let alpha = awin
-                .as_ref()
-                .map(|a| {
-                    let buf = sample_bufs.pop().unwrap_or_default();
-                    transform_band(a, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1, buf)
-                })
-                .transpose()?;
-            Ok((planes, alpha, used))
+            let alpha = if with_alpha {
+                let rows = win.plane_rows(WindowPlane::Alpha)?;
+                let src = MbRows::new(&rows, win.first, crate::mb::MB_COEFFS, 0);
+                let buf = sample_bufs.pop().unwrap_or_default();
+                Some(transform_band(&src, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1, buf)?)
+            } else {
+                None
+            };
+            Ok((planes, alpha, dropped))
         };
         let count = next - decoded;
         let spare = &mut spare_rows;
@@ -253,8 +294,8 @@ fn decode_impl(
         };
         pending = fetched?;
         decoded = next;
-        let (planes, alpha_plane, used) = transformed?;
-        spare_rows.extend(used);
+        let (planes, alpha_plane, dropped) = transformed?;
+        spare_rows.extend(dropped);
         // Output rows: the band's rows inside the window.
         let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
         if y_start < y_end {
@@ -263,19 +304,22 @@ fn decode_impl(
                 for i in 0..rows as usize {
                     let y = y_start + i;
                     let local = y - r0 * 16;
-                    for (ch, p) in planes.iter().enumerate() {
-                        if ch == 0 || kind(primary.clr_fmt, ch) == PlaneKind::Full {
-                            full[ch].copy_from_slice(&p.data[local * p.width..(local + 1) * p.width]);
-                        } else {
-                            // The band's chroma rows (4:2:0: half as many, and the next band's
-                            // first macroblock row for the interpolation of the band's last row).
-                            upsample_chroma_row(internal, &p.data, p.width, p.height, local, &mut full[ch])?;
-                        }
+                    // Full-resolution channels are read where the transform left them;
+                    // subsampled chroma is upsampled into a row of its own (4:2:0: from the
+                    // band's chroma rows and the next band's first macroblock row).
+                    let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
+                    for (ch, p) in planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
+                        upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
                     }
-                    let rows: Vec<&[i32]> = full.iter().map(|r| &r[left..]).collect();
-                    let a = alpha_plane.as_ref().map(|p| &p.data[local * p.width + left..(local + 1) * p.width]);
+                    let rows: Vec<&[i32]> = planes
+                        .iter()
+                        .zip(&full)
+                        .enumerate()
+                        .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
+                        .collect();
+                    let a = alpha_plane.as_ref().map(|p| &p.row(local)[left..]);
                     out.format_row(&rows, a, width, &mut raw)?;
-                    raw_rows(y - top, &raw);
+                    raw_rows(y - top, &raw)?;
                     if !dst.is_empty() {
                         out.row_to_f32(&raw, width, &mut dst[i * row_len..(i + 1) * row_len])?;
                     }
@@ -287,7 +331,7 @@ fn decode_impl(
                 None => render(&mut [])?,
             }
         }
-        spare_samples.extend(planes.into_iter().chain(alpha_plane).map(|p| p.data));
+        spare_samples.extend(planes.into_iter().chain(alpha_plane).map(|p| p.scratch));
     }
     Ok(())
 }
@@ -336,26 +380,44 @@ fn fetch(
     Ok(rows)
 }
 
-/// The samples of macroblock rows `rows` of channel `ch` of a plane, from its window, in
-/// `data` (a buffer to reuse; its contents do not matter).
+/// A band's samples of one channel: `height` rows of `width` from `start` in the scratch.
+struct BandPlane {
+    width: usize,
+    height: usize,
+    start: usize,
+    scratch: BandScratch,
+}
+
+impl BandPlane {
+    /// The band's samples, row-major.
+    fn samples(&self) -> &[i32] {
+        &self.scratch.data[self.start..][..self.width * self.height]
+    }
+
+    /// Row `y` of the band.
+    fn row(&self, y: usize) -> &[i32] {
+        &self.samples()[y * self.width..][..self.width]
+    }
+}
+
+/// The samples of macroblock rows `rows` of channel `ch` of a plane, from the coefficients
+/// `src`, in `scratch` (buffers to reuse; their contents do not matter).
 #[allow(clippy::too_many_arguments)]
 fn transform_band(
-    win: &Window,
+    src: &MbRows,
     params: &TransformParams,
     fmt: ClrFmt,
     ch: usize,
     mb_w: usize,
     mb_h: usize,
     rows: std::ops::Range<usize>,
-    mut data: Vec<i32>,
-) -> Result<transform::Plane> {
+    mut scratch: BandScratch,
+) -> Result<BandPlane> {
     let k = kind(fmt, ch);
     let (bx, by) = k.blocks();
-    let (w, unit) = (bx * 4 * mb_w, by * 4);
-    // inverse_band writes every sample: only a buffer that grows needs its new part zeroed.
-    data.resize(w * unit * rows.len(), 0);
-    transform::inverse_band(params, k, ch, mb_w, mb_h, &win.channels[ch], win.first, rows.clone(), &mut data)?;
-    Ok(transform::Plane { width: w, height: unit * rows.len(), data })
+    let (width, height) = (bx * 4 * mb_w, by * 4 * rows.len());
+    let start = transform::inverse_band_rows(params, k, ch, mb_w, mb_h, src, rows, &mut scratch)?;
+    Ok(BandPlane { width, height, start, scratch })
 }
 
 #[cfg(test)]

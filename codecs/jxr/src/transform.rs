@@ -1016,6 +1016,76 @@ pub fn inverse_band(
     rows: Range<usize>,
     out: &mut [i32],
 ) -> Result<()> {
+    if mb_w == 0 || coeffs.len() % mb_w != 0 {
+        return Err(Error::invalid(format!("{} macroblocks given in rows of {mb_w}", coeffs.len())));
+    }
+    let row_slices: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|r| r.as_flattened()).collect();
+    let source = MbRows::new(&row_slices, coeffs_first_row, MB_COEFFS, 0);
+    let mut scratch = BandScratch::default();
+    let start = inverse_band_rows(params, kind, channel, mb_w, mb_h, &source, rows, &mut scratch)?;
+    let band = &scratch.data[start..];
+    out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
+    Ok(())
+}
+
+/// Consecutive macroblock rows of one channel's coefficients, each row a slice of its own:
+/// macroblock `mx` of a row at `mx · stride + offset` ([`MB_COEFFS`] values in the `mb.rs`
+/// layout). The entropy decoder's rows hold every channel of a macroblock together (stride
+/// `channels · MB_COEFFS`, offset `channel · MB_COEFFS`); the transform reads them in place.
+#[derive(Clone, Copy, Debug)]
+pub struct MbRows<'a> {
+    rows: &'a [&'a [i32]],
+    first: usize,
+    stride: usize,
+    offset: usize,
+}
+
+impl<'a> MbRows<'a> {
+    /// Rows `first_row ..` of the image: `rows[i]` is macroblock row `first_row + i`.
+    pub fn new(rows: &'a [&'a [i32]], first_row: usize, stride: usize, offset: usize) -> Self {
+        MbRows { rows, first: first_row, stride, offset }
+    }
+
+    /// True when rows `need` are present, each with `mb_w` macroblocks.
+    fn covers(&self, need: &Range<usize>, mb_w: usize) -> bool {
+        let len = (mb_w.saturating_sub(1)).saturating_mul(self.stride).saturating_add(self.offset + MB_COEFFS);
+        need.start >= self.first
+            && need.end <= self.first + self.rows.len()
+            && self.rows[need.start - self.first..need.end - self.first].iter().all(|r| r.len() >= len)
+    }
+
+    /// Macroblock (`mx`, `my`), which [`covers`](Self::covers) checked is there.
+    #[inline(always)]
+    fn mb(&self, mx: usize, my: usize) -> &'a MbCoeffs {
+        let row: &'a [i32] = self.rows[my - self.first];
+        row[mx * self.stride + self.offset..][..MB_COEFFS].try_into().expect("a checked macroblock")
+    }
+}
+
+/// The working buffers of a band's inverse transform, kept from band to band (fresh buffers
+/// of this size cost page faults and zeroing each time). After
+/// [`inverse_band_rows`], `data` holds the band's samples.
+#[derive(Clone, Debug, Default)]
+pub struct BandScratch {
+    dc: Vec<i32>,
+    cm: Vec<i32>,
+    /// The band's samples, with a halo of a block row above and below.
+    pub data: Vec<i32>,
+}
+
+/// [`inverse_band`] over coefficients in rows of their own, into `scratch`: returns where
+/// in `scratch.data` the band's first sample is (its rows follow, `W` samples each).
+#[allow(clippy::too_many_arguments)]
+pub fn inverse_band_rows(
+    params: &TransformParams,
+    kind: PlaneKind,
+    channel: usize,
+    mb_w: usize,
+    mb_h: usize,
+    coeffs: &MbRows,
+    rows: Range<usize>,
+    scratch: &mut BandScratch,
+) -> Result<usize> {
     let (width, _) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
@@ -1024,19 +1094,21 @@ pub fn inverse_band(
     }
     // Macroblock rows whose stage 2 is needed, block rows whose stage 1 is needed.
     let (s0, s1) = (r0.saturating_sub(2), (r1 + 2).min(mb_h));
-    let have = coeffs_first_row..coeffs_first_row + coeffs.len() / mb_w;
-    if coeffs.len() % mb_w != 0 || s0 < have.start || s1 > have.end {
+    if !coeffs.covers(&(s0..s1), mb_w) {
         return Err(Error::invalid(format!(
             "coefficients of macroblock rows {}..{} given, {s0}..{s1} needed",
-            have.start, have.end
+            coeffs.first,
+            coeffs.first + coeffs.rows.len()
         )));
     }
-    let mb = |mx: usize, my: usize| &coeffs[(my - coeffs_first_row) * mb_w + mx];
+    let mb = |mx: usize, my: usize| coeffs.mb(mx, my);
     let double = params.scaled && channel > 0;
     let dw = bx * mb_w;
+    let BandScratch { dc, cm, data } = scratch;
 
-    // Stage 2 for macroblock rows s0..s1: DC rows by·s0..by·s1.
-    let mut dc = vec![0i32; dw * by * (s1 - s0)];
+    // Stage 2 for macroblock rows s0..s1: DC rows by·s0..by·s1. Every value of `dc` is
+    // written below, so a reused buffer needs no clearing.
+    dc.resize(dw * by * (s1 - s0), 0);
     let mut v = [0i32; 16];
     for my in s0..s1 {
         for mx in 0..mb_w {
@@ -1050,7 +1122,7 @@ pub fn inverse_band(
     // The stage-2 POT makes the DCs of macroblock rows r0 − 1 ..= r1 final.
     if params.overlap == OverlapMode::Two {
         let keys = by * r0.saturating_sub(1)..=by * (r1 + 1).min(mb_h);
-        let mut p = Rows { data: &mut dc, stride: dw, y_base: by * s0 };
+        let mut p = Rows { data: dc, stride: dw, y_base: by * s0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
                 PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse),
@@ -1061,10 +1133,12 @@ pub fn inverse_band(
 
     // Stage 1 for block rows b0..b1 (the band and one block row of halo each side): each
     // block row gathered coefficient-major, transformed LANES blocks at a time, scattered.
+    // Every sample of `data` is written, so a reused buffer needs no clearing; the scratch's
+    // padding lanes hold whatever they held (the arithmetic wraps, and they are not read).
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
-    let mut data = vec![0i32; width * 4 * (b1 - b0)];
+    data.resize(width * 4 * (b1 - b0), 0);
     let n = scratch_stride(dw);
-    let mut cm = vec![0i32; 16 * n];
+    cm.resize(16 * n, 0);
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
         {
@@ -1093,7 +1167,7 @@ pub fn inverse_band(
                 }
             }
         }
-        run_lanes(&mut cm, n, dw, ipct4x4_g);
+        run_lanes(cm, n, dw, ipct4x4_g);
         let rows: [&[i32]; 16] = std::array::from_fn(|k| &cm[k * n..][..dw]);
         for (j, quad) in rows.chunks_exact(4).enumerate() {
             let row = &mut data[((y - b0) * 4 + j) * width..][..width];
@@ -1107,14 +1181,13 @@ pub fn inverse_band(
     let unit = 4 * by;
     if params.overlap != OverlapMode::None {
         let keys = unit * r0..=unit * r1;
-        let mut p = Rows { data: &mut data, stride: width, y_base: 4 * b0 };
+        let mut p = Rows { data, stride: width, y_base: 4 * b0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, 4 * bx, unit) {
             pot4_region(&mut p, r, &keys, Dir::Inverse);
         }
     }
-    let band = &data[(unit * r0 - 4 * b0) * width..][..unit * (r1 - r0) * width];
-    out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
-    Ok(())
+    data.truncate((unit * r1 - 4 * b0) * width);
+    Ok((unit * r0 - 4 * b0) * width)
 }
 
 /// The inverse lapped transform of one channel, band by band ([`inverse_band`] over
