@@ -1,21 +1,24 @@
-//! JPEG XR decode speed in one run: our decoder (`hdrcodec_jxr::decode_raw`) against jxrlib,
-//! the reference codec, called in-process through a small C shim over Debian `libjxr-dev`
-//! (tests/peers/jxrlib_shim.c, built by tests/build.rs). Both decode a file held in memory to
-//! the file's own pixel format (jxrlib's raw samples); jxrlib writes into a buffer allocated
-//! once, ours returns a new `Vec` each time (its allocation is in our time).
+//! JPEG XR decode speed in one run: our decoder (`hdrcodec_jxr::decode_raw_into`) against
+//! jxrlib, the reference codec, called in-process through a small C shim over Debian
+//! `libjxr-dev` (tests/peers/jxrlib_shim.c, built by tests/build.rs). Both decode a file held
+//! in memory to the file's own pixel format (jxrlib's raw samples) into a buffer allocated
+//! once, outside the timing; each does its own working allocations inside it.
 //!
-//! Files: the three corpus `.jxr` files and, if JxrEncApp (Debian `libjxr-tools`) is on PATH, a
-//! larger lossy one made at bench time: the GoldenGate corpus image (our decode, half floats)
-//! mirrored into a 4x3 mosaic of 5048x2580 (13 MP), written as a half-float TIFF and encoded by
-//! JxrEncApp at quality 0.6 (48bppRGBHalf, one tile). Before anything is timed, jxrlib's samples
-//! must equal ours, byte for byte, on every file.
+//! Files: the three corpus `.jxr` files and, if JxrEncApp (Debian `libjxr-tools`) is on PATH,
+//! larger ones made at bench time from the GoldenGate corpus image (our decode, half floats)
+//! mirrored into a 4x3 mosaic of 5048x2580 (13 MP), written as a TIFF and encoded by JxrEncApp.
+//! By default one of them: quality 0.6, 48bppRGBHalf, one tile. With
+//! `HDRCODEC_JXR_BENCH_MATRIX=1`, the matrix instead: lossless and qualities 0.9, 0.6
+//! and 0.3, × 48bppRGBHalf and 128bppRGBFloat, × one tile and 4x4 tiles (16 files; about 15
+//! minutes). Before anything is timed, jxrlib's samples must equal ours, byte for byte, on
+//! every file.
 //!
 //! jxrlib is single-threaded: `jxrlib_1thread` and `hdrcodec_1thread` are the like-for-like
 //! pair; `hdrcodec_2threads` is ours on a pool of two threads. Criterion's throughput is in
 //! pixels (elements), so Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
 use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
-use hdrcodec_jxr::{decode_raw, JxrCodec};
+use hdrcodec_jxr::{decode_raw, decode_raw_into, raw_layout, JxrCodec};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -118,10 +121,10 @@ fn tool(name: &str) -> Option<PathBuf> {
     std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
 }
 
-/// A little-endian, uncompressed, single-strip RGB TIFF of 16-bit IEEE floats (what JxrEncApp
-/// reads as 48bppRGBHalf).
-fn half_rgb_tiff(width: u32, height: u32, samples: &[u8]) -> Vec<u8> {
-    assert_eq!(samples.len(), width as usize * height as usize * 6);
+/// A little-endian, uncompressed, single-strip RGB TIFF of 16- or 32-bit IEEE floats (what
+/// JxrEncApp reads as 48bppRGBHalf or 96bppRGBFloat).
+fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Vec<u8> {
+    assert_eq!(samples.len(), width as usize * height as usize * 3 * usize::from(bits / 8));
     const ENTRIES: u32 = 11;
     let ifd_end = 8 + 2 + ENTRIES * 12 + 4;
     let (bits_at, format_at, data_at) = (ifd_end, ifd_end + 6, ifd_end + 12);
@@ -155,27 +158,29 @@ fn half_rgb_tiff(width: u32, height: u32, samples: &[u8]) -> Vec<u8> {
         }
     }
     t.extend_from_slice(&0u32.to_le_bytes());
-    for v in [16u16, 16, 16, 3, 3, 3] {
+    for v in [bits, bits, bits, 3, 3, 3] {
         t.extend_from_slice(&v.to_le_bytes());
     }
     t.extend_from_slice(samples);
     t
 }
 
-/// The larger lossy file (see the top of this file), if JxrEncApp is there.
-fn large_lossy(corpus: &[File]) -> Option<File> {
+/// The larger files (see the top of this file), if JxrEncApp is there.
+fn large_files(corpus: &[File]) -> Vec<File> {
     let Some(enc) = tool("JxrEncApp") else {
-        missing("JxrEncApp (Debian libjxr-tools), which makes the 13 MP file");
-        return None;
+        missing("JxrEncApp (Debian libjxr-tools), which makes the 13 MP files");
+        return Vec::new();
     };
-    let src = corpus.iter().find(|f| f.name.starts_with("GoldenGate_48bppRGBHalf"))?;
+    let Some(src) = corpus.iter().find(|f| f.name.starts_with("GoldenGate_48bppRGBHalf")) else {
+        return Vec::new();
+    };
     let info = JxrCodec.probe(&src.data, &Limits::default()).expect("probe GoldenGate");
     let (w, h) = (info.width as usize, info.height as usize);
     let raw = decode_raw(&src.data, &DecodeOptions::new(Limits::default())).expect("decode GoldenGate");
     assert_eq!(raw.len(), w * h * 6, "GoldenGate decodes to 48bppRGBHalf");
     let (tx, ty) = (4, 3);
     let (big_w, big_h) = (w * tx, h * ty);
-    let mut big = vec![0u8; big_w * big_h * 6];
+    let mut half = vec![0u8; big_w * big_h * 6];
     for y in 0..big_h {
         let (ty_i, yy) = (y / h, y % h);
         let sy = if ty_i % 2 == 1 { h - 1 - yy } else { yy };
@@ -183,29 +188,59 @@ fn large_lossy(corpus: &[File]) -> Option<File> {
             let (tx_i, xx) = (x / w, x % w);
             let sx = if tx_i % 2 == 1 { w - 1 - xx } else { xx };
             let (s, d) = ((sy * w + sx) * 6, (y * big_w + x) * 6);
-            big[d..d + 6].copy_from_slice(&raw[s..s + 6]);
+            half[d..d + 6].copy_from_slice(&raw[s..s + 6]);
         }
     }
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_decode_bench");
     std::fs::create_dir_all(&dir).expect("create the bench's temp dir");
-    let (tif, jxr) = (dir.join("mosaic.tif"), dir.join("mosaic_q0.6.jxr"));
-    std::fs::write(&tif, half_rgb_tiff(big_w as u32, big_h as u32, &big)).expect("write the mosaic TIFF");
-    encode(&enc, &tif, &jxr, "0.6");
-    let data = std::fs::read(&jxr).expect("read the encoded mosaic");
-    let _ = std::fs::remove_file(&tif);
-    Some(File { name: format!("GoldenGate_mosaic_{big_w}x{big_h}_48bppRGBHalf_q0.6"), data })
+    let matrix = std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1");
+    let qualities: &[&str] = if matrix { &["lossless", "0.9", "0.6", "0.3"] } else { &["0.6"] };
+    let formats: &[&str] = if matrix { &["48bppRGBHalf", "128bppRGBFloat"] } else { &["48bppRGBHalf"] };
+    let tilings: &[&str] = if matrix { &["1tile", "4x4tiles"] } else { &["1tile"] };
+    let mut files = Vec::new();
+    for &format in formats {
+        let (code, tif) = if format == "48bppRGBHalf" {
+            ("12", float_rgb_tiff(big_w as u32, big_h as u32, 16, &half))
+        } else {
+            let floats: Vec<u8> = half
+                .chunks_exact(2)
+                .flat_map(|b| half::f16::from_bits(u16::from_le_bytes([b[0], b[1]])).to_f32().to_le_bytes())
+                .collect();
+            ("15", float_rgb_tiff(big_w as u32, big_h as u32, 32, &floats))
+        };
+        let tif_path = dir.join(format!("mosaic_{format}.tif"));
+        std::fs::write(&tif_path, tif).expect("write the mosaic TIFF");
+        for &quality in qualities {
+            for &tiling in tilings {
+                let name = format!("GoldenGate_mosaic_{big_w}x{big_h}_{format}_{quality}_{tiling}");
+                let jxr = dir.join(format!("{name}.jxr"));
+                let mut args = vec!["-c", code];
+                if quality != "lossless" {
+                    args.extend(["-q", quality]);
+                }
+                if tiling == "4x4tiles" {
+                    args.extend(["-U", "4", "4"]);
+                }
+                encode(&enc, &tif_path, &jxr, &args);
+                files.push(File { name, data: std::fs::read(&jxr).expect("read an encoded mosaic") });
+                let _ = std::fs::remove_file(&jxr);
+            }
+        }
+        let _ = std::fs::remove_file(&tif_path);
+    }
+    files
 }
 
-fn encode(enc: &Path, tif: &Path, jxr: &Path, quality: &str) {
-    let out =
-        Command::new(enc).arg("-i").arg(tif).arg("-o").arg(jxr).args(["-q", quality]).output().expect("run JxrEncApp");
+fn encode(enc: &Path, tif: &Path, jxr: &Path, args: &[&str]) {
+    let out = Command::new(enc).arg("-i").arg(tif).arg("-o").arg(jxr).args(args).output().expect("run JxrEncApp");
     assert!(out.status.success() && jxr.is_file(), "JxrEncApp failed: {}", String::from_utf8_lossy(&out.stderr));
 }
 
 fn bench(c: &mut Criterion) {
     let mut files = corpus_files();
     if !files.is_empty() {
-        files.extend(large_lossy(&files));
+        let large = large_files(&files);
+        files.extend(large);
     }
     #[cfg(not(jxrlib))]
     missing("jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
@@ -233,12 +268,15 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| jxrlib::decode(black_box(&f.data), &layout, black_box(&mut theirs)).unwrap())
             });
         }
+        let (_, _, row) = raw_layout(&f.data).expect("our layout");
+        let mut buf = vec![0u8; ours.len()];
         group.bench_with_input(BenchmarkId::new("hdrcodec_1thread", &f.name), f, |b, f| {
-            b.iter(|| decode_raw(black_box(&f.data), &single).unwrap())
+            b.iter(|| decode_raw_into(black_box(&f.data), &single, black_box(&mut buf), row).unwrap())
         });
         group.bench_with_input(BenchmarkId::new("hdrcodec_2threads", &f.name), f, |b, f| {
-            b.iter(|| decode_raw(black_box(&f.data), &two).unwrap())
+            b.iter(|| decode_raw_into(black_box(&f.data), &two, black_box(&mut buf), row).unwrap())
         });
+        assert_eq!(buf, ours, "{}: decode_raw_into gives decode_raw's bytes", f.name);
     }
     group.finish();
 }

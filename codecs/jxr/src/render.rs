@@ -219,7 +219,8 @@ fn decode_impl(
     let band = transform::BAND_MB_ROWS;
     let coeff_rows = 2 * band + 5;
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
-    let sample_bytes = ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64;
+    let sample_bytes =
+        ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64 + (band * 16 * out.row_bytes(width)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     let mut sink = sink;
@@ -230,7 +231,10 @@ fn decode_impl(
     let ext_w = 16 * mb_w;
     let row_len = width * channels.count();
     let mut full = vec![vec![0i32; ext_w]; primary.channels];
-    let mut raw = vec![0u8; out.row_bytes(width)];
+    // The band's rows in the pixel format's bytes: formatted where the band is transformed
+    // (thread B), handed out here.
+    let raw_row = out.row_bytes(width);
+    let mut raw_band: Vec<u8> = Vec::new();
     let mut scratch = Scratch::new(&options.limits);
     // Coefficients of rows up to r1 + 3 for the band r0..r1 (the halo, and one more row for
     // 4:2:0 chroma). The next band's rows are entropy-decoded while this band transforms.
@@ -250,8 +254,11 @@ fn decode_impl(
         let next = need((r1 + band).min(mb_h));
         let rows_in = std::mem::take(&mut pending);
         let mut sample_bufs = std::mem::take(&mut spare_samples);
-        let (win_ref, completer_ref) = (&mut win, &mut completer);
-        let (prim_params, alpha_params) = (&prim_params, &alpha_params);
+        let (win_ref, completer_ref, full_ref, raw_ref) = (&mut win, &mut completer, &mut full, &mut raw_band);
+        let (prim_params, alpha_params, out_ref) = (&prim_params, &alpha_params, &out);
+        // The image rows of the band (inside the window's margins).
+        let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
+        let band_rows = y_end.saturating_sub(y_start);
         let transform_all = move || -> Result<(Vec<BandPlane>, Option<BandPlane>, Vec<Fetched>)> {
             // The rows this band needs: completed (flexbits) and appended to the window.
             let mut dropped = Vec::new();
@@ -267,7 +274,7 @@ fn decode_impl(
             let prim_src = |ch: usize| {
                 MbRows::new(&prim_rows, win.first, primary.channels * crate::mb::MB_COEFFS, ch * crate::mb::MB_COEFFS)
             };
-            let planes = (0..primary.channels)
+            let planes: Vec<BandPlane> = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
                     let buf = sample_bufs.pop().unwrap_or_default();
@@ -282,6 +289,25 @@ fn decode_impl(
             } else {
                 None
             };
+            // The band's rows, formatted. Full-resolution channels are read where the
+            // transform left them; subsampled chroma is upsampled into a row of its own (4:2:0:
+            // from the band's chroma rows and the next band's first macroblock row).
+            raw_ref.resize(band_rows * raw_row, 0);
+            let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
+            for (i, raw) in raw_ref.chunks_exact_mut(raw_row.max(1)).enumerate().take(band_rows) {
+                let local = y_start + i - r0 * 16;
+                for (ch, p) in planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
+                    upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full_ref[ch])?;
+                }
+                let rows: Vec<&[i32]> = planes
+                    .iter()
+                    .zip(full_ref.iter())
+                    .enumerate()
+                    .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
+                    .collect();
+                let a = alpha.as_ref().map(|p| &p.row(local)[left..]);
+                out_ref.format_row(&rows, a, width, raw)?;
+            }
             Ok((planes, alpha, dropped))
         };
         let count = next - decoded;
@@ -297,38 +323,16 @@ fn decode_impl(
         let (planes, alpha_plane, dropped) = transformed?;
         spare_rows.extend(dropped);
         // Output rows: the band's rows inside the window.
-        let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
-        if y_start < y_end {
-            let (y0, rows) = ((y_start - top) as u32, (y_end - y_start) as u32);
-            let mut render = |dst: &mut [f32]| -> Result<()> {
-                for i in 0..rows as usize {
-                    let y = y_start + i;
-                    let local = y - r0 * 16;
-                    // Full-resolution channels are read where the transform left them;
-                    // subsampled chroma is upsampled into a row of its own (4:2:0: from the
-                    // band's chroma rows and the next band's first macroblock row).
-                    let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
-                    for (ch, p) in planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
-                        upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
-                    }
-                    let rows: Vec<&[i32]> = planes
-                        .iter()
-                        .zip(&full)
-                        .enumerate()
-                        .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
-                        .collect();
-                    let a = alpha_plane.as_ref().map(|p| &p.row(local)[left..]);
-                    out.format_row(&rows, a, width, &mut raw)?;
-                    raw_rows(y - top, &raw)?;
-                    if !dst.is_empty() {
-                        out.row_to_f32(&raw, width, &mut dst[i * row_len..(i + 1) * row_len])?;
-                    }
-                }
-                Ok(())
-            };
-            match sink.as_deref_mut() {
-                Some(s) => fill_rows(s, y0, rows, row_len, &mut scratch, render)?,
-                None => render(&mut [])?,
+        if band_rows > 0 {
+            let y0 = (y_start - top) as u32;
+            let raws = raw_band.chunks_exact(raw_row.max(1)).take(band_rows);
+            for (i, raw) in raws.clone().enumerate() {
+                raw_rows(y0 as usize + i, raw)?;
+            }
+            if let Some(s) = sink.as_deref_mut() {
+                fill_rows(s, y0, band_rows as u32, row_len, &mut scratch, |dst: &mut [f32]| {
+                    raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
+                })?;
             }
         }
         spare_samples.extend(planes.into_iter().chain(alpha_plane).map(|p| p.scratch));

@@ -203,10 +203,22 @@ impl<'h> PlaneWork<'h> {
         let out = out
             .get_mut(..self.rows[s].len())
             .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?;
-        out.copy_from_slice(&self.rows[s]);
-        if !quantized {
-            for (c, side) in out.chunks_exact_mut(self.stride()).zip(&self.side[s]) {
-                dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
+        if quantized {
+            out.copy_from_slice(&self.rows[s]);
+            return Ok(());
+        }
+        // Copied and dequantized in one pass.
+        let stride = self.stride();
+        for ((dst, src), side) in out.chunks_exact_mut(stride).zip(self.rows[s].chunks_exact(stride)).zip(&self.side[s])
+        {
+            let (dc, lp, hp) = mb_steps(side, &self.qp)?;
+            let channels = dst.chunks_exact_mut(MB_COEFFS).zip(src.chunks_exact(MB_COEFFS));
+            for (ch, (d, s)) in channels.enumerate() {
+                let (d, s) = (d.try_into().expect("a channel"), s.try_into().expect("a channel"));
+                let luma = ch == 0;
+                let steps = (quant::step(dc[ch], self.hdr.scaled, luma), quant::step(lp[ch], self.hdr.scaled, luma));
+                let shape = quant::channel_shape(self.hdr.clr_fmt, ch);
+                quant::dequantize_into(s, d, shape, steps.0, steps.1, quant::step(hp[ch], self.hdr.scaled, true));
             }
         }
         Ok(())
@@ -222,18 +234,24 @@ fn predict_hp_mb(fmt: ClrFmt, channels: usize, c: &mut [i32], mode: u8) {
     }
 }
 
-/// Dequantizes one macroblock (`c`: all channels) with the tile's quantizers.
-fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled: bool) -> Result<()> {
+/// The DC, LP and HP quantizer indices (per channel) of a macroblock.
+fn mb_steps<'q>(side: &MbSide, qp: &'q TileQp) -> Result<(&'q [u8], &'q [u8], &'q [u8])> {
     let lp = qp.lp.get(usize::from(side.lp_qi)).ok_or_else(|| Error::invalid("JPEG XR: LP QP index"))?;
     let hp = qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
+    Ok((&qp.dc.index[..], &lp.index[..], &hp.index[..]))
+}
+
+/// Dequantizes one macroblock (`c`: all channels) with the tile's quantizers.
+fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled: bool) -> Result<()> {
+    let (dc, lp, hp) = mb_steps(side, qp)?;
     for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).enumerate() {
         let luma = ch == 0;
         quant::dequantize(
             cc,
             quant::channel_shape(fmt, ch),
-            quant::step(qp.dc.index[ch], scaled, luma),
-            quant::step(lp.index[ch], scaled, luma),
-            quant::step(hp.index[ch], scaled, true),
+            quant::step(dc[ch], scaled, luma),
+            quant::step(lp[ch], scaled, luma),
+            quant::step(hp[ch], scaled, true),
         );
     }
     Ok(())
