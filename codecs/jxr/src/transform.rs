@@ -829,25 +829,66 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
     cm.resize(16 * n, 0);
     let top = p.at(r.x0 + 2, y - 2);
     let stride = p.stride;
-    // Scratch row 4j + i holds sample i of row j of every window: the rows cut to `count`
-    // and zipped with the sample row, so that no access needs a bounds check.
-    for (k, dst) in cm.chunks_exact_mut(n).enumerate() {
-        let (j, i) = (k / 4, k % 4);
-        let row = &p.data[top + j * stride..][..4 * count];
-        for (d, px) in dst[..count].iter_mut().zip(row.chunks_exact(4)) {
-            *d = px[i];
-        }
+    // Scratch row 4j + i holds sample i of row j of every window.
+    for (j, quad) in cm.chunks_exact_mut(4 * n).enumerate() {
+        let [a, b, c, d] = four_rows(quad, n, count);
+        deinterleave4(&p.data[top + j * stride..][..4 * count], [a, b, c, d]);
     }
     match dir {
         Dir::Inverse => run_lanes(cm, n, count, post4x4_g),
         Dir::Forward => run_lanes(cm, n, count, pre4x4_g),
     }
-    for (k, src) in cm.chunks_exact(n).enumerate() {
-        let (j, i) = (k / 4, k % 4);
-        let row = &mut p.data[top + j * stride..][..4 * count];
-        for (px, &v) in row.chunks_exact_mut(4).zip(&src[..count]) {
-            px[i] = v;
-        }
+    for (j, quad) in cm.chunks_exact(4 * n).enumerate() {
+        let rows: [&[i32]; 4] = std::array::from_fn(|i| &quad[i * n..][..count]);
+        interleave4(rows, &mut p.data[top + j * stride..][..4 * count]);
+    }
+}
+
+/// The first `count` values of each of the four rows of `n` in `quad`.
+fn four_rows(quad: &mut [i32], n: usize, count: usize) -> [&mut [i32]; 4] {
+    let mut rows = quad.chunks_exact_mut(n).map(|r| &mut r[..count]);
+    std::array::from_fn(|_| rows.next().unwrap_or_default())
+}
+
+/// `dst[i][w] = src[4w + i]`: four interleaved streams split, four pixels (a 4×4 transpose,
+/// which the compiler turns into vector shuffles) at a time.
+#[inline(always)]
+fn deinterleave4(src: &[i32], dst: [&mut [i32]; 4]) {
+    let [d0, d1, d2, d3] = dst;
+    let count = d0.len().min(d1.len()).min(d2.len()).min(d3.len()).min(src.len() / 4);
+    let whole = count / 4 * 4;
+    let dsts = d0[..whole].chunks_exact_mut(4).zip(d1[..whole].chunks_exact_mut(4));
+    let dsts = dsts.zip(d2[..whole].chunks_exact_mut(4).zip(d3[..whole].chunks_exact_mut(4)));
+    for (s, ((a, b), (c, d))) in src.chunks_exact(16).zip(dsts) {
+        let s: &[i32; 16] = s.try_into().expect("16 values");
+        a.copy_from_slice(&[s[0], s[4], s[8], s[12]]);
+        b.copy_from_slice(&[s[1], s[5], s[9], s[13]]);
+        c.copy_from_slice(&[s[2], s[6], s[10], s[14]]);
+        d.copy_from_slice(&[s[3], s[7], s[11], s[15]]);
+    }
+    for w in whole..count {
+        d0[w] = src[4 * w];
+        d1[w] = src[4 * w + 1];
+        d2[w] = src[4 * w + 2];
+        d3[w] = src[4 * w + 3];
+    }
+}
+
+/// `dst[4w + i] = src[i][w]`: the inverse of [`deinterleave4`].
+#[inline(always)]
+fn interleave4(src: [&[i32]; 4], dst: &mut [i32]) {
+    let [s0, s1, s2, s3] = src;
+    let count = s0.len().min(s1.len()).min(s2.len()).min(s3.len()).min(dst.len() / 4);
+    let whole = count / 4 * 4;
+    let srcs = s0[..whole].chunks_exact(4).zip(s1[..whole].chunks_exact(4));
+    let srcs = srcs.zip(s2[..whole].chunks_exact(4).zip(s3[..whole].chunks_exact(4)));
+    for (d, ((a, b), (c, e))) in dst.chunks_exact_mut(16).zip(srcs) {
+        d.copy_from_slice(&[
+            a[0], b[0], c[0], e[0], a[1], b[1], c[1], e[1], a[2], b[2], c[2], e[2], a[3], b[3], c[3], e[3],
+        ]);
+    }
+    for w in whole..count {
+        dst[4 * w..4 * w + 4].copy_from_slice(&[s0[w], s1[w], s2[w], s3[w]]);
     }
 }
 
@@ -1168,13 +1209,9 @@ pub fn inverse_band_rows(
             }
         }
         run_lanes(cm, n, dw, ipct4x4_g);
-        let rows: [&[i32]; 16] = std::array::from_fn(|k| &cm[k * n..][..dw]);
-        for (j, quad) in rows.chunks_exact(4).enumerate() {
-            let row = &mut data[((y - b0) * 4 + j) * width..][..width];
-            let samples = quad[0].iter().zip(quad[1]).zip(quad[2].iter().zip(quad[3]));
-            for (px, ((&a, &b), (&c, &d))) in row.chunks_exact_mut(4).zip(samples) {
-                px.copy_from_slice(&[a, b, c, d]);
-            }
+        for (j, quad) in cm.chunks_exact(4 * n).enumerate() {
+            let rows: [&[i32]; 4] = std::array::from_fn(|i| &quad[i * n..][..dw]);
+            interleave4(rows, &mut data[((y - b0) * 4 + j) * width..][..width]);
         }
     }
     // The stage-1 POT of every seam from the band's top row to its bottom row.
