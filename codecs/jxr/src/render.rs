@@ -215,7 +215,8 @@ fn decode_impl(
     let prim_params = params(primary.scaled);
     let alpha_params = params(alpha_scaled);
     // Working memory: the window (band + halo of coefficient rows), the next band's rows
-    // being decoded meanwhile, and the band's samples.
+    // being decoded meanwhile, the samples of two bands (one being transformed, the one
+    // before it being formatted) and a band of formatted rows.
     let band = transform::BAND_MB_ROWS;
     let coeff_rows = 2 * band + 5;
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
@@ -247,6 +248,55 @@ fn decode_impl(
     // the band before (fresh allocations of this size cost page faults and zeroing).
     let mut spare_rows: Vec<Fetched> = Vec::new();
     let mut spare_samples: Vec<BandScratch> = Vec::new();
+    // The image rows of the band starting at macroblock row r0 (inside the window's margins).
+    let band_rows = |r0: usize| {
+        let (y_start, y_end) = ((r0 * 16).max(top), ((r0 + band).min(mb_h) * 16).min(top + height));
+        (y_start, y_end.saturating_sub(y_start))
+    };
+    // A band's rows in the pixel format's bytes. Full-resolution channels are read where the
+    // transform left them; subsampled chroma is upsampled into a row of its own (4:2:0: from
+    // the band's chroma rows and the next band's first macroblock row).
+    let out = &out;
+    let format_band = |t: &Transformed, full: &mut [Vec<i32>], raw_band: &mut Vec<u8>| -> Result<()> {
+        let (y_start, rows) = band_rows(t.r0);
+        raw_band.resize(rows * raw_row, 0);
+        let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
+        for (i, raw) in raw_band.chunks_exact_mut(raw_row.max(1)).enumerate().take(rows) {
+            let local = y_start + i - t.r0 * 16;
+            for (ch, p) in t.planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
+                upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
+            }
+            let channels: Vec<&[i32]> = t
+                .planes
+                .iter()
+                .zip(full.iter())
+                .enumerate()
+                .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
+                .collect();
+            let a = t.alpha.as_ref().map(|p| &p.row(local)[left..]);
+            out.format_row(&channels, a, width, raw)?;
+        }
+        Ok(())
+    };
+    // Hands a formatted band to the caller: raw rows, and linear f32 rows to the sink.
+    let mut deliver = |t: &Transformed, raw_band: &[u8]| -> Result<()> {
+        let (y_start, rows) = band_rows(t.r0);
+        if rows == 0 {
+            return Ok(());
+        }
+        let y0 = (y_start - top) as u32;
+        let raws = raw_band.chunks_exact(raw_row.max(1)).take(rows);
+        for (i, raw) in raws.clone().enumerate() {
+            raw_rows(y0 as usize + i, raw)?;
+        }
+        if let Some(s) = sink.as_deref_mut() {
+            fill_rows(s, y0, rows as u32, row_len, &mut scratch, |dst: &mut [f32]| {
+                raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
+            })?;
+        }
+        Ok(())
+    };
+    let mut transformed: Option<Transformed> = None;
     let mut decoded = need(band.min(mb_h));
     let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded, &mut spare_rows)?;
     for r0 in (0..mb_h).step_by(band) {
@@ -254,12 +304,9 @@ fn decode_impl(
         let next = need((r1 + band).min(mb_h));
         let rows_in = std::mem::take(&mut pending);
         let mut sample_bufs = std::mem::take(&mut spare_samples);
-        let (win_ref, completer_ref, full_ref, raw_ref) = (&mut win, &mut completer, &mut full, &mut raw_band);
-        let (prim_params, alpha_params, out_ref) = (&prim_params, &alpha_params, &out);
-        // The image rows of the band (inside the window's margins).
-        let (y_start, y_end) = ((r0 * 16).max(top), (r1 * 16).min(top + height));
-        let band_rows = y_end.saturating_sub(y_start);
-        let transform_all = move || -> Result<(Vec<BandPlane>, Option<BandPlane>, Vec<Fetched>)> {
+        let (win_ref, completer_ref) = (&mut win, &mut completer);
+        let (prim_params, alpha_params) = (&prim_params, &alpha_params);
+        let transform_all = move || -> Result<(Transformed, Vec<Fetched>)> {
             // The rows this band needs: completed (flexbits) and appended to the window.
             let mut dropped = Vec::new();
             win_ref.drop_before(r0.saturating_sub(2), &mut dropped);
@@ -289,55 +336,58 @@ fn decode_impl(
             } else {
                 None
             };
-            // The band's rows, formatted. Full-resolution channels are read where the
-            // transform left them; subsampled chroma is upsampled into a row of its own (4:2:0:
-            // from the band's chroma rows and the next band's first macroblock row).
-            raw_ref.resize(band_rows * raw_row, 0);
-            let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
-            for (i, raw) in raw_ref.chunks_exact_mut(raw_row.max(1)).enumerate().take(band_rows) {
-                let local = y_start + i - r0 * 16;
-                for (ch, p) in planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
-                    upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full_ref[ch])?;
-                }
-                let rows: Vec<&[i32]> = planes
-                    .iter()
-                    .zip(full_ref.iter())
-                    .enumerate()
-                    .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
-                    .collect();
-                let a = alpha.as_ref().map(|p| &p.row(local)[left..]);
-                out_ref.format_row(&rows, a, width, raw)?;
-            }
-            Ok((planes, alpha, dropped))
+            Ok((Transformed { r0, planes, alpha, spare: sample_bufs }, dropped))
         };
+        // Thread A entropy-decodes the next band's rows and formats the band before this one
+        // (thread B transforms this one meanwhile): the two halves of the work about even.
         let count = next - decoded;
         let spare = &mut spare_rows;
-        let mut fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare);
-        let (fetched, transformed) = if options.pool.is_parallel() && count > 0 {
+        let previous = transformed.take();
+        let (full_ref, raw_ref) = (&mut full, &mut raw_band);
+        let fetch_next = || -> Result<(Vec<Fetched>, Option<Transformed>)> {
+            let rows = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare)?;
+            if let Some(t) = &previous {
+                format_band(t, full_ref, raw_ref)?;
+            }
+            Ok((rows, previous))
+        };
+        let (fetched, this_band) = if options.pool.is_parallel() && count > 0 {
             options.pool.install(|| rayon::join(fetch_next, transform_all))
         } else {
             (fetch_next(), transform_all())
         };
-        pending = fetched?;
+        let (rows, previous) = fetched?;
+        pending = rows;
         decoded = next;
-        let (planes, alpha_plane, dropped) = transformed?;
+        let (this_band, dropped) = this_band?;
         spare_rows.extend(dropped);
-        // Output rows: the band's rows inside the window.
-        if band_rows > 0 {
-            let y0 = (y_start - top) as u32;
-            let raws = raw_band.chunks_exact(raw_row.max(1)).take(band_rows);
-            for (i, raw) in raws.clone().enumerate() {
-                raw_rows(y0 as usize + i, raw)?;
-            }
-            if let Some(s) = sink.as_deref_mut() {
-                fill_rows(s, y0, band_rows as u32, row_len, &mut scratch, |dst: &mut [f32]| {
-                    raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
-                })?;
-            }
+        if let Some(t) = previous {
+            deliver(&t, &raw_band)?;
+            spare_samples.extend(t.into_buffers());
         }
-        spare_samples.extend(planes.into_iter().chain(alpha_plane).map(|p| p.scratch));
+        transformed = Some(this_band);
+    }
+    if let Some(t) = transformed.take() {
+        format_band(&t, &mut full, &mut raw_band)?;
+        deliver(&t, &raw_band)?;
     }
     Ok(())
+}
+
+/// A band after the inverse transform: its first macroblock row, each channel's samples, and
+/// the sample buffers it did not use.
+struct Transformed {
+    r0: usize,
+    planes: Vec<BandPlane>,
+    alpha: Option<BandPlane>,
+    spare: Vec<BandScratch>,
+}
+
+impl Transformed {
+    /// Every sample buffer, for the next bands.
+    fn into_buffers(self) -> impl Iterator<Item = BandScratch> {
+        self.planes.into_iter().chain(self.alpha).map(|p| p.scratch).chain(self.spare)
+    }
 }
 
 /// One macroblock row as the entropy decoders give it: the primary codestream's planes
