@@ -16,7 +16,9 @@
 //! primaries, 1.0 = 80 nits) and the integer formats sRGB-encoded (linearised when decoded to
 //! `f32`, reference white 80 nits as sRGB's reference display). See the `colour` module.
 
-#![forbid(unsafe_code)]
+// Unsafe code is confined to calling the AVX2 twin of a portable function after checking
+// that the CPU has AVX2 (`transform::inverse_band_rows`).
+#![deny(unsafe_code)]
 
 mod bits;
 mod colour;

@@ -8,7 +8,7 @@ use crate::header;
 use crate::header::ClrFmt;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
 use crate::tiles::MbSide;
-use crate::transform::{self, BandScratch, HardEdges, MbRows, OverlapMode, PlaneKind, TransformParams};
+use crate::transform::{self, BandRequest, BandScratch, HardEdges, MbRows, OverlapMode, PlaneKind, TransformParams};
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 use std::collections::VecDeque;
@@ -470,7 +470,8 @@ fn transform_band(
     let k = kind(fmt, ch);
     let (bx, by) = k.blocks();
     let (width, height) = (bx * 4 * mb_w, by * 4 * rows.len());
-    let start = transform::inverse_band_rows(params, k, ch, mb_w, mb_h, src, rows, &mut scratch)?;
+    let request = BandRequest { params, kind: k, channel: ch, mb_w, mb_h, coeffs: src, rows };
+    let start = transform::inverse_band_rows(&request, &mut scratch)?;
     Ok(BandPlane { width, height, start, scratch })
 }
 

@@ -511,6 +511,7 @@ fn pct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     out
 }
 
+#[inline(always)]
 fn ipct4x4(c: &mut [i32; 16]) {
     *c = ipct4x4_g(c.map(S)).map(|v| v.0);
 }
@@ -688,21 +689,27 @@ fn on<const N: usize>(p: &mut [i32], i: [usize; N], f: impl Fn([S; N]) -> [S; N]
     store(p, i, f(v));
 }
 
+#[inline(always)]
 fn post4(p: &mut [i32], i: [usize; 4]) {
     on(p, i, post4_g);
 }
+#[inline(always)]
 fn pre4(p: &mut [i32], i: [usize; 4]) {
     on(p, i, pre4_g);
 }
+#[inline(always)]
 fn post2x2(p: &mut [i32], i: [usize; 4]) {
     on(p, i, post2x2_g);
 }
+#[inline(always)]
 fn pre2x2(p: &mut [i32], i: [usize; 4]) {
     on(p, i, pre2x2_g);
 }
+#[inline(always)]
 fn post2(p: &mut [i32], i: [usize; 2]) {
     on(p, i, post2_g);
 }
+#[inline(always)]
 fn pre2(p: &mut [i32], i: [usize; 2]) {
     on(p, i, pre2_g);
 }
@@ -742,7 +749,7 @@ fn regions(hard: Option<&HardEdges>, mb_w: usize, mb_h: usize, unit_x: usize, un
 }
 
 /// Which direction the POT runs.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Dir {
     Inverse,
     Forward,
@@ -755,22 +762,24 @@ fn scratch_stride(count: usize) -> usize {
     count.next_multiple_of(LANES) + LANES
 }
 
-/// Runs `f` on the first `count` columns of `cm`, a coefficient-major scratch of 16 rows of
-/// `n` values ([`scratch_stride`]): row `k` holds input `k` of every window or block. The
+/// Runs `$f` on the first `$count` columns of `$cm`, a coefficient-major scratch of 16 rows
+/// of `$n` values ([`scratch_stride`]): row `k` holds input `k` of every window or block. The
 /// gather into `cm` and the scatter out of it are separate passes, so the vector loads here
-/// never wait on the scalar stores that filled them.
-#[inline(always)]
-fn run_lanes(cm: &mut [i32], n: usize, count: usize, f: impl Fn([V; 16]) -> [V; 16]) {
-    for x in (0..count).step_by(LANES) {
-        let v: [V; 16] = std::array::from_fn(|k| {
-            let mut l = [0; LANES];
-            l.copy_from_slice(&cm[k * n + x..k * n + x + LANES]);
-            V(l)
-        });
-        for (k, r) in f(v).into_iter().enumerate() {
-            cm[k * n + x..k * n + x + LANES].copy_from_slice(&r.0);
+/// never wait on the scalar stores that filled them. A macro rather than a function taking
+/// `impl Fn`, so that `$f` is a direct call, inlined into the AVX2 twins with everything else.
+macro_rules! run_lanes {
+    ($cm:expr, $n:expr, $count:expr, $f:path) => {{
+        let (cm, n, count): (&mut [i32], usize, usize) = ($cm, $n, $count);
+        for x in (0..count).step_by(LANES) {
+            let mut v = [V([0; LANES]); 16];
+            for (k, lane) in v.iter_mut().enumerate() {
+                lane.0.copy_from_slice(&cm[k * n + x..k * n + x + LANES]);
+            }
+            for (k, r) in $f(v).into_iter().enumerate() {
+                cm[k * n + x..k * n + x + LANES].copy_from_slice(&r.0);
+            }
         }
-    }
+    }};
 }
 
 /// Rows `y_base..` of a plane: `data[(y - y_base) * stride + x]` is sample `(x, y)`.
@@ -820,7 +829,29 @@ fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
 
 /// The 4×4 windows centred on `(x, y)` for `x = r.x0 + 4, r.x0 + 8, … < r.x1`: gathered into
 /// a coefficient-major scratch, filtered [`LANES`] at a time, scattered back.
+#[allow(unsafe_code)]
 fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
+    #[cfg(target_arch = "x86_64")]
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+        return unsafe { pot4_interior_row_avx2(p, r, y, dir, cm) };
+    }
+    pot4_interior_row_portable(p, r, y, dir, cm)
+}
+
+/// [`pot4_interior_row_portable`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn pot4_interior_row_avx2(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
+    pot4_interior_row_portable(p, r, y, dir, cm)
+}
+
+#[inline(always)]
+fn pot4_interior_row_portable(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
     let count = ((r.x1 - r.x0) / 4).saturating_sub(1);
     if count == 0 {
         return;
@@ -835,8 +866,8 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
         deinterleave4(&p.data[top + j * stride..][..4 * count], [a, b, c, d]);
     }
     match dir {
-        Dir::Inverse => run_lanes(cm, n, count, post4x4_g),
-        Dir::Forward => run_lanes(cm, n, count, pre4x4_g),
+        Dir::Inverse => run_lanes!(cm, n, count, post4x4_g),
+        Dir::Forward => run_lanes!(cm, n, count, pre4x4_g),
     }
     for (j, quad) in cm.chunks_exact(4 * n).enumerate() {
         let rows: [&[i32]; 4] = std::array::from_fn(|i| &quad[i * n..][..count]);
@@ -845,6 +876,7 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
 }
 
 /// The first `count` values of each of the four rows of `n` in `quad`.
+#[inline(always)]
 fn four_rows(quad: &mut [i32], n: usize, count: usize) -> [&mut [i32]; 4] {
     let mut rows = quad.chunks_exact_mut(n).map(|r| &mut r[..count]);
     std::array::from_fn(|_| rows.next().unwrap_or_default())
@@ -941,6 +973,7 @@ fn pot2_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
 
 /// The stage-2 inverse PCT of one macroblock: `c` (DC, LP...) to the block DCs in raster order
 /// of the macroblock's blocks (16, 4 or 8 values in `out`).
+#[inline(always)]
 fn stage2_inverse(kind: PlaneKind, double: bool, c: &MbCoeffs, out: &mut [i32; 16]) {
     let n = match kind {
         PlaneKind::Full => {
@@ -1063,7 +1096,8 @@ pub fn inverse_band(
     let row_slices: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|r| r.as_flattened()).collect();
     let source = MbRows::new(&row_slices, coeffs_first_row, MB_COEFFS, 0);
     let mut scratch = BandScratch::default();
-    let start = inverse_band_rows(params, kind, channel, mb_w, mb_h, &source, rows, &mut scratch)?;
+    let request = BandRequest { params, kind, channel, mb_w, mb_h, coeffs: &source, rows };
+    let start = inverse_band_rows(&request, &mut scratch)?;
     let band = &scratch.data[start..];
     out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
     Ok(())
@@ -1114,19 +1148,58 @@ pub struct BandScratch {
     pub data: Vec<i32>,
 }
 
+/// One band of one channel to inverse-transform: what [`inverse_band_rows`] needs besides
+/// its buffers (the arguments of [`inverse_band`], with the coefficients in rows).
+#[derive(Clone, Debug)]
+pub struct BandRequest<'a> {
+    /// The transform's parameters.
+    pub params: &'a TransformParams,
+    /// The channel's sampling.
+    pub kind: PlaneKind,
+    /// The channel's index (channels after the first are doubled in scaled arithmetic).
+    pub channel: usize,
+    /// Macroblocks across.
+    pub mb_w: usize,
+    /// Macroblocks down.
+    pub mb_h: usize,
+    /// The coefficients: rows `rows.start − 2 .. rows.end + 2` (clipped to the image).
+    pub coeffs: &'a MbRows<'a>,
+    /// The macroblock rows of the band.
+    pub rows: Range<usize>,
+}
+
 /// [`inverse_band`] over coefficients in rows of their own, into `scratch`: returns where
 /// in `scratch.data` the band's first sample is (its rows follow, `W` samples each).
-#[allow(clippy::too_many_arguments)]
-pub fn inverse_band_rows(
-    params: &TransformParams,
-    kind: PlaneKind,
-    channel: usize,
-    mb_w: usize,
-    mb_h: usize,
-    coeffs: &MbRows,
-    rows: Range<usize>,
-    scratch: &mut BandScratch,
-) -> Result<usize> {
+///
+/// On x86-64 with AVX2 (as [`hdrcodec_core::cpu`] allows) this runs the same code compiled
+/// for AVX2, where the lanes of eight blocks or windows are one register; the results are
+/// the same (`avx2_twin_matches_the_portable_transform`).
+#[allow(unsafe_code)]
+pub fn inverse_band_rows(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
+    #[cfg(target_arch = "x86_64")]
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2 (detected once;
+        // `HDRCODEC_CPU` can only lower the level), the one feature the twin is compiled for.
+        return unsafe { inverse_band_rows_avx2(request, scratch) };
+    }
+    inverse_band_rows_portable(request, scratch)
+}
+
+/// [`inverse_band_rows_portable`] compiled for AVX2 (everything it calls is inlined into it).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn inverse_band_rows_avx2(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
+    inverse_band_rows_portable(request, scratch)
+}
+
+/// The portable body of [`inverse_band_rows`].
+#[inline(always)]
+fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
+    let BandRequest { params, kind, channel, mb_w, mb_h, coeffs, ref rows } = *request;
     let (width, _) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
@@ -1208,7 +1281,7 @@ pub fn inverse_band_rows(
                 }
             }
         }
-        run_lanes(cm, n, dw, ipct4x4_g);
+        run_lanes!(cm, n, dw, ipct4x4_g);
         for (j, quad) in cm.chunks_exact(4 * n).enumerate() {
             let rows: [&[i32]; 4] = std::array::from_fn(|i| &quad[i * n..][..dw]);
             interleave4(rows, &mut data[((y - b0) * 4 + j) * width..][..width]);
@@ -1323,6 +1396,64 @@ mod tests {
     /// Random samples of about `bits` bits, signed.
     fn sample(r: &mut impl FnMut() -> u64, bits: u32) -> i32 {
         (r() as i32) >> (32 - bits)
+    }
+
+    /// The AVX2 twins compute what the portable code computes, on random coefficients of
+    /// every plane kind, overlap mode and tiling (CI also runs every decoder test with
+    /// `HDRCODEC_CPU=scalar`, against jxrlib's samples).
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn avx2_twin_matches_the_portable_transform() {
+        use hdrcodec_core::cpu::{self, CpuLevel};
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "avx2_twin_matches_the_portable_transform") {
+            return;
+        }
+        let mut r = rng(31);
+        let (mb_w, mb_h) = (7, 5);
+        let coeffs: Vec<MbCoeffs> = (0..mb_w * mb_h).map(|_| std::array::from_fn(|_| sample(&mut r, 14))).collect();
+        let rows: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|c| c.as_flattened()).collect();
+        let source = MbRows::new(&rows, 0, MB_COEFFS, 0);
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+                for hard in [None, Some(HardEdges::from_tiles(&[3], &[2], true))] {
+                    let params = TransformParams { overlap, scaled: true, hard };
+                    for band in [0..mb_h, 1..3, 4..5] {
+                        let (mut a, mut b) = (BandScratch::default(), BandScratch::default());
+                        let request = BandRequest {
+                            params: &params,
+                            kind,
+                            channel: 1,
+                            mb_w,
+                            mb_h,
+                            coeffs: &source,
+                            rows: band.clone(),
+                        };
+                        let sa = inverse_band_rows_portable(&request, &mut a);
+                        // SAFETY: the CPU has AVX2 (checked above).
+                        let sb = unsafe { inverse_band_rows_avx2(&request, &mut b) };
+                        assert_eq!(sa.unwrap(), sb.unwrap());
+                        assert_eq!(a.data, b.data, "{kind:?} {overlap:?} {band:?}");
+                    }
+                }
+            }
+        }
+        // The stage-1 overlap filter's own twin, on a plane of random samples.
+        for dir in [Dir::Inverse, Dir::Forward] {
+            let (w, h) = (16 * mb_w, 16 * mb_h);
+            let plane: Vec<i32> = (0..w * h).map(|_| sample(&mut r, 16)).collect();
+            let (mut a, mut b) = (plane.clone(), plane);
+            let rect = Rect { x0: 0, x1: w, y0: 0, y1: h };
+            let (mut ca, mut cb) = (Vec::new(), Vec::new());
+            for y in (4..h).step_by(4) {
+                pot4_interior_row_portable(&mut Rows { data: &mut a, stride: w, y_base: 0 }, rect, y, dir, &mut ca);
+                // SAFETY: the CPU has AVX2 (checked above).
+                unsafe {
+                    pot4_interior_row_avx2(&mut Rows { data: &mut b, stride: w, y_base: 0 }, rect, y, dir, &mut cb)
+                };
+            }
+            assert_eq!(a, b, "{dir:?}");
+        }
     }
 
     #[test]
