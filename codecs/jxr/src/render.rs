@@ -9,7 +9,7 @@ use crate::header::ClrFmt;
 use crate::mb::MbCoeffs;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
 use crate::tiles::MbSide;
-use crate::transform::{self, HardEdges, OverlapMode, PlaneKind, TransformParams};
+use crate::transform::{self, HardEdges, OperatorSet, OverlapMode, PlaneKind, TransformParams};
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 
@@ -153,7 +153,9 @@ fn decode_impl(
         let rows: Vec<usize> = img.tile_y0().iter().map(|&v| v as usize).collect();
         HardEdges::from_tiles(&cols[..cols.len() - 1], &rows[..rows.len() - 1], true)
     });
-    let params = |scaled: bool| TransformParams { overlap, scaled, hard: hard.clone() };
+    // The operators follow each codestream's sub-version (HD Photo 1.0: the legacy set).
+    let params =
+        |scaled: bool, operators: OperatorSet| TransformParams { overlap, scaled, hard: hard.clone(), operators };
     // The decoders: the primary's (which also gives an interleaved alpha plane), the planar
     // alpha codestream's; and the windows of coefficients each channel's transform reads.
     let mut prim_dec = RowDecoder::new(&cs, container.image, options)?;
@@ -167,8 +169,13 @@ fn decode_impl(
         _ => None,
     };
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
-    let prim_params = params(primary.scaled);
-    let alpha_params = params(alpha_scaled);
+    let prim_params = params(primary.scaled, OperatorSet::for_plane(img.sub_version, primary)?);
+    let alpha_ops = match (&cs.alpha, &planar_cs) {
+        (Some(a), _) if with_alpha => OperatorSet::for_plane(img.sub_version, a)?,
+        (None, Some(p)) if with_alpha => OperatorSet::for_plane(p.image.sub_version, &p.primary)?,
+        _ => OperatorSet::JpegXr,
+    };
+    let alpha_params = params(alpha_scaled, alpha_ops);
     // Working memory: the windows (band + halo of coefficients) and the band's samples.
     let band = transform::BAND_MB_ROWS;
     let window_rows = band + 5;

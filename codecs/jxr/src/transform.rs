@@ -29,6 +29,12 @@
 //! windows is independent. With hard tiles each tile is treated as an image of its own.
 //!
 //! All arithmetic wraps like jxrlib's 32-bit C, so no input makes it panic.
+//!
+//! HD Photo 1.0 codestreams (sub-version 0) use older overlap operators, a DC-leakage clamp
+//! and no corner operators: [`OperatorSet::HdPhoto`], implemented in the `legacy` submodule.
+
+mod legacy;
+pub use legacy::DcLeakage;
 
 use crate::mb::{hp, lp, MbCoeffs, DC, MB_COEFFS};
 use hdrcodec_core::{Error, Result};
@@ -227,17 +233,34 @@ impl HardEdges {
 
 /// Checks that the transform implements the operator set of a codestream's sub-version (the
 /// 4 bits jxrlib reads as HARD_TILING_FLAG and RESERVED_C, JXR-NOTES §2 and §6): 1 (soft
-/// tiles) and 9 (hard tiles) use the JPEG XR operators implemented here; 0 (HD Photo 1.0,
-/// `.wdp`/`.hdp` files from Vista-era WIC) uses jxrlib's legacy `invTransformMacroblock`
-/// operators with DC-leakage compensation, which are not implemented; jxrlib refuses every
-/// other value.
+/// tiles) and 9 (hard tiles) use the JPEG XR operators; 0 (HD Photo 1.0, `.wdp`/`.hdp` files
+/// from Vista-era WIC) uses jxrlib's legacy operators ([`OperatorSet::HdPhoto`]); jxrlib
+/// refuses every other value.
 pub fn check_operator_set(sub_version: u8) -> Result<()> {
     match sub_version {
-        1 | 9 => Ok(()),
-        0 => Err(Error::unsupported(
-            "HD Photo 1.0 codestreams (sub-version 0, the legacy transform operators of .wdp/.hdp files)",
-        )),
+        0 | 1 | 9 => Ok(()),
         v => Err(Error::invalid(format!("codestream sub-version {v} (jxrlib accepts 0, 1 and 9)"))),
+    }
+}
+
+/// Which overlap operators a plane's inverse transform uses.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum OperatorSet {
+    /// JPEG XR's (T.832; codestream sub-versions 1 and 9).
+    JpegXr,
+    /// HD Photo 1.0's (sub-version 0; jxrlib's `invTransformMacroblock`), with the plane's
+    /// DC-leakage clamp parameters.
+    HdPhoto(DcLeakage),
+}
+
+impl OperatorSet {
+    /// The operator set of a plane of a codestream of sub-version `sub_version`.
+    pub fn for_plane(sub_version: u8, plane: &crate::header::PlaneHeader) -> Result<Self> {
+        check_operator_set(sub_version)?;
+        Ok(match sub_version {
+            0 => OperatorSet::HdPhoto(DcLeakage::for_plane(plane)?),
+            _ => OperatorSet::JpegXr,
+        })
     }
 }
 
@@ -250,6 +273,8 @@ pub struct TransformParams {
     pub scaled: bool,
     /// `Some` for hard tiles.
     pub hard: Option<HardEdges>,
+    /// The overlap operators (by codestream sub-version).
+    pub operators: OperatorSet,
 }
 
 /// One channel's samples after the inverse transform: `width × height` (the extended size,
@@ -1016,6 +1041,13 @@ pub fn inverse_band(
     rows: Range<usize>,
     out: &mut [i32],
 ) -> Result<()> {
+    if let OperatorSet::HdPhoto(leak) = &params.operators {
+        if params.hard.is_some() {
+            return Err(Error::invalid("hard tiles with HD Photo operators (jxrlib has none)"));
+        }
+        let (o, s) = (params.overlap, params.scaled);
+        return legacy::inverse_band(o, s, leak, kind, channel, mb_w, mb_h, coeffs, coeffs_first_row, rows, out);
+    }
     let (width, _) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
@@ -1154,6 +1186,9 @@ pub fn forward_plane(
     mb_h: usize,
     plane: &Plane,
 ) -> Result<Vec<MbCoeffs>> {
+    if params.operators != OperatorSet::JpegXr {
+        return Err(Error::unsupported("the forward transform with HD Photo operators"));
+    }
     let (width, height) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
     if plane.width != width || plane.height != height || plane.data.len() != width * height {
@@ -1276,7 +1311,12 @@ mod tests {
                 for hard in &edges {
                     for &(mb_w, mb_h) in &grids {
                         for bits in [9, 17] {
-                            let params = TransformParams { overlap, scaled: false, hard: hard.clone() };
+                            let params = TransformParams {
+                                overlap,
+                                scaled: false,
+                                hard: hard.clone(),
+                                operators: OperatorSet::JpegXr,
+                            };
                             let plane = random_plane(&mut r, kind, mb_w, mb_h, bits);
                             let coeffs = forward_plane(&params, kind, 1, mb_w, mb_h, &plane).unwrap();
                             let back = inverse_plane(&params, kind, 1, mb_w, mb_h, &coeffs).unwrap();
@@ -1295,7 +1335,8 @@ mod tests {
     fn scaled_chroma_doubles_the_block_dcs() {
         // With DC and LP only, a scaled chroma channel decodes to twice the unscaled stage-2
         // output; channel 0 is not doubled.
-        let params = |scaled| TransformParams { overlap: OverlapMode::None, scaled, hard: None };
+        let params =
+            |scaled| TransformParams { overlap: OverlapMode::None, scaled, hard: None, operators: OperatorSet::JpegXr };
         let mut c = [0i32; MB_COEFFS];
         c[0] = 1000;
         c[3] = -77;
@@ -1319,6 +1360,7 @@ mod tests {
             overlap: OverlapMode::Two,
             scaled: false,
             hard: Some(HardEdges { columns: vec![2], rows: vec![] }),
+            operators: OperatorSet::JpegXr,
         };
         let soft = TransformParams { hard: None, ..hard.clone() };
         for params in [&hard, &soft] {
@@ -1330,7 +1372,8 @@ mod tests {
             assert_eq!(right_changed, params.hard.is_none(), "{params:?}");
         }
         // Overlap mode 0: a coefficient touches only its own macroblock.
-        let none = TransformParams { overlap: OverlapMode::None, scaled: false, hard: None };
+        let none =
+            TransformParams { overlap: OverlapMode::None, scaled: false, hard: None, operators: OperatorSet::JpegXr };
         let mut c = vec![[0i32; MB_COEFFS]; 4];
         c[0][hp(5, 3)] = 500;
         let out = inverse_plane(&none, PlaneKind::Full, 0, 2, 2, &c).unwrap();
@@ -1347,7 +1390,8 @@ mod tests {
 
     #[test]
     fn bad_geometry_is_an_error() {
-        let p = TransformParams { overlap: OverlapMode::One, scaled: false, hard: None };
+        let p =
+            TransformParams { overlap: OverlapMode::One, scaled: false, hard: None, operators: OperatorSet::JpegXr };
         assert!(inverse_plane(&p, PlaneKind::Full, 0, 2, 2, &[[0; MB_COEFFS]; 3]).is_err());
         assert!(inverse_plane(&p, PlaneKind::Full, 0, 0, 2, &[]).is_err());
         let plane = Plane { width: 16, height: 16, data: vec![0; 256] };
@@ -1357,7 +1401,7 @@ mod tests {
         c[5] = i32::MIN;
         for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
             for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
-                let p = TransformParams { overlap, scaled: true, hard: None };
+                let p = TransformParams { overlap, scaled: true, hard: None, operators: OperatorSet::JpegXr };
                 let _ = inverse_plane(&p, kind, 1, 2, 2, &[c; 4]).unwrap();
             }
         }
@@ -1417,7 +1461,8 @@ mod tests {
             InternalColorFormat::Yuv422 => PlaneKind::Chroma422,
             _ => PlaneKind::Full,
         };
-        let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
+        let params =
+            TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None, operators: OperatorSet::JpegXr };
         let planes: Vec<Plane> = (0..3)
             .map(|ch| {
                 let k = if ch == 0 { PlaneKind::Full } else { kind };
@@ -1444,7 +1489,8 @@ mod tests {
     fn matches_t835_on_grey_streams() {
         for name in ["gray_g_l0", "gray_g_l1", "gray_g_l2", "gray_gq_l0", "gray_gq_l1", "gray_gq_l2"] {
             let f = fixture(&format!("{name}.txt"));
-            let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
+            let params =
+                TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None, operators: OperatorSet::JpegXr };
             let plane = inverse_plane(&params, PlaneKind::Full, 0, f.mb_w, f.mb_h, &f.channels[0]).unwrap();
             let s = if f.scaled { 3 } else { 0 };
             let bias = (128 << s) + if f.scaled { 3 } else { 0 };
@@ -1506,7 +1552,12 @@ mod tests {
         let f = fixture("hard_gray.txt");
         for (swap, expected) in [(false, &f.expected), (true, f.expected_second.as_ref().unwrap())] {
             let hard = HardEdges::from_tiles(&[0, 1, 2], &[0, 1], swap);
-            let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: Some(hard) };
+            let params = TransformParams {
+                overlap: f.overlap,
+                scaled: f.scaled,
+                hard: Some(hard),
+                operators: OperatorSet::JpegXr,
+            };
             let plane = inverse_plane(&params, PlaneKind::Full, 0, f.mb_w, f.mb_h, &f.channels[0]).unwrap();
             let mut got = Vec::new();
             for y in 0..f.height {
@@ -1529,7 +1580,8 @@ mod tests {
         for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
             for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
                 for h in &hard {
-                    let params = TransformParams { overlap, scaled: true, hard: h.clone() };
+                    let params =
+                        TransformParams { overlap, scaled: true, hard: h.clone(), operators: OperatorSet::JpegXr };
                     let coeffs: Vec<MbCoeffs> =
                         (0..mb_w * mb_h).map(|_| std::array::from_fn(|_| sample(&mut r, 14))).collect();
                     let (width, height) = plane_size(kind, mb_w, mb_h).unwrap();
@@ -1617,8 +1669,7 @@ mod tests {
 
     #[test]
     fn operator_sets() {
-        assert!(check_operator_set(1).is_ok() && check_operator_set(9).is_ok());
-        assert!(matches!(check_operator_set(0), Err(Error::Unsupported { .. })));
+        assert!(check_operator_set(1).is_ok() && check_operator_set(9).is_ok() && check_operator_set(0).is_ok());
         assert!(matches!(check_operator_set(5), Err(Error::Invalid { .. })));
     }
 
@@ -1632,7 +1683,8 @@ mod tests {
         use crate::output::{AlphaParams, InternalColorFormat, OutputParams};
         let f = fixture("alpha_interleaved.txt");
         let pf = PIXEL_FORMATS.iter().find(|p| p.name == "32bppBGRA").unwrap();
-        let params = TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None };
+        let params =
+            TransformParams { overlap: f.overlap, scaled: f.scaled, hard: None, operators: OperatorSet::JpegXr };
         // T.835 logs the alpha plane's macroblocks first, then the primary channels.
         let plane = |i: usize| {
             inverse_plane(&params, PlaneKind::Full, i.saturating_sub(1), f.mb_w, f.mb_h, &f.channels[i]).unwrap()
