@@ -459,6 +459,11 @@ mod tests {
             let container = crate::container::parse_container(&file).unwrap();
             let at = container.image.as_ptr() as usize - file.as_ptr() as usize + 8;
             assert_eq!(file[at], 0x10, "{name}: version 1, sub-version 0");
+            // HD Photo's container version byte 0 changes nothing (jxrlib accepts 0 and 1).
+            let mut version0 = file.clone();
+            version0[3] = 0;
+            let raw = crate::decode_raw(&version0, &DecodeOptions::new(Limits::default())).unwrap();
+            assert_eq!(fnv(&raw), want, "{name} in a version 0 container");
             let mut jpeg_xr = file.clone();
             jpeg_xr[at] = 0x11;
             let raw = crate::decode_raw(&jpeg_xr, &DecodeOptions::new(Limits::default())).unwrap();
