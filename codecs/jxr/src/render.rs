@@ -169,10 +169,10 @@ fn decode_impl(
         _ => None,
     };
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
-    let prim_params = params(primary.scaled, OperatorSet::for_plane(img.sub_version, primary)?);
-    let alpha_ops = match (&cs.alpha, &planar_cs) {
-        (Some(a), _) if with_alpha => OperatorSet::for_plane(img.sub_version, a)?,
-        (None, Some(p)) if with_alpha => OperatorSet::for_plane(p.image.sub_version, &p.primary)?,
+    let prim_params = params(primary.scaled, OperatorSet::for_plane(&cs, container.image, 0, options)?);
+    let alpha_ops = match (&cs.alpha, &planar_cs, container.alpha) {
+        (Some(_), _, _) if with_alpha => OperatorSet::for_plane(&cs, container.image, 1, options)?,
+        (None, Some(p), Some(bytes)) if with_alpha => OperatorSet::for_plane(p, bytes, 0, options)?,
         _ => OperatorSet::JpegXr,
     };
     let alpha_params = params(alpha_scaled, alpha_ops);

@@ -254,11 +254,17 @@ pub enum OperatorSet {
 }
 
 impl OperatorSet {
-    /// The operator set of a plane of a codestream of sub-version `sub_version`.
-    pub fn for_plane(sub_version: u8, plane: &crate::header::PlaneHeader) -> Result<Self> {
-        check_operator_set(sub_version)?;
-        Ok(match sub_version {
-            0 => OperatorSet::HdPhoto(DcLeakage::for_plane(plane)?),
+    /// The operator set of plane `plane` (0 primary, 1 interleaved alpha) of the codestream
+    /// `data` whose headers are `cs` (see [`DcLeakage::for_codestream`]).
+    pub fn for_plane(
+        cs: &crate::header::Codestream,
+        data: &[u8],
+        plane: usize,
+        options: &hdrcodec_core::DecodeOptions,
+    ) -> Result<Self> {
+        check_operator_set(cs.image.sub_version)?;
+        Ok(match cs.image.sub_version {
+            0 => OperatorSet::HdPhoto(DcLeakage::for_codestream(cs, data, plane, options)?),
             _ => OperatorSet::JpegXr,
         })
     }

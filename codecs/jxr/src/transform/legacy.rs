@@ -29,15 +29,18 @@
 //! just decoded when it runs the window (the transform trails decoding by a macroblock), and
 //! for 4:2:0 and 4:2:2 chroma from the wrong channel: U looks at luma's HP step, V at U's
 //! (`pQuantizerHP[i]` with `i` counting chroma planes from 0). [`DcLeakage`] carries the step
-//! of each channel with that shift already applied; with image-uniform HP quantizers (what
-//! every known encoder writes) the macroblock does not matter.
+//! of each channel with that shift already applied. With image-uniform HP quantizers (what
+//! every known encoder writes) the macroblock does not matter; otherwise it holds the steps of
+//! every macroblock, from a first entropy-decoding pass, and each window looks up the
+//! macroblock jxrlib has just decoded when it runs that window (`clamp_step`).
 
 use super::{inv_rotate, inv_t_odd_odd_post, ipct4x4_g};
 use super::{plane_size, stage2_inverse, t2x2h, t2x2h_post, Lane, OverlapMode, PlaneKind, Rect, Rows, S};
-use crate::header::{ClrFmt, PlaneHeader, QpSource};
+use crate::header::{ClrFmt, Codestream, PlaneHeader, QpSource};
 use crate::mb::{hp, MbCoeffs};
-use hdrcodec_core::{Error, Result};
+use hdrcodec_core::{DecodeOptions, Error, Result};
 use std::ops::{Range, RangeInclusive};
+use std::sync::Arc;
 
 /// What the DC-leakage clamp of one plane needs (module docs).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -46,46 +49,103 @@ pub struct DcLeakage {
     /// interior stage-1 window.
     pub hp_absent: bool,
     /// Per channel index, the HP quantizer step the clamp compares with (jxrlib's, including
-    /// its chroma shift for 4:2:0 and 4:2:2). Unused when `hp_absent`.
+    /// its chroma shift for 4:2:0 and 4:2:2), when the HP quantizers are image-uniform.
     pub hp_step: Vec<i32>,
+    /// Otherwise the same per macroblock: `channels` steps for each macroblock, in raster
+    /// order (with the chroma shift applied).
+    pub per_mb: Option<Arc<[i32]>>,
+    /// Channels of the plane (the stride of `per_mb`).
+    pub channels: usize,
+}
+
+/// The channel whose HP step jxrlib's clamp of channel `ch` reads (module docs).
+fn step_source(fmt: ClrFmt, ch: usize) -> usize {
+    match fmt {
+        ClrFmt::Yuv420 | ClrFmt::Yuv422 => ch.saturating_sub(1),
+        _ => ch,
+    }
 }
 
 impl DcLeakage {
-    /// The clamp's parameters for a plane of a sub-version 0 codestream. Per-tile HP
-    /// quantizers are refused: the step would then change from macroblock to macroblock,
-    /// following jxrlib's decoding position, and no stream to check that against exists.
-    pub fn for_plane(plane: &PlaneHeader) -> Result<Self> {
-        let hp_absent = !plane.bands.has_hp();
-        let hp_step = match (hp_absent, plane.hp) {
-            (true, _) => Vec::new(),
-            (false, QpSource::Uniform(set)) => (0..plane.channels)
-                .map(|ch| {
-                    // jxrlib's chroma loops of 4:2:0 and 4:2:2 index the quantizers from 0.
-                    let src = match plane.clr_fmt {
-                        ClrFmt::Yuv420 | ClrFmt::Yuv422 => ch.saturating_sub(1),
-                        _ => ch,
-                    };
-                    crate::quant::step(set.index[src], plane.scaled, true)
-                })
-                .collect(),
-            (false, QpSource::PerTile) => {
-                return Err(Error::unsupported(
-                    "HD Photo 1.0 codestreams (sub-version 0) with HP quantizers set per tile",
-                ))
-            }
+    /// The clamp's parameters for plane `plane` (0 primary, 1 interleaved alpha) of the
+    /// sub-version 0 codestream `data` (headers `cs`). With HP quantizers set per tile, this
+    /// entropy-decodes the codestream once more to learn every macroblock's step (the map's
+    /// size checked against `options.limits`).
+    pub fn for_codestream(cs: &Codestream, data: &[u8], plane: usize, options: &DecodeOptions) -> Result<Self> {
+        let hdr = match plane {
+            0 => &cs.primary,
+            _ => cs.alpha.as_ref().ok_or_else(|| Error::invalid("JPEG XR: no alpha plane (a bug)"))?,
         };
-        Ok(DcLeakage { hp_absent, hp_step })
+        let channels = hdr.channels;
+        let hp_absent = !hdr.bands.has_hp();
+        let mut leak = DcLeakage { hp_absent, hp_step: Vec::new(), per_mb: None, channels };
+        match (hp_absent, hdr.hp) {
+            (true, _) => {}
+            (false, QpSource::Uniform(set)) => {
+                leak.hp_step = (0..channels)
+                    .map(|ch| crate::quant::step(set.index[step_source(hdr.clr_fmt, ch)], hdr.scaled, true))
+                    .collect();
+            }
+            (false, QpSource::PerTile) => leak.per_mb = Some(per_mb_steps(cs, data, plane, hdr, options)?),
+        }
+        Ok(leak)
     }
 
-    /// The step channel `ch` compares with (255 when there is no HP band, as in jxrlib, where
-    /// it is never read).
-    fn step(&self, ch: usize) -> i32 {
+    /// The step the clamp of channel `ch` compares with in the window jxrlib runs at its
+    /// position (`x`, `y`) (0 ..= `mb_w`, 0 ..= `mb_h`: one step past each edge). 255 without
+    /// HP, as in jxrlib, where it is never read.
+    fn step(&self, ch: usize, x: usize, y: usize, mb_w: usize, mb_h: usize) -> i32 {
         if self.hp_absent {
-            255
-        } else {
-            self.hp_step.get(ch).copied().unwrap_or(255)
+            return 255;
+        }
+        let Some(map) = &self.per_mb else { return self.hp_step.get(ch).copied().unwrap_or(255) };
+        // jxrlib reads the macroblock it decoded last: at the extra column, the row's last;
+        // on the extra row, the image's last.
+        let mb = if y < mb_h { y * mb_w + x.min(mb_w - 1) } else { mb_w * mb_h - 1 };
+        map.get(mb * self.channels + ch).copied().unwrap_or(255)
+    }
+}
+
+/// Every macroblock's HP steps of plane `plane` (channels inner, with the chroma shift), by
+/// entropy-decoding every tile.
+fn per_mb_steps(
+    cs: &Codestream,
+    data: &[u8],
+    plane: usize,
+    hdr: &PlaneHeader,
+    options: &DecodeOptions,
+) -> Result<Arc<[i32]>> {
+    let (mb_w, mb_h) = (cs.image.mb_width as usize, cs.image.mb_height as usize);
+    let n = mb_w * mb_h * hdr.channels;
+    let _charge = options.limits.charge(n as u64 * 4, "the HD Photo HP quantizer map")?;
+    let mut map = vec![0i32; n];
+    let strides: Vec<usize> =
+        std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).map(|p| p.channels * crate::mb::MB_COEFFS).collect();
+    let mut steps = Vec::new();
+    for ty in 0..cs.image.tile_heights.len() {
+        for tx in 0..cs.image.tile_widths.len() {
+            let (x0, y0, w, h) = crate::tiles::tile_rect(cs, tx, ty);
+            let (x0, y0, w) = (x0 as usize, y0 as usize, w as usize);
+            let mut tile = crate::tiles::TileDecoder::new(cs, data, tx, ty)?;
+            let mut bufs: Vec<Vec<i32>> = strides.iter().map(|s| vec![0; w * s]).collect();
+            for r in 0..h as usize {
+                let mut rows: Vec<&mut [i32]> = bufs.iter_mut().map(|b| &mut b[..]).collect();
+                tile.next_row(&mut rows)?;
+                steps.clear();
+                tile.last_row_hp_steps(plane, &mut steps)?;
+                let c = hdr.channels;
+                let row = map
+                    .get_mut(((y0 + r) * mb_w + x0) * c..((y0 + r) * mb_w + x0 + w) * c)
+                    .ok_or_else(|| Error::invalid("JPEG XR: tiles outside the image"))?;
+                for (dst, src) in row.chunks_exact_mut(c).zip(steps.chunks_exact(c)) {
+                    for (ch, d) in dst.iter_mut().enumerate() {
+                        *d = src[step_source(hdr.clr_fmt, ch)];
+                    }
+                }
+            }
         }
     }
+    Ok(map.into())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -221,7 +281,8 @@ fn post2x2_hdp<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
 trait Pattern {
     /// Grid pitch: 4 (4×4 windows, 4-point seams) or 2 (2×2, 2-point).
     const PITCH: usize;
-    fn window(&self, p: &mut [i32], i: &[usize]);
+    /// The window centred on grid corner (`x`, `y`) (plane samples), its samples at `i`.
+    fn window(&self, p: &mut [i32], i: &[usize], x: usize, y: usize);
     fn seam(&self, p: &mut [i32], i: &[usize]);
 }
 
@@ -239,7 +300,7 @@ fn on_slice<const N: usize>(p: &mut [i32], i: &[usize], f: impl Fn([S; N]) -> [S
 struct Stage2Full;
 impl Pattern for Stage2Full {
     const PITCH: usize = 4;
-    fn window(&self, p: &mut [i32], i: &[usize]) {
+    fn window(&self, p: &mut [i32], i: &[usize], _: usize, _: usize) {
         on_slice::<16>(p, i, post4x4_hdp);
     }
     fn seam(&self, p: &mut [i32], i: &[usize]) {
@@ -251,7 +312,7 @@ impl Pattern for Stage2Full {
 struct Stage2Chroma;
 impl Pattern for Stage2Chroma {
     const PITCH: usize = 2;
-    fn window(&self, p: &mut [i32], i: &[usize]) {
+    fn window(&self, p: &mut [i32], i: &[usize], _: usize, _: usize) {
         on_slice::<4>(p, i, post2x2_hdp);
     }
     fn seam(&self, p: &mut [i32], i: &[usize]) {
@@ -260,16 +321,30 @@ impl Pattern for Stage2Chroma {
 }
 
 /// Stage 1 of every plane: 4×4 windows followed by the DC-leakage clamp, 4-point seams.
-struct Stage1 {
-    qp: i32,
-    hp_absent: bool,
+struct Stage1<'a> {
+    leak: &'a DcLeakage,
+    kind: PlaneKind,
+    channel: usize,
+    mb_w: usize,
+    mb_h: usize,
 }
-impl Pattern for Stage1 {
+impl Pattern for Stage1<'_> {
     const PITCH: usize = 4;
-    fn window(&self, p: &mut [i32], i: &[usize]) {
+    fn window(&self, p: &mut [i32], i: &[usize], x: usize, y: usize) {
+        // jxrlib's position (X, Y) when it runs this window: after decoding macroblock (X, Y)
+        // it filters the block corners around that macroblock's top-left corner: columns
+        // 4X − 2 ..= 4X + 1 (in blocks; 4:2:0 and 4:2:2 chroma 2X − 1, 2X), rows likewise
+        // (4:2:0 2Y − 1, 2Y; 4:2:2 4Y − 1 ..= 4Y + 2).
+        let (cx, cy) = (x / 4, y / 4);
+        let (mx, my) = match self.kind {
+            PlaneKind::Full => ((cx + 2) / 4, (cy + 2) / 4),
+            PlaneKind::Chroma420 => (cx.div_ceil(2), cy.div_ceil(2)),
+            PlaneKind::Chroma422 => (cx.div_ceil(2), (cy + 1) / 4),
+        };
+        let qp = self.leak.step(self.channel, mx, my, self.mb_w, self.mb_h);
         on_slice::<16>(p, i, |v| {
             let mut w = post4x4_hdp(v);
-            clamp_dc_leakage(&mut w, self.qp, self.hp_absent);
+            clamp_dc_leakage(&mut w, qp, self.leak.hp_absent);
             w
         });
     }
@@ -292,7 +367,7 @@ fn pot_region<P: Pattern>(op: &P, p: &mut Rows, r: Rect, keys: &RangeInclusive<u
             for yy in y - half..y + half {
                 idx.extend((x - half..x + half).map(|xx| p.at(xx, yy)));
             }
-            op.window(p.data, &idx);
+            op.window(p.data, &idx, x, y);
         }
         for x in (r.x0..r.x0 + half).chain(r.x1 - half..r.x1) {
             idx.clear();
@@ -396,7 +471,7 @@ pub(super) fn inverse_band(
     let unit = 4 * by;
     if overlap != OverlapMode::None {
         let keys = unit * r0..=unit * r1;
-        let stage1 = Stage1 { qp: leak.step(channel), hp_absent: leak.hp_absent };
+        let stage1 = Stage1 { leak, kind, channel, mb_w, mb_h };
         let mut p = Rows { data: &mut data, stride: width, y_base: 4 * b0 };
         pot_region(&stage1, &mut p, whole(4 * bx, unit), &keys);
     }
@@ -429,7 +504,8 @@ mod tests {
     /// `testdata/README.md`) decode to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
     /// FNV-1a 64 over the sample bytes): 4:4:4, 4:2:0, 4:2:2, Y-only and interleaved alpha;
     /// OL 1 and 2; half, 8-bit and 16-bit; lossless, lossy with the clamp's step test, and
-    /// without HP (the clamp everywhere); tiles, spatial order, odd sizes. With the nibble
+    /// without HP (the clamp everywhere); tiles, spatial order, odd sizes; HP quantizers per
+    /// tile and per macroblock (4:4:4, 4:2:0, 4:2:2). With the nibble
     /// set back to 1, the same coefficients give other samples (the JPEG XR operators).
     #[test]
     fn hd_photo_streams_decode_as_jxrlib_does() {
@@ -443,6 +519,12 @@ mod tests {
             ("hdp_gray8_17x5.jxr", 0x376c_d3c9_f2f2_2cd3),
             ("hdp_rgba_half_inter.jxr", 0x6502_6010_27c4_b42d),
             ("hdp_rgb16_33x20_dc.jxr", 0x7511_5827_0a99_53dd),
+            // Written by T.835 with HP quantizers per tile and macroblock: the step each
+            // window compares with follows jxrlib's decoding position.
+            ("hdp_t835_qp_stale.jxr", 0x9a02_c139_1a32_3a2a),
+            ("hdp_t835_qp_420.jxr", 0x32aa_bec3_f5eb_bea4),
+            ("hdp_t835_qp_422.jxr", 0xb88d_4d2c_9e1c_b3b1),
+            ("hdp_t835_tile_qps.jxr", 0x5d87_1913_4e65_cdd3),
         ];
         let fnv = |raw: &[u8]| {
             raw.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3))
@@ -468,6 +550,29 @@ mod tests {
             jpeg_xr[at] = 0x11;
             let raw = crate::decode_raw(&jpeg_xr, &DecodeOptions::new(Limits::default())).unwrap();
             assert_ne!(fnv(&raw), want, "{name} with the JPEG XR operators");
+        }
+    }
+
+    /// Truncated and damaged HD Photo streams (also the per-macroblock quantizer pass) give
+    /// errors or images, never panics.
+    #[test]
+    fn damaged_streams_never_panic() {
+        use hdrcodec_core::{DecodeOptions, Limits};
+        for name in ["hdp_t835_tile_qps.jxr", "hdp_t835_qp_420.jxr", "hdp_half_tiles.jxr"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
+            let file = std::fs::read(&path).unwrap();
+            let options = DecodeOptions::new(Limits::fuzzing());
+            for n in 0..file.len() {
+                let _ = crate::decode_raw(&file[..n], &options);
+            }
+            let mut bad = file.clone();
+            for i in 0..file.len() {
+                for bit in [0, 3, 7] {
+                    bad[i] ^= 1 << bit;
+                    let _ = crate::decode_raw(&bad, &options);
+                    bad[i] = file[i];
+                }
+            }
         }
     }
 
