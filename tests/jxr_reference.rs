@@ -13,8 +13,9 @@
 //!   file and matrix stream decodes to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
 //!   which calls jxrlib, in the pixel format's own layout, or JxrDecApp's TIFF for the formats
 //!   imagecodecs converts: padded float, fixed point, 555/565/101010);
-//! - a representative part of the matrix, patched to HD Photo 1.0 codestreams (sub-version 0,
-//!   jxrlib's legacy transform), also decodes to exactly jxrlib's samples;
+//! - the corpus files and a representative part of the matrix, patched to HD Photo 1.0
+//!   codestreams (sub-version 0, jxrlib's legacy transform), also decode to exactly jxrlib's
+//!   samples;
 //! - `probe` agrees with jxrlib (imagecodecs) on size and channels;
 //! - truncated and damaged corpus files give errors or images, never panics.
 
@@ -406,12 +407,18 @@ fn as_hd_photo(file: &[u8]) -> Vec<u8> {
 fn hd_photo_streams_match_jxrlib() {
     let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
     let Some(dec) = common::require(common::tool("JxrDecApp"), "JxrDecApp (Debian libjxr-tools)") else { return };
+    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
     let Some((dir, streams)) = matrix_streams() else { return };
     let options = DecodeOptions::new(Limits::default());
     let mut pairs = Vec::new();
-    for name in HD_PHOTO_SUBSET {
+    // The corpus files too: full-size images, one with a planar alpha codestream.
+    let corpus = files.iter().map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), p.clone(), "ic"));
+    let subset = HD_PHOTO_SUBSET.iter().map(|name| {
         let (_, _, path) = streams.iter().find(|(n, _, _)| n == name).expect("a matrix stream");
-        let original = std::fs::read(path).unwrap();
+        (name.to_string(), path.clone(), check_mode(name))
+    });
+    for (name, path, mode) in corpus.chain(subset) {
+        let original = std::fs::read(&path).unwrap();
         let file = as_hd_photo(&original);
         let hdp = dir.join(format!("{name}.hdp.jxr"));
         std::fs::write(&hdp, &file).unwrap();
@@ -420,7 +427,7 @@ fn hd_photo_streams_match_jxrlib() {
         assert_ne!(raw, decode_raw(&original, &options).unwrap(), "{name}");
         let raw_path = dir.join(format!("{name}.hdp.ours.raw"));
         std::fs::write(&raw_path, raw).unwrap();
-        pairs.push((hdp, raw_path, check_mode(name)));
+        pairs.push((hdp, raw_path, mode));
     }
     let lines = jxrlib_raw_diffs(&py, &dec, &pairs);
     assert_eq!(lines.len(), pairs.len(), "{lines:?}");
