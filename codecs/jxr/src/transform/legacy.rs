@@ -525,6 +525,9 @@ mod tests {
             ("hdp_t835_qp_420.jxr", 0x32aa_bec3_f5eb_bea4),
             ("hdp_t835_qp_422.jxr", 0xb88d_4d2c_9e1c_b3b1),
             ("hdp_t835_tile_qps.jxr", 0x5d87_1913_4e65_cdd3),
+            // A hard-tile stream (sub-version 9) set to 0: jxrlib filters across its tile
+            // edges, as HD Photo has no hard tiles.
+            ("hdp_t835_hard_2x2.jxr", 0x57eb_3e07_9235_1298),
         ];
         let fnv = |raw: &[u8]| {
             raw.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3))
