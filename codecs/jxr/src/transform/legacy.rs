@@ -9,19 +9,21 @@
 //! rotations and odd-odd step inside the 4×4 window. What differs:
 //!
 //! - **the 4×4 window's scaling step** lacks the two small correction terms JPEG XR added
-//!   (`+a/128 − a/1024` on the second output), so the window is not the same near-identity;
-//! - **the 4-point seam operator** along image edges is a different lifting network (a
-//!   rotation first, then three scaling steps of 3/32, 3/16, 3/32);
+//!   (`+a/128 − a/1024` on the second output);
+//! - **the 4-point seam operator** along image edges is a different lifting network (the
+//!   rotation of the differences first, then three lifting steps of about −29/32, 3/16 and
+//!   3/32 between each pair's sum and difference, where JPEG XR scales with its 2-point
+//!   scaling step);
 //! - **the chroma 2-point and 2×2 operators** (DC planes of 4:2:0 and 4:2:2) use a coarser
 //!   rotation (1/8, 1/4, 1/8 instead of JPEG XR's 1/4, 1/2 + 1/32 + …, 1/4);
 //! - **no corner operators**: the 2×2 samples at each image corner are left alone, and 4:2:0 /
 //!   4:2:2 chroma corners are not predicted from their neighbours;
 //! - **a DC-leakage clamp** after each interior stage-1 window (not in stage 2, not on seams).
-//!   HD Photo's POT lets a little of a flat block's DC leak into the window's checkerboard
-//!   pattern; when the HP band cannot have coded a correction (it is absent, or its step
-//!   exceeds 20 and the leak estimated from the window is below one step), jxrlib subtracts
-//!   the estimate again, clipped so that it never overshoots the window's own checkerboard
-//!   component.
+//!   Read as: without JPEG XR's scaling corrections, a small share (595/2^17 of half the
+//!   sum, about 27/5947) of each group of four samples' mean leaks into the group's
+//!   checkerboard component; when the HP band cannot have coded a correction (it is absent,
+//!   or its step exceeds 20 and the estimated leak is below one step), jxrlib takes the
+//!   estimate out again, clipped so that it never exceeds the checkerboard component itself.
 //! - **no hard tiles**: jxrlib reads hard tiling only from sub-version 9, so a sub-version 0
 //!   stream always filters across tile edges.
 //!
@@ -31,8 +33,8 @@
 //! (`pQuantizerHP[i]` with `i` counting chroma planes from 0). [`DcLeakage`] carries the step
 //! of each channel with that shift already applied. With image-uniform HP quantizers (what
 //! every known encoder writes) the macroblock does not matter; otherwise it holds the steps of
-//! every macroblock, from a first entropy-decoding pass, and each window looks up the
-//! macroblock jxrlib has just decoded when it runs that window (`clamp_step`).
+//! every macroblock, from a first entropy-decoding pass, and each stage-1 window looks up the
+//! macroblock jxrlib has just decoded when it runs that window (`Stage1::window`).
 
 use super::{inv_rotate, inv_t_odd_odd_post, ipct4x4_g};
 use super::{plane_size, stage2_inverse, t2x2h, t2x2h_post, Lane, OverlapMode, PlaneKind, Rect, Rows, S};
@@ -186,15 +188,15 @@ fn post4x4_hdp<T: Lane>(x: [T; 16]) -> [T; 16] {
     x
 }
 
-/// The window's samples in groups of four symmetric about its centre: (outer corner, the
-/// two mixed positions, inner corner) of each quadrant pairing. The order inside a group is
-/// the butterflies' (a, b, c, d).
+/// The window's samples in groups of four: a position of the window's top-left quadrant and
+/// its mirror images, as (top-left, top-right, bottom-left, bottom-right), the order the
+/// butterflies take them in (a, b, c, d).
 const GROUPS: [[usize; 4]; 4] = [[0, 3, 12, 15], [1, 2, 13, 14], [4, 7, 8, 11], [5, 6, 9, 10]];
 
 /// The DC-leakage clamp on a stage-1 window that [`post4x4_hdp`] has filtered, with the HP
-/// step `qp` (module docs). Per group (a, b, c, d): the sum of the four samples estimates the
-/// leaked DC (times 595/2^17 ≈ 27/5947), the checkerboard a − b − c + d bounds it; half the
-/// clipped estimate comes off a and d and goes to b and c.
+/// step `qp` (module docs). Per group (a, b, c, d): half the group's sum times 595/2^17
+/// (≈ 27/5947) estimates the leak, half the checkerboard a − b − c + d bounds it; half the
+/// clipped estimate comes off a and d and goes to b and c (the group's sum is kept).
 #[inline(always)]
 fn clamp_dc_leakage(x: &mut [S; 16], qp: i32, hp_absent: bool) {
     for [a, b, c, d] in GROUPS {
@@ -220,8 +222,8 @@ fn clamp_dc_leakage(x: &mut [S; 16], qp: i32, hp_absent: bool) {
 
 /// The 4-point operator across a seam along an image edge, samples in order across it
 /// (two before, two after). Lifting: a butterfly of the outer and inner pairs, a rotation of
-/// the two differences, the butterfly undone, then three scaling steps that spread the
-/// differences outwards.
+/// the two differences, the butterfly undone, then three lifting steps between the outer
+/// (inner) pair's two samples: −(1 − 3/32), +3/16, +3/32.
 #[inline(always)]
 fn post4_hdp<T: Lane>([mut a, mut b, mut c, mut d]: [T; 4]) -> [T; 4] {
     a += d;
