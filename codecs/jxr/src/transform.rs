@@ -1034,7 +1034,9 @@ fn plane_size(kind: PlaneKind, mb_w: usize, mb_h: usize) -> Result<(usize, usize
 /// 2 in scaled arithmetic.
 ///
 /// Bands are independent: a decoder can run them in any order or in parallel, and start a
-/// band as soon as the macroblock rows of its halo are decoded.
+/// band as soon as the macroblock rows of its halo are decoded. With
+/// [`OperatorSet::HdPhoto`], the legacy operators run instead, on the same layouts and halo
+/// (a window or block at a time; hard tiles are an error there).
 #[allow(clippy::too_many_arguments)]
 pub fn inverse_band(
     params: &TransformParams,

@@ -581,6 +581,62 @@ mod tests {
         }
     }
 
+    /// Every split into bands, with coefficient windows holding only a band's halo, gives the
+    /// samples of one band over the whole image (HD Photo operators, with the clamp on, off,
+    /// or per macroblock).
+    #[test]
+    fn bands_agree_with_the_whole_image() {
+        use crate::transform::{inverse_band, OperatorSet, TransformParams};
+        let mut r = crate::testing::rng(5);
+        let (mb_w, mb_h) = (3, 11);
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            let per_mb: Arc<[i32]> = (0..mb_w * mb_h * 3).map(|_| [10, 24, 200][(r() % 3) as usize]).collect();
+            let leaks = [
+                DcLeakage { hp_absent: true, hp_step: Vec::new(), per_mb: None, channels: 3 },
+                DcLeakage { hp_absent: false, hp_step: vec![40, 40, 40], per_mb: None, channels: 3 },
+                DcLeakage { hp_absent: false, hp_step: Vec::new(), per_mb: Some(per_mb), channels: 3 },
+            ];
+            for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+                for leak in &leaks {
+                    let params = TransformParams {
+                        overlap,
+                        scaled: true,
+                        hard: None,
+                        operators: OperatorSet::HdPhoto(leak.clone()),
+                    };
+                    // Small coefficients (as after dequantization of smooth content), so that
+                    // the clamp's step test goes both ways.
+                    let coeffs: Vec<MbCoeffs> = (0..mb_w * mb_h)
+                        .map(|_| std::array::from_fn(|k| (r() as i32) >> if k < 16 { 18 } else { 26 }))
+                        .collect();
+                    let (width, height) = plane_size(kind, mb_w, mb_h).unwrap();
+                    let unit = height / mb_h;
+                    let mut whole = vec![0; width * height];
+                    inverse_band(&params, kind, 1, mb_w, mb_h, &coeffs, 0, 0..mb_h, &mut whole).unwrap();
+                    for band in [1, 2, 3, 5] {
+                        for r0 in (0..mb_h).step_by(band) {
+                            let r1 = (r0 + band).min(mb_h);
+                            let (s0, s1) = (r0.saturating_sub(2), (r1 + 2).min(mb_h));
+                            let window = &coeffs[s0 * mb_w..s1 * mb_w];
+                            let mut out = vec![0; (r1 - r0) * unit * width];
+                            inverse_band(&params, kind, 1, mb_w, mb_h, window, s0, r0..r1, &mut out).unwrap();
+                            assert_eq!(
+                                out,
+                                whole[r0 * unit * width..r1 * unit * width],
+                                "{kind:?} {overlap:?} {r0}..{r1}"
+                            );
+                        }
+                    }
+                    // The JPEG XR operators give other samples (with overlap).
+                    let xr = TransformParams { operators: OperatorSet::JpegXr, ..params.clone() };
+                    let mut other = vec![0; width * height];
+                    inverse_band(&xr, kind, 1, mb_w, mb_h, &coeffs, 0, 0..mb_h, &mut other).unwrap();
+                    assert_eq!(other == whole, overlap == OverlapMode::None, "{kind:?} {overlap:?}");
+                }
+            }
+        }
+    }
+
     /// Extreme values wrap rather than panic.
     #[test]
     fn extremes_wrap() {
