@@ -13,6 +13,9 @@
 //!   file and matrix stream decodes to exactly jxrlib's samples (imagecodecs' `jpegxr_decode`,
 //!   which calls jxrlib, in the pixel format's own layout, or JxrDecApp's TIFF for the formats
 //!   imagecodecs converts: padded float, fixed point, 555/565/101010);
+//! - the corpus files and a representative part of the matrix, patched to HD Photo 1.0
+//!   codestreams (sub-version 0, jxrlib's legacy transform), also decode to exactly jxrlib's
+//!   samples;
 //! - `probe` agrees with jxrlib (imagecodecs) on size and channels;
 //! - truncated and damaged corpus files give errors or images, never panics.
 
@@ -326,12 +329,38 @@ for jxr, raw, mode in zip(args[::3], args[1::3], args[2::3]):
     String::from_utf8(out.stdout).unwrap().lines().map(str::to_string).collect()
 }
 
+/// What the end-to-end comparisons with jxrlib need: the reference venv (imagecodecs), its
+/// JxrDecApp, the corpus files and the JxrEncApp matrix (`None`, said, when one is missing).
+struct JxrlibCheck {
+    py: PathBuf,
+    dec: PathBuf,
+    files: Vec<PathBuf>,
+    dir: PathBuf,
+    streams: Vec<Stream>,
+}
+
+impl JxrlibCheck {
+    fn new() -> Option<Self> {
+        let py = common::require(common::python(), "the reference venv (imagecodecs)")?;
+        let dec = common::require(common::tool("JxrDecApp"), "JxrDecApp (Debian libjxr-tools)")?;
+        let files = common::corpus_files("jxr", "jxr")?;
+        let (dir, streams) = matrix_streams()?;
+        Some(JxrlibCheck { py, dec, files, dir, streams })
+    }
+
+    /// Asserts that each (`.jxr`, our raw samples, check mode) gives jxrlib's samples.
+    fn assert_same(&self, pairs: &[(PathBuf, PathBuf, &str)], what: &str) {
+        let lines = jxrlib_raw_diffs(&self.py, &self.dec, pairs);
+        assert_eq!(lines.len(), pairs.len(), "{lines:?}");
+        let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
+        assert!(bad.is_empty(), "{what} differ from jxrlib's:\n{bad:?}");
+    }
+}
+
 #[test]
 fn samples_match_jxrlib_end_to_end() {
-    let Some(py) = common::require(common::python(), "the reference venv (imagecodecs)") else { return };
-    let Some(dec) = common::require(common::tool("JxrDecApp"), "JxrDecApp (Debian libjxr-tools)") else { return };
-    let Some(files) = common::corpus_files("jxr", "jxr") else { return };
-    let Some((dir, streams)) = matrix_streams() else { return };
+    let Some(check) = JxrlibCheck::new() else { return };
+    let (files, dir, streams) = (&check.files, &check.dir, &check.streams);
     let options = DecodeOptions::new(Limits::default());
     let mut pairs = Vec::new();
     let inputs = files
@@ -344,10 +373,84 @@ fn samples_match_jxrlib_end_to_end() {
         std::fs::write(&raw_path, raw).unwrap();
         pairs.push((path, raw_path, mode));
     }
-    let lines = jxrlib_raw_diffs(&py, &dec, &pairs);
-    assert_eq!(lines.len(), pairs.len(), "{lines:?}");
-    let bad: Vec<&String> = lines.iter().filter(|l| !l.ends_with(" 0")).collect();
-    assert!(bad.is_empty(), "samples differ from jxrlib's:\n{bad:?}");
+    check.assert_same(&pairs, "samples");
+}
+
+/// A representative part of the matrix (every internal format, alpha kind, overlap mode and
+/// bitstream order; lossless, lossy with HP steps on both sides of 20, and without HP).
+const HD_PHOTO_SUBSET: &[&str] = &[
+    "h_ol2",
+    "h_q03",
+    "h_q40",
+    "h_tiles_sp",
+    "h_tiles_seq",
+    "h_s2",
+    "h_s3",
+    "h_17x5",
+    "h_big",
+    "f_q09",
+    "ha_planar",
+    "ha_inter_sp",
+    "fa_inter",
+    "r8_420",
+    "r8_422",
+    "r8_420sp",
+    "r8_422t",
+    "r8_y",
+    "r8_lossless",
+    "r16",
+    "g_half_sp",
+    "fx16",
+    "bgra_420",
+    "gray8",
+    "r8_420_s2",
+    "r8_422_tr",
+];
+
+/// `file` as an HD Photo 1.0 file: the sub-version nibble of each codestream (primary and
+/// planar alpha; the low half of the byte after `WMPHOTO\0`) cleared, so that jxrlib decodes
+/// the same coefficients with its legacy transform.
+fn as_hd_photo(file: &[u8]) -> Vec<u8> {
+    let c = parse_container(file).unwrap();
+    let starts: Vec<usize> =
+        std::iter::once(c.image).chain(c.alpha).map(|cs| cs.as_ptr() as usize - file.as_ptr() as usize).collect();
+    let mut out = file.to_vec();
+    for at in starts {
+        assert_eq!(&out[at..at + 8], b"WMPHOTO\0");
+        assert_eq!(out[at + 8], 0x11, "version 1, sub-version 1 (soft tiles)");
+        out[at + 8] = 0x10;
+    }
+    out
+}
+
+/// HD Photo 1.0 streams (sub-version 0, which no encoder at hand writes: matrix streams with
+/// the nibble cleared) decode to exactly jxrlib's samples, whose legacy transform differs from
+/// JPEG XR's (`hdrcodec_jxr::transform`'s `legacy` module).
+#[test]
+fn hd_photo_streams_match_jxrlib() {
+    let Some(check) = JxrlibCheck::new() else { return };
+    let (files, dir, streams) = (&check.files, &check.dir, &check.streams);
+    let options = DecodeOptions::new(Limits::default());
+    let mut pairs = Vec::new();
+    // The corpus files too: full-size images, one with a planar alpha codestream.
+    let corpus = files.iter().map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), p.clone(), "ic"));
+    let subset = HD_PHOTO_SUBSET.iter().map(|name| {
+        let (_, _, path) = streams.iter().find(|(n, _, _)| n == name).expect("a matrix stream");
+        (name.to_string(), path.clone(), check_mode(name))
+    });
+    for (name, path, mode) in corpus.chain(subset) {
+        let original = std::fs::read(&path).unwrap();
+        let file = as_hd_photo(&original);
+        let hdp = dir.join(format!("{name}.hdp.jxr"));
+        std::fs::write(&hdp, &file).unwrap();
+        let raw = decode_raw(&file, &options).unwrap();
+        // Lossless files without overlap aside, the operators change the samples.
+        assert_ne!(raw, decode_raw(&original, &options).unwrap(), "{name}");
+        let raw_path = dir.join(format!("{name}.hdp.ours.raw"));
+        std::fs::write(&raw_path, raw).unwrap();
+        pairs.push((hdp, raw_path, mode));
+    }
+    check.assert_same(&pairs, "HD Photo samples");
 }
 
 /// The family's shared contracts on real files: the registry picks JPEG XR for `.jxr`; `probe`

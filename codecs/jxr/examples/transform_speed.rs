@@ -2,7 +2,7 @@
 //! (run with `cargo run --release -p hdrcodec-jxr --example transform_speed`).
 use hdrcodec_jxr::container::{OutputBitDepth, OutputColorFormat, PIXEL_FORMATS};
 use hdrcodec_jxr::output::{InternalColorFormat, OutputParams};
-use hdrcodec_jxr::transform::{inverse_band, OverlapMode, PlaneKind, TransformParams, BAND_MB_ROWS};
+use hdrcodec_jxr::transform::{inverse_band, OperatorSet, OverlapMode, PlaneKind, TransformParams, BAND_MB_ROWS};
 
 fn main() {
     let (mb_w, mb_h): (usize, usize) =
@@ -21,7 +21,7 @@ fn main() {
     let width = 16 * mb_w;
     let mut out = vec![0i32; width * 16 * mb_h];
     for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
-        let p = TransformParams { overlap, scaled: true, hard: None };
+        let p = TransformParams { overlap, scaled: true, hard: None, operators: OperatorSet::JpegXr };
         let mut best = f64::MAX;
         for _ in 0..7 {
             let t = std::time::Instant::now();

@@ -8,7 +8,9 @@ use crate::header;
 use crate::header::ClrFmt;
 use crate::output::{upsample_chroma_row, AlphaParams, InternalColorFormat, OutputParams};
 use crate::tiles::MbSide;
-use crate::transform::{self, BandRequest, BandScratch, HardEdges, MbRows, OverlapMode, PlaneKind, TransformParams};
+use crate::transform::{
+    self, BandRequest, BandScratch, HardEdges, MbRows, OperatorSet, OverlapMode, PlaneKind, TransformParams,
+};
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 use std::collections::VecDeque;
@@ -198,7 +200,9 @@ fn decode_impl(
         let rows: Vec<usize> = img.tile_y0().iter().map(|&v| v as usize).collect();
         HardEdges::from_tiles(&cols[..cols.len() - 1], &rows[..rows.len() - 1], true)
     });
-    let params = |scaled: bool| TransformParams { overlap, scaled, hard: hard.clone() };
+    // The operators follow each codestream's sub-version (HD Photo 1.0: the legacy set).
+    let params =
+        |scaled: bool, operators: OperatorSet| TransformParams { overlap, scaled, hard: hard.clone(), operators };
     // The decoders: the primary's (which also gives an interleaved alpha plane), the planar
     // alpha codestream's; and the windows of coefficients each channel's transform reads.
     let mut prim_dec = RowDecoder::new(&cs, container.image, options)?;
@@ -212,8 +216,13 @@ fn decode_impl(
         _ => None,
     };
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
-    let prim_params = params(primary.scaled);
-    let alpha_params = params(alpha_scaled);
+    let prim_params = params(primary.scaled, OperatorSet::for_plane(&cs, container.image, 0, options)?);
+    let alpha_ops = match (&cs.alpha, &planar_cs, container.alpha) {
+        (Some(_), _, _) if with_alpha => OperatorSet::for_plane(&cs, container.image, 1, options)?,
+        (None, Some(p), Some(bytes)) if with_alpha => OperatorSet::for_plane(p, bytes, 0, options)?,
+        _ => OperatorSet::JpegXr,
+    };
+    let alpha_params = params(alpha_scaled, alpha_ops);
     // Working memory: the window (band + halo of coefficient rows), the next band's rows
     // being decoded meanwhile, the samples of two bands (one being transformed, the one
     // before it being formatted) and a band of formatted rows.

@@ -364,6 +364,19 @@ impl<'a> TileDecoder<'a> {
         self.decode_row(out, None)
     }
 
+    /// Appends to `out` the HP quantizer step of every channel of every macroblock of the row
+    /// [`next_row`](Self::next_row) last decoded, plane `plane` (0 primary, 1 interleaved
+    /// alpha): macroblocks in order, channels inner. Needs the HP band.
+    pub(crate) fn last_row_hp_steps(&self, plane: usize, out: &mut Vec<i32>) -> Result<()> {
+        let p = self.planes.get(plane).ok_or_else(|| Error::invalid("JPEG XR: no such plane (a bug)"))?;
+        let row = self.my.checked_sub(1).ok_or_else(|| Error::invalid("JPEG XR: no row decoded yet (a bug)"))?;
+        for side in &p.side[row % 2] {
+            let set = p.qp.hp.get(usize::from(side.hp_qi)).ok_or_else(|| Error::invalid("JPEG XR: HP QP index"))?;
+            out.extend(set.index[..p.hdr.channels].iter().map(|&i| quant::step(i, p.hdr.scaled, true)));
+        }
+        Ok(())
+    }
+
     /// True when the codestream has a FLEXBITS packet that a [`FlexStage`] can decode apart
     /// (frequency order with flexbits).
     pub fn has_flex_packet(&self) -> bool {
