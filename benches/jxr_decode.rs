@@ -17,6 +17,7 @@
 //! pair; `hdrcodec_2threads` is ours on a pool of two threads. Criterion's throughput is in
 //! pixels (elements), so Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
+use hdrcodec_cli::jxrlib::float_rgb_tiff;
 use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
 use hdrcodec_jxr::{decode_raw, decode_raw_into, raw_layout, JxrCodec};
 use std::hint::black_box;
@@ -121,50 +122,6 @@ fn tool(name: &str) -> Option<PathBuf> {
     std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
 }
 
-/// A little-endian, uncompressed, single-strip RGB TIFF of 16- or 32-bit IEEE floats (what
-/// JxrEncApp reads as 48bppRGBHalf or 96bppRGBFloat).
-fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Vec<u8> {
-    assert_eq!(samples.len(), width as usize * height as usize * 3 * usize::from(bits / 8));
-    const ENTRIES: u32 = 11;
-    let ifd_end = 8 + 2 + ENTRIES * 12 + 4;
-    let (bits_at, format_at, data_at) = (ifd_end, ifd_end + 6, ifd_end + 12);
-    let mut t = Vec::with_capacity(data_at as usize + samples.len());
-    t.extend_from_slice(b"II*\0");
-    t.extend_from_slice(&8u32.to_le_bytes());
-    t.extend_from_slice(&(ENTRIES as u16).to_le_bytes());
-    // (tag, type: 3 SHORT / 4 LONG, count, value or offset), in tag order.
-    let entries: [(u16, u16, u32, u32); ENTRIES as usize] = [
-        (256, 4, 1, width),
-        (257, 4, 1, height),
-        (258, 3, 3, bits_at),
-        (259, 3, 1, 1),
-        (262, 3, 1, 2),
-        (273, 4, 1, data_at),
-        (277, 3, 1, 3),
-        (278, 4, 1, height),
-        (279, 4, 1, samples.len() as u32),
-        (284, 3, 1, 1),
-        (339, 3, 3, format_at),
-    ];
-    for (tag, ty, count, value) in entries {
-        t.extend_from_slice(&tag.to_le_bytes());
-        t.extend_from_slice(&ty.to_le_bytes());
-        t.extend_from_slice(&count.to_le_bytes());
-        if ty == 3 && count == 1 {
-            t.extend_from_slice(&(value as u16).to_le_bytes());
-            t.extend_from_slice(&[0, 0]);
-        } else {
-            t.extend_from_slice(&value.to_le_bytes());
-        }
-    }
-    t.extend_from_slice(&0u32.to_le_bytes());
-    for v in [bits, bits, bits, 3, 3, 3] {
-        t.extend_from_slice(&v.to_le_bytes());
-    }
-    t.extend_from_slice(samples);
-    t
-}
-
 /// The larger files (see the top of this file), if JxrEncApp is there.
 fn large_files(corpus: &[File]) -> Vec<File> {
     let Some(enc) = tool("JxrEncApp") else {
@@ -200,13 +157,13 @@ fn large_files(corpus: &[File]) -> Vec<File> {
     let mut files = Vec::new();
     for &format in formats {
         let (code, tif) = if format == "48bppRGBHalf" {
-            ("12", float_rgb_tiff(big_w as u32, big_h as u32, 16, &half))
+            ("12", float_rgb_tiff(big_w as u32, big_h as u32, 16, &half).expect("a TIFF"))
         } else {
             let floats: Vec<u8> = half
                 .chunks_exact(2)
                 .flat_map(|b| half::f16::from_bits(u16::from_le_bytes([b[0], b[1]])).to_f32().to_le_bytes())
                 .collect();
-            ("15", float_rgb_tiff(big_w as u32, big_h as u32, 32, &floats))
+            ("15", float_rgb_tiff(big_w as u32, big_h as u32, 32, &floats).expect("a TIFF"))
         };
         let tif_path = dir.join(format!("mosaic_{format}.tif"));
         std::fs::write(&tif_path, tif).expect("write the mosaic TIFF");

@@ -74,7 +74,8 @@ fn bench_rows(image: HdrImage) -> Vec<bench::Row> {
     let mut configs: Vec<Config> =
         bench::configurations(&registry).into_iter().filter(|c| c.label == "bc6h:effort0").collect();
     assert_eq!(configs.len(), 1, "the bench has a bc6h:effort0 row");
-    configs.push(Config { label: "pfm".into(), codec: codec("pfm"), settings: EncodeSettings::default() });
+    let settings = EncodeSettings::default();
+    configs.push(Config { label: "pfm".into(), codec: codec("pfm"), settings, ..configs[0].clone() });
     configs.push(Config { label: "bc6h-ktx2:effort0".into(), codec: codec("bc6h-ktx2"), ..configs[0].clone() });
     let inputs = [Input { name: "bt2020-ramps".into(), image }];
     let report = bench::run(&configs, &inputs, 1, &ThreadPool::single(), "test", Vec::new(), |_, _, _| {});

@@ -11,10 +11,18 @@
 //! Every codec sees the same samples: the image's colour is prepared for the codec once
 //! ([`hdrcodec::prepare_colour`]), so a format without primaries stores the samples as they
 //! are, reads them back unspecified, and is scored in the reference's primaries.
+//!
+//! JPEG XR, which we decode but do not encode yet, has rows of another kind
+//! ([`Encoder::Jxrlib`]): jxrlib's `JxrEncApp` writes the file (an outside program, timed as
+//! such), our decoder reads it (quality and our decode speed, as in every row), and jxrlib's
+//! `JxrDecApp` decoding the same file is the peer's decode speed and the check that our samples
+//! equal jxrlib's. Without `JxrEncApp` on PATH those rows say "not installed".
 
+use crate::jxrlib;
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
+use std::ffi::OsStr;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -28,7 +36,36 @@ pub struct Config {
     pub codec: Arc<dyn ImageCodec>,
     /// The settings it encodes with.
     pub settings: EncodeSettings,
+    /// Who writes the files the rows decode.
+    pub encoder: Encoder,
 }
+
+/// Who writes the files a configuration's rows decode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoder {
+    /// The codec's own encoder: encode, then decode, both timed on one thread and on the pool.
+    Hdrcodec,
+    /// jxrlib's `JxrEncApp` (Debian `libjxr-tools`), an outside program, with these options
+    /// after `-i IN.tif -o OUT.jxr -c 12`: the input goes in as scRGB half floats
+    /// ([`jxrlib::scrgb_half_tiff`]). The encode speed is the wall time of the process (one
+    /// thread; process start and TIFF reading included; no pool figure); the configuration's
+    /// codec decodes the file; `JxrDecApp` decoding it is the peer.
+    Jxrlib(&'static [&'static str]),
+}
+
+impl Encoder {
+    /// How a row names an encoder that is not ours.
+    fn describe(self) -> Option<String> {
+        match self {
+            Encoder::Hdrcodec => None,
+            Encoder::Jxrlib(_) => Some(format!("jxrlib {} (outside program)", jxrlib::ENCODER)),
+        }
+    }
+}
+
+/// The JPEG XR rows: a label suffix and JxrEncApp's options for each (no `-q`: lossless).
+const JXRLIB_SETTINGS: [(&str, &[&str]); 4] =
+    [("lossless", &[]), ("q0.9", &["-q", "0.9"]), ("q0.6", &["-q", "0.6"]), ("q0.3", &["-q", "0.3"])];
 
 /// Every configuration the bench runs, for the codecs present in `registry`. Each codec adds
 /// its rows here, **one line per codec**.
@@ -36,7 +73,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     let mut out = Vec::new();
     let mut add = |codec: &str, label: String, settings: EncodeSettings| {
         if let Ok(codec) = registry.by_name(codec) {
-            out.push(Config { label, codec, settings });
+            out.push(Config { label, codec, settings, encoder: Encoder::Hdrcodec });
         }
     };
     let opts = |kv: &[(&str, &str)]| kv.iter().fold(EncodeSettings::default(), |s, (k, v)| s.with_option(*k, *v));
@@ -57,6 +94,13 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     }
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
+    // JPEG XR: we decode only, so jxrlib writes the files (see `Encoder::Jxrlib`).
+    if let Ok(codec) = registry.by_name("jxr") {
+        for (variant, args) in JXRLIB_SETTINGS {
+            let (label, settings) = (format!("jxr(jxrlib-enc):{variant}"), EncodeSettings::default());
+            out.push(Config { label, codec: codec.clone(), settings, encoder: Encoder::Jxrlib(args) });
+        }
+    }
     out
 }
 
@@ -153,20 +197,49 @@ pub struct Row {
     pub de_itp_mean: f64,
     /// Root mean square of log2((test + 1) / (reference + 1)) over the RGB samples.
     pub log_rmse: f64,
-    /// Encode speed on one thread, megapixels per second (median run).
+    /// Encode speed on one thread, megapixels per second (median run); for a file written by
+    /// an outside program (`encoder`), the wall time of that process.
     pub encode_mps: f64,
     /// Decode speed on one thread, megapixels per second (median run).
     pub decode_mps: f64,
-    /// Encode speed on the report's pool of `threads` threads.
+    /// Encode speed on the report's pool of `threads` threads (`null` in JSON for an outside
+    /// encoder).
     pub encode_mps_all: f64,
     /// Decode speed on the report's pool of `threads` threads.
     pub decode_mps_all: f64,
+    /// The encoder, when it is not our codec's (then the encode speeds are that program's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encoder: Option<String>,
+    /// The peer's decode of the same file, if the row has one (JPEG XR: jxrlib's JxrDecApp).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peer: Option<PeerDecode>,
     /// What the codec or the colour preparation said (a format without primaries, clipping).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
     /// Why this configuration failed on this image, if it did (then the numbers are zero).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+}
+
+/// A peer decoding the same file as our decoder.
+#[derive(Clone, Debug, Serialize)]
+pub struct PeerDecode {
+    /// Who: "jxrlib JxrDecApp (outside program)".
+    pub decoder: String,
+    /// Its decode speed, megapixels per second (median run; for an outside program its wall
+    /// time, process start and output file included).
+    pub decode_mps: f64,
+    /// Whether our decoded samples equal the peer's, byte for byte (`false` is a bug of ours).
+    pub matches: bool,
+}
+
+/// A peer's figures over a configuration's images.
+#[derive(Clone, Debug, Serialize)]
+pub struct PeerSummary {
+    /// Total pixels over total median decode time of the peer.
+    pub decode_mps: f64,
+    /// Images whose decoded samples differ from the peer's (should always be 0).
+    pub mismatches: usize,
 }
 
 /// A configuration's figures over all images it could encode.
@@ -198,6 +271,15 @@ pub struct Summary {
     pub encode_mps_all: f64,
     /// Total pixels over total median decode time, on all threads.
     pub decode_mps_all: f64,
+    /// The encoder, when it is not our codec's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encoder: Option<String>,
+    /// The peer's figures over the rows that have one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peer: Option<PeerSummary>,
+    /// Why the configuration could not run at all ("not installed: ..."), if so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unavailable: Option<String>,
 }
 
 /// Everything one bench run measured.
@@ -262,9 +344,24 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
         decode_mps: 0.0,
         encode_mps_all: 0.0,
         decode_mps_all: 0.0,
+        encoder: config.encoder.describe(),
+        peer: None,
         notes: Vec::new(),
         error: None,
     };
+    if let Encoder::Jxrlib(args) = config.encoder {
+        match jxrlib::tool(jxrlib::ENCODER) {
+            None => {
+                row.error = Some(format!("{NOT_INSTALLED}: {} ({}) is not on PATH", jxrlib::ENCODER, jxrlib::PACKAGE))
+            }
+            Some(enc) => {
+                if let Err(e) = measure_jxrlib(config, &enc, args, input, runs, pool, &mut row) {
+                    row.error = Some(e.to_string());
+                }
+            }
+        }
+        return row;
+    }
     let result = (|| -> hdrcodec::core::Result<()> {
         // The colour is prepared once, as `convert` does; only the codec is timed.
         let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
@@ -308,6 +405,106 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
     row
 }
 
+/// jxrlib's JxrDecApp (`dec`) decodes `jxr` (whose bytes are `bytes`) into the TIFF `out`:
+/// its median wall time over `runs`, and whether its samples equal ours byte for byte.
+fn peer_decode(
+    dec: &Path,
+    jxr: &Path,
+    out: &Path,
+    bytes: &[u8],
+    runs: usize,
+    pixels: usize,
+) -> hdrcodec::core::Result<PeerDecode> {
+    let args = ["-i".as_ref(), jxr.as_os_str(), "-o".as_ref(), out.as_os_str()];
+    let (t, _) = timed(runs, || jxrlib::run(dec, &args, out))?;
+    let theirs = jxrlib::tiff_samples(&std::fs::read(out)?)?;
+    let ours = hdrcodec::jxr::decode_raw(bytes, &DecodeOptions::new(Limits::default()))?;
+    Ok(PeerDecode {
+        decoder: format!("jxrlib {} (outside program)", jxrlib::DECODER),
+        decode_mps: mps(pixels, t),
+        matches: theirs == ours,
+    })
+}
+
+/// How a row whose encoder program is missing starts its error.
+const NOT_INSTALLED: &str = "not installed";
+
+/// A JPEG XR row ([`Encoder::Jxrlib`]): JxrEncApp (`enc`, with `args`) writes the input as a
+/// `.jxr` file in a temporary directory (removed on return, also on failure); our codec decodes
+/// it (quality, speed on one thread and on `pool`); JxrDecApp, if installed, decodes it too
+/// (the peer's speed and the check that its samples equal ours).
+fn measure_jxrlib(
+    config: &Config,
+    enc: &Path,
+    args: &[&str],
+    input: &Input,
+    runs: usize,
+    pool: &ThreadPool,
+    row: &mut Row,
+) -> hdrcodec::core::Result<()> {
+    let pixels = row.pixels;
+    let dir = jxrlib::TempDir::new("bench-jxr")?;
+    let (tif, jxr, peer_tif) = (dir.path().join("in.tif"), dir.path().join("out.jxr"), dir.path().join("jxrlib.tif"));
+    let (tiff, clipped) = jxrlib::scrgb_half_tiff(&input.image)?;
+    std::fs::write(&tif, tiff)?;
+    let mut notes = Vec::new();
+    if clipped > 0 {
+        notes.push(format!(
+            "{} on {}: {clipped} samples beyond half's ±65504 (or NaN) clipped in {}'s input",
+            config.label,
+            input.name,
+            jxrlib::ENCODER
+        ));
+    }
+    let mut enc_args: Vec<&OsStr> = ["-i".as_ref(), tif.as_os_str(), "-o".as_ref(), jxr.as_os_str()].into();
+    enc_args.extend(["-c", "12"].iter().chain(args).map(OsStr::new));
+    let (enc_t, _) = timed(runs, || jxrlib::run(enc, &enc_args, &jxr))?;
+    let bytes = std::fs::read(&jxr)?;
+    let codec = config.codec.as_ref();
+    let dec_one = DecodeOptions::new(Limits::default());
+    let dec_all = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
+    let (dec_t, decoded) = timed(runs, || codec.decode_with(&bytes, &dec_one))?;
+    let (dec_all_t, _) = timed(runs, || codec.decode_with(&bytes, &dec_all))?;
+    let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
+    match jxrlib::tool(jxrlib::DECODER) {
+        None => notes.push(format!(
+            "{} ({}) is not installed: the JPEG XR rows have no peer decode",
+            jxrlib::DECODER,
+            jxrlib::PACKAGE
+        )),
+        // A failing peer is said in a note; our figures stand.
+        Some(dec) => match peer_decode(&dec, &jxr, &peer_tif, &bytes, runs, pixels) {
+            Ok(peer) => {
+                if !peer.matches {
+                    notes.push(format!(
+                        "{} on {}: our samples DIFFER from {}'s (a bug of ours)",
+                        config.label,
+                        input.name,
+                        jxrlib::DECODER
+                    ));
+                }
+                row.peer = Some(peer);
+            }
+            Err(e) => notes.push(format!("{} on {}: no peer decode: {e}", config.label, input.name)),
+        },
+    }
+    row.bytes = bytes.len();
+    row.bpp = bytes.len() as f64 * 8.0 / pixels as f64;
+    // The file is in scRGB's units (80 nits per unit), the input usually not: identical means
+    // the same light, every sample equal once in the input's units (zero squared error).
+    row.identical = cmp.identical || cmp.psnr.is_infinite();
+    row.pu21_psnr = cmp.pu21_psnr;
+    row.de_itp_mean = cmp.de_itp_mean;
+    row.log_rmse = cmp.log_rmse;
+    row.encode_mps = mps(pixels, enc_t);
+    row.decode_mps = mps(pixels, dec_t);
+    // JxrEncApp runs on one thread: there is no pool figure.
+    row.encode_mps_all = f64::NAN;
+    row.decode_mps_all = mps(pixels, dec_all_t);
+    row.notes = notes;
+    Ok(())
+}
+
 fn summarize(label: &str, rows: &[&Row]) -> Summary {
     let ok: Vec<&&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
     let pixels: usize = ok.iter().map(|r| r.pixels).sum();
@@ -315,6 +512,14 @@ fn summarize(label: &str, rows: &[&Row]) -> Summary {
     let mean = |f: &dyn Fn(&Row) -> f64, rs: &[&&Row]| rs.iter().map(|r| f(r)).sum::<f64>() / rs.len().max(1) as f64;
     let lossy: Vec<&&Row> = ok.iter().copied().filter(|r| !r.identical).collect();
     let secs = |f: &dyn Fn(&Row) -> f64| ok.iter().map(|r| r.pixels as f64 / 1e6 / f(r).max(1e-12)).sum::<f64>();
+    // A speed no row has (an outside encoder's pool figure, NaN) stays NaN: `-`, `null`.
+    let speed = |f: &dyn Fn(&Row) -> f64| {
+        if ok.iter().any(|r| f(r).is_nan()) {
+            f64::NAN
+        } else {
+            pixels as f64 / 1e6 / secs(f).max(1e-12)
+        }
+    };
     Summary {
         config: label.to_string(),
         images: ok.len(),
@@ -325,11 +530,31 @@ fn summarize(label: &str, rows: &[&Row]) -> Summary {
         pu21_psnr: if lossy.is_empty() { f64::INFINITY } else { mean(&|r| r.pu21_psnr, &lossy) },
         de_itp_mean: mean(&|r| r.de_itp_mean, &ok),
         log_rmse: mean(&|r| r.log_rmse, &ok),
-        encode_mps: pixels as f64 / 1e6 / secs(&|r| r.encode_mps).max(1e-12),
-        decode_mps: pixels as f64 / 1e6 / secs(&|r| r.decode_mps).max(1e-12),
-        encode_mps_all: pixels as f64 / 1e6 / secs(&|r| r.encode_mps_all).max(1e-12),
-        decode_mps_all: pixels as f64 / 1e6 / secs(&|r| r.decode_mps_all).max(1e-12),
+        encode_mps: speed(&|r| r.encode_mps),
+        decode_mps: speed(&|r| r.decode_mps),
+        encode_mps_all: speed(&|r| r.encode_mps_all),
+        decode_mps_all: speed(&|r| r.decode_mps_all),
+        encoder: rows.first().and_then(|r| r.encoder.clone()),
+        peer: peer_summary(&ok),
+        unavailable: rows
+            .first()
+            .and_then(|r| r.error.clone())
+            .filter(|e| e.starts_with(NOT_INSTALLED) && rows.iter().all(|r| r.error.as_deref() == Some(e.as_str()))),
     }
+}
+
+/// The peer's figures over the rows that have one.
+fn peer_summary(rows: &[&&Row]) -> Option<PeerSummary> {
+    let peers: Vec<(usize, &PeerDecode)> = rows.iter().filter_map(|r| Some((r.pixels, r.peer.as_ref()?))).collect();
+    if peers.is_empty() {
+        return None;
+    }
+    let pixels: usize = peers.iter().map(|p| p.0).sum();
+    let secs: f64 = peers.iter().map(|&(n, p)| n as f64 / 1e6 / p.decode_mps.max(1e-12)).sum();
+    Some(PeerSummary {
+        decode_mps: pixels as f64 / 1e6 / secs.max(1e-12),
+        mismatches: peers.iter().filter(|p| !p.1.matches).count(),
+    })
 }
 
 /// Runs every configuration on every input, `runs` timed runs each on one thread and on `pool`,
@@ -366,34 +591,56 @@ fn fmt_db(v: f64) -> String {
     }
 }
 
-/// The speed column headers: one thread, then all threads of the report's pool.
-fn speed_headers(report: &Report) -> (String, String, String, String) {
+/// A speed column: `-` where there is no figure (an outside encoder's pool speed, no peer).
+fn fmt_mps(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v.is_finite() => format!("{v:.1}"),
+        _ => "-".to_string(),
+    }
+}
+
+/// The marker after a line whose decoded samples differ from the peer's.
+const DIFFERS: &str = "  DIFFERS FROM PEER";
+
+/// The column headers after the first one or two: sizes, quality, our speeds (one thread, then
+/// all threads of the report's pool) and the peer's decode speed.
+fn headers(report: &Report) -> String {
     let n = report.threads;
-    ("enc 1T".into(), "dec 1T".into(), format!("enc {n}T"), format!("dec {n}T"))
+    format!(
+        "{:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "bytes",
+        "bpp",
+        "PU21-PSNR",
+        "dE-ITP",
+        "log-RMSE",
+        "enc 1T",
+        "dec 1T",
+        format!("enc {n}T"),
+        format!("dec {n}T"),
+        "peer dec"
+    )
+}
+
+/// The figures of one line, in the order of [`headers`].
+#[allow(clippy::too_many_arguments)]
+fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 4], peer: Option<f64>) -> String {
+    let [e1, d1, en, dn] = speeds.map(|v| fmt_mps(Some(v)));
+    format!(
+        "{bytes:>10} {bpp:>8.3} {psnr:>10} {de:>9.4} {log:>9.5} {e1:>9} {d1:>9} {en:>9} {dn:>9} {:>9}",
+        fmt_mps(peer)
+    )
 }
 
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
-    let (e1, d1, en, dn) = speed_headers(report);
-    let mut s = format!(
-        "{:<20} {:<24} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
-        "config", "image", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", e1, d1, en, dn
-    );
+    let mut s = format!("{:<24} {:<24} {}\n", "config", "image", headers(report));
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
-        s.push_str(&format!(
-            "{:<20} {:<24} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
-            r.config,
-            r.image,
-            r.bytes,
-            r.bpp,
-            if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) },
-            r.de_itp_mean,
-            r.log_rmse,
-            r.encode_mps,
-            r.decode_mps,
-            r.encode_mps_all,
-            r.decode_mps_all
-        ));
+        let psnr = if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) };
+        let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
+        let peer = r.peer.as_ref().map(|p| p.decode_mps);
+        let line = figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer);
+        let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { DIFFERS } else { "" };
+        s.push_str(&format!("{:<24} {:<24} {line}{mark}\n", r.config, r.image));
     }
     s.push('\n');
     s
@@ -401,29 +648,21 @@ pub fn per_image_table(report: &Report) -> String {
 
 /// The report as a plain-text table, one line per configuration.
 pub fn table(report: &Report) -> String {
-    let (e1, d1, en, dn) = speed_headers(report);
-    let mut s = format!(
-        "{:<20} {:>6} {:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
-        "config", "images", "bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", e1, d1, en, dn
-    );
+    let mut s = format!("{:<24} {:>6} {}\n", "config", "images", headers(report));
     for r in &report.summary {
+        if let Some(why) = &r.unavailable {
+            s.push_str(&format!("{:<24} {why}\n", r.config));
+            continue;
+        }
         let images = if r.failed > 0 { format!("{}/{}", r.images, r.images + r.failed) } else { r.images.to_string() };
-        s.push_str(&format!(
-            "{:<20} {:>6} {:>10} {:>8.3} {:>10} {:>9.4} {:>9.5} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
-            r.config,
-            images,
-            r.bytes,
-            r.bpp,
-            fmt_db(r.pu21_psnr),
-            r.de_itp_mean,
-            r.log_rmse,
-            r.encode_mps,
-            r.decode_mps,
-            r.encode_mps_all,
-            r.decode_mps_all
-        ));
+        let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
+        let peer = r.peer.as_ref().map(|p| p.decode_mps);
+        let line = figures(r.bytes, r.bpp, &fmt_db(r.pu21_psnr), r.de_itp_mean, r.log_rmse, speeds, peer);
+        let mark = if r.peer.as_ref().is_some_and(|p| p.mismatches > 0) { DIFFERS } else { "" };
+        s.push_str(&format!("{:<24} {images:>6} {line}{mark}\n", r.config));
     }
-    for r in report.rows.iter().filter(|r| r.error.is_some()) {
+    let unavailable = |label: &str| report.summary.iter().any(|r| r.config == label && r.unavailable.is_some());
+    for r in report.rows.iter().filter(|r| r.error.is_some() && !unavailable(&r.config)) {
         s.push_str(&format!("{} on {}: {}\n", r.config, r.image, r.error.as_deref().unwrap_or("")));
     }
     let mut seen = Vec::new();
@@ -439,6 +678,17 @@ pub fn table(report: &Report) -> String {
         "speeds in MP/s: 1T on one thread, {}T on a pool of {} threads (--threads)\n",
         report.threads, report.threads
     ));
+    if report.rows.iter().any(|r| r.encoder.is_some()) {
+        s.push_str(&format!(
+            "jxr(jxrlib-enc) rows: jxrlib's {enc} writes the file (the input as scRGB half floats, -c 12, -q as \
+             labelled);\n  enc 1T is the wall time of that process (start and TIFF reading included), enc {n}T '-';\n  \
+             bytes, quality and dec are our decoder on jxrlib's file; peer dec is jxrlib's {dec} on the same file,\n  \
+             out of process (start and TIFF writing included: meaningful on large images only); its samples must equal ours\n",
+            enc = jxrlib::ENCODER,
+            dec = jxrlib::DECODER,
+            n = report.threads
+        ));
+    }
     for k in &report.skipped {
         s.push_str(&format!("skipped {}: {}\n", k.file, k.reason));
     }

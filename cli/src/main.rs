@@ -56,7 +56,9 @@ enum Command {
     /// Benchmark every codec configuration on every image of DIR (default: the generated corpus).
     ///
     /// Reports bytes, bits per pixel, PU21-PSNR, ΔE ITP mean, log-RMSE and the median encode
-    /// and decode speed in megapixels per second. Non-finite values are null in JSON.
+    /// and decode speed in megapixels per second. Non-finite values are null in JSON. JPEG XR
+    /// rows decode files written by jxrlib's JxrEncApp (if on PATH, else "not installed"), with
+    /// jxrlib's JxrDecApp as the peer decoder.
     Bench(BenchArgs),
     /// The project's generated corpus of synthetic HDR scenes.
     #[command(subcommand)]

@@ -199,6 +199,86 @@ fn bench_json_on_the_generated_corpus() {
     }
 }
 
+/// The JPEG XR rows' labels: JxrEncApp lossless and at three `-q` settings.
+const JXR_ROWS: [&str; 4] =
+    ["jxr(jxrlib-enc):lossless", "jxr(jxrlib-enc):q0.9", "jxr(jxrlib-enc):q0.6", "jxr(jxrlib-enc):q0.3"];
+
+fn labels(rows: &Value) -> Vec<String> {
+    let mut v: Vec<String> =
+        rows.as_array().unwrap().iter().map(|r| r["config"].as_str().unwrap().to_string()).collect();
+    v.dedup();
+    v
+}
+
+#[test]
+fn bench_lists_jpeg_xr_rows_as_not_installed_without_jxrlib() {
+    // An empty PATH: JxrEncApp cannot be found, and the rows say so instead of vanishing.
+    let bench =
+        |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args).env("PATH", "").output().unwrap();
+    let v = json(&bench(&["bench", "--quick", "--filter", "jxr", "--json"]));
+    assert_eq!(labels(&v["rows"]), JXR_ROWS, "{v}");
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["error"].as_str().unwrap().starts_with("not installed: JxrEncApp"), "{r}");
+    }
+    for s in v["summary"].as_array().unwrap() {
+        assert_eq!((s["images"].as_u64(), s["unavailable"].is_string()), (Some(0), true), "{s}");
+    }
+    let table = ok(&bench(&["bench", "--quick", "--filter", "jxr"]));
+    for label in JXR_ROWS {
+        let line = table.lines().find(|l| l.starts_with(label)).unwrap_or_else(|| panic!("no {label} in {table}"));
+        assert!(line.contains("not installed: JxrEncApp (Debian libjxr-tools) is not on PATH"), "{line}");
+    }
+}
+
+#[test]
+fn bench_has_jpeg_xr_rows_encoded_by_jxrlib_and_decoded_by_us() {
+    if common::require(
+        common::tool("JxrEncApp").zip(common::tool("JxrDecApp")),
+        "JxrEncApp and JxrDecApp (Debian libjxr-tools)",
+    )
+    .is_none()
+    {
+        return;
+    }
+    let v = json(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"jxr", &"--json"]));
+    assert_eq!(labels(&v["rows"]), JXR_ROWS, "--filter jxr keeps exactly the JPEG XR rows: {v}");
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["error"].is_null(), "{r}");
+        assert!(r["bytes"].as_u64().unwrap() > 0 && r["bpp"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["encoder"].as_str().unwrap().contains("JxrEncApp"), "{r}");
+        assert!(r["peer"]["decoder"].as_str().unwrap().contains("JxrDecApp"), "{r}");
+        // jxrlib is the reference decoder: ours gives its samples, byte for byte.
+        assert_eq!(r["peer"]["matches"], Value::Bool(true), "{r}");
+        assert!(r["peer"]["decode_mps"].as_f64().unwrap() > 0.0, "{r}");
+        for k in ["encode_mps", "decode_mps", "decode_mps_all"] {
+            assert!(r[k].as_f64().unwrap() > 0.0, "{k}: {r}");
+        }
+        // JxrEncApp is an outside program on one thread: no pool figure.
+        assert!(r["encode_mps_all"].is_null(), "{r}");
+    }
+    let summary = v["summary"].as_array().unwrap();
+    let s = |label: &str| summary.iter().find(|s| s["config"] == label).unwrap_or_else(|| panic!("{label}: {v}"));
+    for label in JXR_ROWS {
+        assert_eq!((s(label)["failed"].as_u64(), s(label)["peer"]["mismatches"].as_u64()), (Some(0), Some(0)), "{v}");
+    }
+    // Lower -q writes fewer bits and loses more (JxrEncApp's quality scale).
+    let bpp = |l: &str| s(l)["bpp"].as_f64().unwrap();
+    let de = |l: &str| s(l)["de_itp_mean"].as_f64().unwrap();
+    for w in JXR_ROWS.windows(2) {
+        assert!(bpp(w[1]) < bpp(w[0]) && de(w[1]) >= de(w[0]), "{w:?}: {v}");
+    }
+    // Lossless JPEG XR of half floats loses only the rounding to half (11 significant bits,
+    // IEEE 754-2008): far below one JND of ΔE ITP.
+    assert!(de(JXR_ROWS[0]) < 0.5, "{v}");
+    let table = ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"jxr"]));
+    assert!(table.lines().next().unwrap().contains("peer dec"), "{table}");
+    for label in JXR_ROWS {
+        assert!(table.lines().any(|l| l.starts_with(label)), "{table}");
+    }
+    assert!(!table.contains("DIFFERS") && !table.contains("not installed"), "{table}");
+    assert!(table.contains("jxr(jxrlib-enc) rows: jxrlib's JxrEncApp writes the file"), "{table}");
+}
+
 #[test]
 fn bench_on_a_directory_and_as_a_table() {
     let dir = common::temp_dir("cli-bench-dir");
