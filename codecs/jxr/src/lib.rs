@@ -28,12 +28,15 @@ pub mod mb;
 pub mod output;
 mod predict;
 mod quant;
+mod reduced;
+mod region;
 mod render;
 mod tiles;
 pub mod transform;
 mod vlc;
 
 pub use decoder::{decode_coefficients, Coefficients, PlaneCoeffs, RowDecoder};
+pub use reduced::{decode_raw_with, decode_rows_with, output_size, JxrDecodeRequest, Rect, Resolution};
 pub use render::decode_raw;
 
 use hdrcodec_core::sink::RowSink;
