@@ -728,3 +728,154 @@ impl Biases {
         (self.nchannel << shift) / sc.mul
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::Limits;
+
+    fn testdata(name: &str) -> Vec<u8> {
+        std::fs::read(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name)).unwrap()
+    }
+
+    fn fnv(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3))
+    }
+
+    fn opts() -> DecodeOptions {
+        DecodeOptions::new(Limits::default())
+    }
+
+    /// JxrDecApp's `-T 2` and `-T 4` samples (its TIFF's sample bytes, which are the pixel
+    /// format's), hashed (testdata/README.md): spatial 4:2:0 with OL2, 4:2:2 without
+    /// flexbits, interleaved alpha (half, spatial, trimmed), frequency order with tiles,
+    /// hard tiles on a non-square grid, windowing with 4:4:4 and 4:2:0.
+    #[test]
+    fn reduced_resolution_matches_jxrdecapp() {
+        let cases = [
+            ("tiny_420_sp.jxr", Resolution::Quarter, (10, 10), 0x6f48_b6a0_17ff_5e70u64),
+            ("tiny_420_sp.jxr", Resolution::Sixteenth, (3, 3), 0x94a0_1498_e19a_b130),
+            ("tiny_422.jxr", Resolution::Quarter, (10, 10), 0xf059_78e2_fbbe_4771),
+            ("tiny_422.jxr", Resolution::Sixteenth, (3, 3), 0xf609_532b_2d96_7ac2),
+            ("tiny_alpha_sp.jxr", Resolution::Quarter, (10, 6), 0x5178_c3df_7453_3c10),
+            ("tiny_alpha_sp.jxr", Resolution::Sixteenth, (3, 2), 0xe442_681f_26da_f570),
+            ("tiny_tiles.jxr", Resolution::Quarter, (12, 10), 0x24ff_dbe1_af83_d6b6),
+            ("tiny_tiles.jxr", Resolution::Sixteenth, (3, 3), 0x2741_32c7_7294_40a1),
+            ("t835_hard_2x3.jxr", Resolution::Quarter, (12, 10), 0x1ec7_af99_5130_1529),
+            ("t835_window.jxr", Resolution::Quarter, (23, 17), 0x7f11_53a7_33f0_ed52),
+            ("t835_window_420.jxr", Resolution::Quarter, (22, 14), 0xac04_cce7_a194_a3a9),
+        ];
+        for (name, resolution, size, want) in cases {
+            let file = testdata(name);
+            let request = JxrDecodeRequest { region: None, resolution };
+            let info = crate::probe_jxr(&file, &Limits::default()).unwrap();
+            assert_eq!(output_size(info.width, info.height, &request).unwrap(), size, "{name}");
+            for threads in [1, 2] {
+                let pool = hdrcodec_core::ThreadPool::new(threads).unwrap();
+                let raw = decode_raw_with(&file, &opts().with_pool(pool), &request).unwrap();
+                assert_eq!(fnv(&raw), want, "{name} {resolution:?}");
+            }
+            // A region of the reduced image is the same region of it.
+            let full = decode_raw_with(&file, &opts(), &request).unwrap();
+            let (w, h) = size;
+            let r = Rect { x: 1, y: 1, width: w - 2, height: h - 1 };
+            let part = decode_raw_with(&file, &opts(), &JxrDecodeRequest { region: Some(r), resolution }).unwrap();
+            let bpp = full.len() / (w * h) as usize;
+            let crop: Vec<u8> = (1..h as usize)
+                .flat_map(|y| full[(y * w as usize + 1) * bpp..(y * w as usize + w as usize - 1) * bpp].to_vec())
+                .collect();
+            // 4:2:0 and 4:2:2 chroma depend on the region's right edge (jxrlib's cWidth).
+            if !name.contains("42") {
+                assert_eq!(part, crop, "{name} {resolution:?} region");
+            }
+        }
+    }
+
+    /// A region at full resolution is the same rectangle of the whole decode, for every kind
+    /// of stream at hand (tiles, 4:2:0 with OL2, 4:2:2, alpha, hard tiles, windowing), and
+    /// for rectangles at the corners, across tiles and one pixel big.
+    #[test]
+    fn regions_are_crops_of_the_whole_image() {
+        for name in [
+            "tiny_420_sp.jxr",
+            "tiny_422.jxr",
+            "tiny_alpha_sp.jxr",
+            "tiny_tiles.jxr",
+            "t835_hard_2x3.jxr",
+            "t835_window.jxr",
+            "t835_window_420.jxr",
+            "t835_tile_qps.jxr",
+        ] {
+            let file = testdata(name);
+            let full = crate::decode_raw(&file, &opts()).unwrap();
+            let info = crate::probe_jxr(&file, &Limits::default()).unwrap();
+            let (w, h) = (info.width, info.height);
+            let bpp = full.len() / (w * h) as usize;
+            let rects = [
+                Rect { x: 0, y: 0, width: w, height: h },
+                Rect { x: 0, y: 0, width: 1, height: 1 },
+                Rect { x: w - 1, y: h - 1, width: 1, height: 1 },
+                Rect { x: 5, y: 17, width: w - 9, height: h - 20 },
+                Rect { x: 17, y: 3, width: 15, height: 16 },
+            ];
+            for r in rects {
+                let request = JxrDecodeRequest { region: Some(r), resolution: Resolution::Full };
+                let part = decode_raw_with(&file, &opts(), &request).unwrap();
+                let crop: Vec<u8> = (r.y..r.y + r.height)
+                    .flat_map(|y| {
+                        let at = (y * w + r.x) as usize * bpp;
+                        full[at..at + r.width as usize * bpp].to_vec()
+                    })
+                    .collect();
+                assert_eq!(part, crop, "{name} {r:?}");
+            }
+        }
+    }
+
+    /// Empty rectangles and rectangles reaching outside are errors, at every resolution.
+    #[test]
+    fn bad_regions_are_errors() {
+        let file = testdata("tiny_tiles.jxr");
+        for resolution in [Resolution::Full, Resolution::Quarter, Resolution::Sixteenth] {
+            for r in [
+                Rect { x: 0, y: 0, width: 0, height: 1 },
+                Rect { x: 0, y: 0, width: 1, height: 0 },
+                Rect { x: 48, y: 0, width: 1, height: 1 },
+                Rect { x: 0, y: 0, width: 49, height: 1 },
+                Rect { x: u32::MAX, y: 0, width: 2, height: 1 },
+            ] {
+                let request = JxrDecodeRequest { region: Some(r), resolution };
+                let err = decode_raw_with(&file, &opts(), &request).unwrap_err();
+                assert!(matches!(err, Error::Invalid { .. }), "{r:?}: {err}");
+            }
+        }
+    }
+
+    /// The sink path gives the raw path's samples as f32 and honours the budget; damaged
+    /// files give errors, not panics.
+    #[test]
+    fn rows_and_damaged_files() {
+        use hdrcodec_core::sink::ImageSink;
+        let file = testdata("tiny_alpha_sp.jxr");
+        for resolution in [Resolution::Quarter, Resolution::Sixteenth, Resolution::Full] {
+            let request = JxrDecodeRequest { region: Some(Rect { x: 1, y: 0, width: 2, height: 2 }), resolution };
+            let mut sink = ImageSink::new(&Limits::default());
+            decode_rows_with(&file, &opts(), &request, &mut sink).unwrap();
+            let image = sink.finish().unwrap();
+            assert_eq!((image.width(), image.height()), (2, 2));
+            let raw = decode_raw_with(&file, &opts(), &request).unwrap();
+            let halves: Vec<f32> =
+                raw.chunks_exact(2).map(|b| half::f16::from_bits(u16::from_le_bytes([b[0], b[1]])).to_f32()).collect();
+            assert!(image.samples().iter().zip(&halves).all(|(a, b)| a.to_bits() == b.to_bits()));
+            let tight = DecodeOptions::new(Limits::default().with_max_alloc_bytes(1000));
+            assert!(decode_raw_with(&file, &tight, &request).is_err());
+            let mut bad = file.clone();
+            for i in (0..file.len()).step_by(5) {
+                let _ = decode_raw_with(&file[..i], &opts(), &request);
+                bad.copy_from_slice(&file);
+                bad[i] ^= 0x5a;
+                let _ = decode_raw_with(&bad, &opts(), &request);
+            }
+        }
+    }
+}
