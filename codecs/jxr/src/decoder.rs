@@ -121,8 +121,12 @@ pub struct RowDecoder<'a> {
     ty: usize,
     my: u32,
     left: u32,
-    /// The current tile row's decoders.
-    tiles: Vec<TileDecoder<'a>>,
+    /// The current tile row's decoders (`None` for the columns not decoded).
+    tiles: Vec<Option<TileDecoder<'a>>>,
+    /// Frequency order: how many of each tile's packets to read (DC, LP, HP, FLEXBITS).
+    max_bands: usize,
+    /// The tile columns to decode (`None`: all); the others' macroblocks are zero.
+    columns: Option<Vec<bool>>,
     _charge: Allocation,
 }
 
@@ -141,8 +145,40 @@ impl<'a> RowDecoder<'a> {
             my: 0,
             left: 0,
             tiles: Vec::new(),
+            max_bands: 4,
+            columns: None,
             _charge: charge,
         })
+    }
+
+    /// In frequency order, reads only the first `n` packets of each tile (1: DC only, 2: DC
+    /// and LP); the coefficients of the bands not read stay zero. For reduced-resolution
+    /// decoding, which needs no more. Spatial order must parse everything and ignores it.
+    pub(crate) fn limit_bands(&mut self, n: usize) {
+        self.max_bands = n;
+    }
+
+    /// The macroblock row [`next_row`](Self::next_row) gives next.
+    pub(crate) fn next_row_index(&self) -> u32 {
+        self.my
+    }
+
+    /// Decodes only the tile columns `keep` marks (one flag per tile column); the macroblocks
+    /// of the others come out zero. For decoding a region.
+    pub(crate) fn only_tile_columns(&mut self, keep: Vec<bool>) {
+        self.columns = Some(keep);
+    }
+
+    /// Starts at tile row `ty` (before the first row is decoded): the rows above it are never
+    /// read, and [`next_row`](Self::next_row) goes on from the tile row's first macroblock row.
+    pub(crate) fn start_at_tile_row(&mut self, ty: usize) -> Result<()> {
+        let img = &self.cs.image;
+        if self.my != 0 || ty >= img.tile_heights.len() {
+            return Err(Error::invalid("JPEG XR: a start past the last tile row (a bug in the decoder)"));
+        }
+        self.ty = ty;
+        self.my = img.tile_heights[..ty].iter().sum();
+        Ok(())
     }
 
     /// The next macroblock row (`None` after the last): for each plane (primary, then
@@ -173,8 +209,10 @@ impl<'a> RowDecoder<'a> {
         let planes: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
         if self.left == 0 {
             let ty = self.ty;
-            self.tiles =
-                (0..img.tile_widths.len()).map(|tx| TileDecoder::new(cs, data, tx, ty)).collect::<Result<_>>()?;
+            let keep = |tx: usize| self.columns.as_ref().is_none_or(|k| k.get(tx).copied().unwrap_or(true));
+            self.tiles = (0..img.tile_widths.len())
+                .map(|tx| keep(tx).then(|| TileDecoder::with_bands(cs, data, tx, ty, self.max_bands)).transpose())
+                .collect::<Result<_>>()?;
             self.left = img.tile_heights[ty];
             self.ty += 1;
         }
@@ -182,7 +220,7 @@ impl<'a> RowDecoder<'a> {
         // macroblocks are contiguous in it): no row buffers per tile to copy from.
         let mb_w = img.mb_width as usize;
         let mut jobs: Vec<TileJob<'_, 'a>> =
-            self.tiles.iter_mut().map(|t| (t, Vec::new(), side.is_some().then(Vec::new))).collect();
+            self.tiles.iter_mut().map(|t| (t.as_mut(), Vec::new(), side.is_some().then(Vec::new))).collect();
         let short = || Error::invalid("JPEG XR: the tile widths exceed the image width");
         for (o, hdr) in out.iter_mut().zip(&planes) {
             let stride = hdr.channels * MB_COEFFS;
@@ -206,9 +244,14 @@ impl<'a> RowDecoder<'a> {
                 }
             }
         }
-        let decode = |job: &mut TileJob<'_, 'a>| match &mut job.2 {
-            Some(sides) => job.0.next_row_deferred(&mut job.1, sides),
-            None => job.0.next_row(&mut job.1),
+        let decode = |job: &mut TileJob<'_, 'a>| match (&mut job.0, &mut job.2) {
+            (Some(t), Some(sides)) => t.next_row_deferred(&mut job.1, sides),
+            (Some(t), None) => t.next_row(&mut job.1),
+            (None, sides) => {
+                job.1.iter_mut().for_each(|p| p.fill(0));
+                sides.iter_mut().flatten().for_each(|s| s.fill(MbSide::default()));
+                Ok(())
+            }
         };
         if jobs.len() > 1 && self.pool.is_parallel() {
             self.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| decode(&mut j[0]))?;
@@ -223,7 +266,7 @@ impl<'a> RowDecoder<'a> {
 
 /// One tile column's share of a row in [`RowDecoder::advance`]: its decoder, its part of each
 /// plane's row and (deferred flexbits) of each plane's side information.
-type TileJob<'t, 'a> = (&'t mut TileDecoder<'a>, Vec<&'t mut [i32]>, Option<Vec<&'t mut [MbSide]>>);
+type TileJob<'t, 'a> = (Option<&'t mut TileDecoder<'a>>, Vec<&'t mut [i32]>, Option<Vec<&'t mut [MbSide]>>);
 
 /// The FLEXBITS half of a deferred [`RowDecoder`]: completes its rows (flexbits, HP
 /// prediction, dequantization), in order, tile column by tile column.

@@ -11,6 +11,11 @@
 //! predicted coefficients the inverse transform reads ([`decode_coefficients`], layout in
 //! [`mb`]); it matches the ITU reference software T.835 coefficient for coefficient.
 //!
+//! Part of an image: [`decode_raw_with`] and [`decode_rows_with`] decode a rectangle
+//! ([`Rect`], in the stored orientation) and/or at 1/4 or 1/16 resolution ([`Resolution`])
+//! from the low bands alone, as jxrlib's JxrDecApp does with `-r`, `-T 2` and `-T 4`
+//! (see the crate README for jxrlib's behaviour there).
+//!
 //! Colour: the primaries and transfer of PTM_COLOR_INFO when the container has it; else, by
 //! the WIC convention, the fixed-point, half and float formats are linear scRGB (BT.709
 //! primaries, 1.0 = 80 nits) and the integer formats sRGB-encoded (linearised when decoded to
@@ -30,12 +35,15 @@ pub mod mb;
 pub mod output;
 mod predict;
 mod quant;
+mod reduced;
+mod region;
 mod render;
 mod tiles;
 pub mod transform;
 mod vlc;
 
 pub use decoder::{decode_coefficients, Coefficients, PlaneCoeffs, RowDecoder};
+pub use reduced::{decode_raw_with, decode_rows_with, output_size, JxrDecodeRequest, Rect, Resolution};
 pub use render::{decode_raw, decode_raw_into, raw_layout};
 
 use hdrcodec_core::sink::RowSink;

@@ -15,7 +15,8 @@ use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 use std::collections::VecDeque;
 
-fn clr_code(fmt: ClrFmt) -> u8 {
+/// INTERNAL_CLR_FMT's code.
+pub(crate) fn clr_code(fmt: ClrFmt) -> u8 {
     match fmt {
         ClrFmt::YOnly => 0,
         ClrFmt::Yuv420 => 1,
@@ -26,7 +27,8 @@ fn clr_code(fmt: ClrFmt) -> u8 {
     }
 }
 
-fn kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
+/// How channel `ch` of an INTERNAL_CLR_FMT is sampled.
+pub(crate) fn kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
     match (fmt, ch) {
         (ClrFmt::Yuv420, 1..) => PlaneKind::Chroma420,
         (ClrFmt::Yuv422, 1..) => PlaneKind::Chroma422,

@@ -308,6 +308,13 @@ pub struct TileDecoder<'a> {
 impl<'a> TileDecoder<'a> {
     /// Locates the tile's packets and reads their start codes and tile headers.
     pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+        Self::with_bands(cs, data, tx, ty, 4)
+    }
+
+    /// [`new`](Self::new), reading in frequency order only the first `max_bands` packets of
+    /// the tile (1: DC; 2: DC and LP): a reduced-resolution decode never opens the others.
+    /// Spatial order has one packet and ignores the limit.
+    pub fn with_bands(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize, max_bands: usize) -> Result<Self> {
         let (_, _, w, h) = tile_rect(cs, tx, ty);
         let (w, h) = (w as usize, h as usize);
         let mut planes = vec![PlaneWork::new(&cs.primary, w)];
@@ -319,7 +326,7 @@ impl<'a> TileDecoder<'a> {
         let frequency = cs.image.frequency_mode;
         let per_tile = if frequency { bands.count() } else { 1 };
         let mut readers = Vec::with_capacity(per_tile);
-        for band in 0..per_tile {
+        for band in 0..per_tile.min(max_bands.max(1)) {
             let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
             let mut r = BitReader::new(&data[*entry as usize..]);
             // jxrlib tolerates a bad FLEXBITS start code.
@@ -422,9 +429,11 @@ impl<'a> TileDecoder<'a> {
         } else {
             let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
             let r = dc;
+            // Without an LP packet (coded but not read), DC prediction runs here.
+            let lp_read = !rest.is_empty();
             each_mb(planes, r, w, my, "a JPEG XR DC packet", |p, r, mx, my| {
                 p.dc(r, mx, my);
-                if !p.hdr.bands.has_lp() {
+                if !p.hdr.bands.has_lp() || !lp_read {
                     p.predict_dclp(mx, my);
                 }
                 Ok(())

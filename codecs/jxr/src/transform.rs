@@ -1362,6 +1362,70 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     Ok((unit * r0 - 4 * b0) * width)
 }
 
+/// The second stage of the inverse transform alone for macroblock rows `rows` of one channel:
+/// the stage-2 PCT and (OVERLAP_MODE 2) the stage-2 POT, giving the *DC plane* (one value per
+/// 4×4 block: `bx·mb_w` wide, `by` rows per macroblock row, see [`PlaneKind::blocks`]) without
+/// running stage 1. This is what jxrlib's 1:4 reduced-resolution decode samples (it skips the
+/// first stage for a scale of 4 and more). `coeffs` as for [`inverse_band`], covering rows
+/// `rows.start − 1 .. rows.end + 1` (clipped to the image); `out` gets the band's DC rows,
+/// row-major.
+#[allow(clippy::too_many_arguments)]
+pub fn inverse_dc_band(
+    params: &TransformParams,
+    kind: PlaneKind,
+    channel: usize,
+    mb_w: usize,
+    mb_h: usize,
+    coeffs: &[MbCoeffs],
+    coeffs_first_row: usize,
+    rows: Range<usize>,
+    out: &mut [i32],
+) -> Result<()> {
+    plane_size(kind, mb_w, mb_h)?;
+    let (bx, by) = kind.blocks();
+    let (r0, r1) = (rows.start, rows.end);
+    if r0 >= r1 || r1 > mb_h {
+        return Err(Error::invalid(format!("macroblock rows {r0}..{r1} of an image of {mb_h}")));
+    }
+    // The POT windows on the band's outer seams reach two DC rows (half a macroblock) past
+    // them, so one macroblock row of halo each side is enough.
+    let (s0, s1) = (r0.saturating_sub(1), (r1 + 1).min(mb_h));
+    let have = coeffs_first_row..coeffs_first_row + coeffs.len() / mb_w;
+    if coeffs.len() % mb_w != 0 || s0 < have.start || s1 > have.end {
+        return Err(Error::invalid(format!(
+            "coefficients of macroblock rows {}..{} given, {s0}..{s1} needed",
+            have.start, have.end
+        )));
+    }
+    let double = params.scaled && channel > 0;
+    let dw = bx * mb_w;
+    let mut dc = vec![0i32; dw * by * (s1 - s0)];
+    let mut v = [0i32; 16];
+    for my in s0..s1 {
+        for mx in 0..mb_w {
+            stage2_inverse(kind, double, &coeffs[(my - coeffs_first_row) * mb_w + mx], &mut v);
+            for j in 0..by {
+                let row = ((my - s0) * by + j) * dw + mx * bx;
+                dc[row..row + bx].copy_from_slice(&v[j * bx..(j + 1) * bx]);
+            }
+        }
+    }
+    if params.overlap == OverlapMode::Two {
+        // The seams from the band's top edge to its bottom edge touch its rows.
+        let keys = by * r0..=by * r1;
+        let mut p = Rows { data: &mut dc, stride: dw, y_base: by * s0 };
+        for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
+            match kind {
+                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse),
+                _ => pot2_region(&mut p, r, &keys, Dir::Inverse),
+            }
+        }
+    }
+    let band = &dc[(r0 - s0) * by * dw..][..(r1 - r0) * by * dw];
+    out.get_mut(..band.len()).ok_or_else(|| Error::invalid("DC band output buffer too small"))?.copy_from_slice(band);
+    Ok(())
+}
+
 /// The inverse lapped transform of one channel, band by band ([`inverse_band`] over
 /// [`BAND_MB_ROWS`] macroblock rows at a time). `coeffs` holds all `mb_w × mb_h` macroblocks.
 ///
