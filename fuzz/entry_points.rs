@@ -134,8 +134,9 @@ pub fn pfm(data: &[u8]) {
 }
 
 /// JPEG XR: the codec (probe and decode through the container, entropy decoding, the
-/// transform and output formatting), jxrlib's raw samples for any pixel format, and the
-/// coefficients of the primary and planar alpha codestreams, on one and two threads.
+/// transform and output formatting), jxrlib's raw samples for any pixel format, 1/4 and 1/16
+/// resolution and a region, and the coefficients of the primary and planar alpha
+/// codestreams, on one and two threads.
 pub fn jxr(data: &[u8]) {
     let limits = Limits::fuzzing();
     let _ = probe_and_decode(&JxrCodec, data, &limits);
@@ -145,6 +146,16 @@ pub fn jxr(data: &[u8]) {
         let _ = hdrcodec_jxr::decode_coefficients(c.image, &options);
         if let Some(alpha) = c.alpha {
             let _ = hdrcodec_jxr::decode_coefficients(alpha, &options);
+        }
+        // Reduced resolutions, and a rectangle of the middle third (in stored orientation).
+        use hdrcodec_jxr::{JxrDecodeRequest, Rect, Resolution};
+        for resolution in [Resolution::Quarter, Resolution::Sixteenth] {
+            let _ = hdrcodec_jxr::decode_raw_with(data, &options, &JxrDecodeRequest { region: None, resolution });
+        }
+        if let Ok(cs) = hdrcodec_jxr::header::parse(c.image) {
+            let (w, h) = (cs.image.width, cs.image.height);
+            let region = Some(Rect { x: w / 3, y: h / 3, width: (w / 3).max(1), height: (h / 3).max(1) });
+            let _ = hdrcodec_jxr::decode_raw_with(data, &options, &JxrDecodeRequest { region, ..Default::default() });
         }
         // One pool for every input (starting threads per input would slow the fuzzer down).
         static POOL: std::sync::OnceLock<Option<hdrcodec_core::ThreadPool>> = std::sync::OnceLock::new();
