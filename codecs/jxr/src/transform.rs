@@ -1227,13 +1227,14 @@ pub(super) struct StageTwo {
     pub s0: usize,
 }
 
-/// The steps both operator sets share: checks `request`, then runs stage 2 (the PCT of each
+/// The steps every band transform shares (both operator sets, and the 1/4 resolution
+/// path): checks `request`, then runs stage 2 (the PCT of each
 /// macroblock's DC and LP) for the macroblock rows of the band and its halo,
-/// `s0 = rows.start − 2 .. rows.end + 2` (clipped), into `dc`: `by` rows of block DCs per
+/// `halo` macroblock rows each side (clipped; the first is `s0`), into `dc`: `by` rows of block DCs per
 /// macroblock row, `bx · mb_w` wide. Every value of `dc` is written, so a reused buffer needs
 /// no clearing.
 #[inline(always)]
-pub(super) fn stage2_band(request: &BandRequest, dc: &mut Vec<i32>) -> Result<StageTwo> {
+pub(super) fn stage2_band(request: &BandRequest, halo: usize, dc: &mut Vec<i32>) -> Result<StageTwo> {
     let BandRequest { params, kind, channel, mb_w, mb_h, coeffs, ref rows } = *request;
     let (width, _) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
@@ -1241,7 +1242,7 @@ pub(super) fn stage2_band(request: &BandRequest, dc: &mut Vec<i32>) -> Result<St
     if r0 >= r1 || r1 > mb_h {
         return Err(Error::invalid(format!("macroblock rows {r0}..{r1} of an image of {mb_h}")));
     }
-    let (s0, s1) = (r0.saturating_sub(2), (r1 + 2).min(mb_h));
+    let (s0, s1) = (r0.saturating_sub(halo), (r1 + halo).min(mb_h));
     if !coeffs.covers(&(s0..s1), mb_w) {
         return Err(Error::invalid(format!(
             "coefficients of macroblock rows {}..{} given, {s0}..{s1} needed",
@@ -1290,7 +1291,7 @@ unsafe fn inverse_band_rows_avx2(request: &BandRequest, scratch: &mut BandScratc
 fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
     let BandRequest { params, kind, mb_w, mb_h, coeffs, ref rows, .. } = *request;
     let BandScratch { dc, cm, data } = scratch;
-    let StageTwo { width, s0 } = stage2_band(request, dc)?;
+    let StageTwo { width, s0 } = stage2_band(request, 2, dc)?;
     let mb = |mx: usize, my: usize| coeffs.mb(mx, my);
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
@@ -1381,35 +1382,19 @@ pub fn inverse_dc_band(
     rows: Range<usize>,
     out: &mut [i32],
 ) -> Result<()> {
-    plane_size(kind, mb_w, mb_h)?;
+    if mb_w == 0 || coeffs.len() % mb_w != 0 {
+        return Err(Error::invalid(format!("{} macroblocks given in rows of {mb_w}", coeffs.len())));
+    }
+    let row_slices: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|r| r.as_flattened()).collect();
+    let source = MbRows::new(&row_slices, coeffs_first_row, MB_COEFFS, 0);
+    let request = BandRequest { params, kind, channel, mb_w, mb_h, coeffs: &source, rows: rows.clone() };
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
-    if r0 >= r1 || r1 > mb_h {
-        return Err(Error::invalid(format!("macroblock rows {r0}..{r1} of an image of {mb_h}")));
-    }
+    let dw = bx * mb_w;
     // The POT windows on the band's outer seams reach two DC rows (half a macroblock) past
     // them, so one macroblock row of halo each side is enough.
-    let (s0, s1) = (r0.saturating_sub(1), (r1 + 1).min(mb_h));
-    let have = coeffs_first_row..coeffs_first_row + coeffs.len() / mb_w;
-    if coeffs.len() % mb_w != 0 || s0 < have.start || s1 > have.end {
-        return Err(Error::invalid(format!(
-            "coefficients of macroblock rows {}..{} given, {s0}..{s1} needed",
-            have.start, have.end
-        )));
-    }
-    let double = params.scaled && channel > 0;
-    let dw = bx * mb_w;
-    let mut dc = vec![0i32; dw * by * (s1 - s0)];
-    let mut v = [0i32; 16];
-    for my in s0..s1 {
-        for mx in 0..mb_w {
-            stage2_inverse(kind, double, &coeffs[(my - coeffs_first_row) * mb_w + mx], &mut v);
-            for j in 0..by {
-                let row = ((my - s0) * by + j) * dw + mx * bx;
-                dc[row..row + bx].copy_from_slice(&v[j * bx..(j + 1) * bx]);
-            }
-        }
-    }
+    let mut dc = Vec::new();
+    let StageTwo { s0, .. } = stage2_band(&request, 1, &mut dc)?;
     if params.overlap == OverlapMode::Two {
         // The seams from the band's top edge to its bottom edge touch its rows.
         let keys = by * r0..=by * r1;

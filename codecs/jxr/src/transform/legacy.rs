@@ -399,7 +399,7 @@ pub(super) fn inverse_band(request: &BandRequest, leak: &DcLeakage, scratch: &mu
     let overlap = params.overlap;
     // Stage 2 is the same PCT as JPEG XR's.
     let BandScratch { dc, data, .. } = scratch;
-    let StageTwo { width, s0 } = stage2_band(request, dc)?;
+    let StageTwo { width, s0 } = stage2_band(request, 2, dc)?;
     let mb = |mx: usize, my: usize| coeffs.mb(mx, my);
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
