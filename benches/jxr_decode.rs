@@ -11,7 +11,8 @@
 //! `HDRCODEC_JXR_BENCH_MATRIX=1`, the matrix instead: lossless and qualities 0.9, 0.6
 //! and 0.3, × 48bppRGBHalf and 128bppRGBFloat, × one tile and 4x4 tiles (16 files; about 15
 //! minutes). Before anything is timed, jxrlib's samples must equal ours, byte for byte, on
-//! every file.
+//! every file. `HDRCODEC_JXR_BENCH_KEEP=1` keeps the encoded files in the bench's temp
+//! directory (for profiling).
 //!
 //! jxrlib is single-threaded: `jxrlib_1thread` and `hdrcodec_1thread` are the like-for-like
 //! pair; `hdrcodec_2threads` is ours on a pool of two threads. Criterion's throughput is in
@@ -153,6 +154,8 @@ fn large_files(corpus: &[File]) -> Vec<File> {
     let matrix = std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1");
     let qualities: &[&str] = if matrix { &["lossless", "0.9", "0.6", "0.3"] } else { &["0.6"] };
     let formats: &[&str] = if matrix { &["48bppRGBHalf", "128bppRGBFloat"] } else { &["48bppRGBHalf"] };
+    // For profiling outside the bench: keep the encoded files.
+    let keep = std::env::var("HDRCODEC_JXR_BENCH_KEEP").is_ok_and(|v| v == "1");
     let tilings: &[&str] = if matrix { &["1tile", "4x4tiles"] } else { &["1tile"] };
     let mut files = Vec::new();
     for &format in formats {
@@ -180,7 +183,11 @@ fn large_files(corpus: &[File]) -> Vec<File> {
                 }
                 encode(&enc, &tif_path, &jxr, &args);
                 files.push(File { name, data: std::fs::read(&jxr).expect("read an encoded mosaic") });
-                let _ = std::fs::remove_file(&jxr);
+                if keep {
+                    eprintln!("jxr_decode bench: kept {}", jxr.display());
+                } else {
+                    let _ = std::fs::remove_file(&jxr);
+                }
             }
         }
         let _ = std::fs::remove_file(&tif_path);
@@ -227,13 +234,15 @@ fn bench(c: &mut Criterion) {
         }
         let (_, _, row) = raw_layout(&f.data).expect("our layout");
         let mut buf = vec![0u8; ours.len()];
+        // Checked before timing, since criterion's --list runs no iterations.
+        decode_raw_into(&f.data, &single, &mut buf, row).expect("our decode into a buffer");
+        assert_eq!(buf, ours, "{}: decode_raw_into gives decode_raw's bytes", f.name);
         group.bench_with_input(BenchmarkId::new("hdrcodec_1thread", &f.name), f, |b, f| {
             b.iter(|| decode_raw_into(black_box(&f.data), &single, black_box(&mut buf), row).unwrap())
         });
         group.bench_with_input(BenchmarkId::new("hdrcodec_2threads", &f.name), f, |b, f| {
             b.iter(|| decode_raw_into(black_box(&f.data), &two, black_box(&mut buf), row).unwrap())
         });
-        assert_eq!(buf, ours, "{}: decode_raw_into gives decode_raw's bytes", f.name);
     }
     group.finish();
 }

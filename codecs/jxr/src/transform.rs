@@ -831,12 +831,16 @@ impl Rows<'_> {
 /// limited to the operations keyed by a row in `keys`: a seam's operations by the seam's row,
 /// the top edge's and top corners' by `r.y0`, the bottom's by `r.y1`. Operations with
 /// different keys touch different samples, so any split of the keys gives the same result.
-fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir) {
+fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir, cm: &mut Vec<i32>) {
     let f4 = |p: &mut Rows, i: [usize; 4]| if dir == Dir::Inverse { post4(p.data, i) } else { pre4(p.data, i) };
-    let mut cm = Vec::new();
-    for y in (r.y0 + 4..r.y1).step_by(4).filter(|y| keys.contains(y)) {
+    // Interior seams: rows r.y0 + 4, r.y0 + 8, … below r.y1 (regions start on a multiple
+    // of 4), those in `keys`.
+    debug_assert_eq!(r.y0 % 4, 0);
+    let first = (r.y0 + 4).max(keys.start().next_multiple_of(4));
+    let last = (r.y1 - 1).min(*keys.end());
+    for y in (first..=last).step_by(4) {
         // Interior windows (LANES at once), and the seams along the left and right edges.
-        pot4_interior_row(p, r, y, dir, &mut cm);
+        pot4_interior_row(p, r, y, dir, cm);
         for x in [r.x0, r.x0 + 1, r.x1 - 2, r.x1 - 1] {
             f4(p, [p.at(x, y - 2), p.at(x, y - 1), p.at(x, y), p.at(x, y + 1)]);
         }
@@ -1302,7 +1306,7 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
         let mut p = Rows { data: dc, stride: dw, y_base: by * s0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
-                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse),
+                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse, cm),
                 _ => pot2_region(&mut p, r, &keys, Dir::Inverse),
             }
         }
@@ -1312,12 +1316,31 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     // block row gathered coefficient-major, transformed LANES blocks at a time, scattered.
     // Every sample of `data` is written, so a reused buffer needs no clearing; the scratch's
     // padding lanes hold whatever they held (the arithmetic wraps, and they are not read).
+    // The POT of the seams between block rows y − 1 and y follows the PCT of row y, while
+    // those rows are still in cache: every POT operation touches samples no other one does,
+    // so it only has to come after the PCT of the blocks it reads.
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
     data.resize(width * 4 * (b1 - b0), 0);
     let n = scratch_stride(dw);
-    cm.resize(16 * n, 0);
+    let unit = 4 * by;
+    let pot = if params.overlap == OverlapMode::None {
+        Vec::new()
+    } else {
+        regions(params.hard.as_ref(), mb_w, mb_h, 4 * bx, unit)
+    };
+    // The seams from the band's top row to its bottom row are this band's.
+    let band_keys = unit * r0..=unit * r1;
+    let pot_seams = |data: &mut Vec<i32>, cm: &mut Vec<i32>, key: usize| {
+        if band_keys.contains(&key) {
+            let mut p = Rows { data, stride: width, y_base: 4 * b0 };
+            for &r in &pot {
+                pot4_region(&mut p, r, &(key..=key), Dir::Inverse, cm);
+            }
+        }
+    };
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
+        cm.resize(16 * n, 0);
         {
             // The 16 rows of the scratch, each cut to the block row's width, so that the
             // loops below index them without bounds checks.
@@ -1349,16 +1372,10 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
             let rows: [&[i32]; 4] = std::array::from_fn(|i| &quad[i * n..][..dw]);
             interleave4(rows, &mut data[((y - b0) * 4 + j) * width..][..width]);
         }
+        pot_seams(data, cm, 4 * y);
     }
-    // The stage-1 POT of every seam from the band's top row to its bottom row.
-    let unit = 4 * by;
-    if params.overlap != OverlapMode::None {
-        let keys = unit * r0..=unit * r1;
-        let mut p = Rows { data, stride: width, y_base: 4 * b0 };
-        for r in regions(params.hard.as_ref(), mb_w, mb_h, 4 * bx, unit) {
-            pot4_region(&mut p, r, &keys, Dir::Inverse);
-        }
-    }
+    // The bottom edge of the image (or of a hard tile ending there).
+    pot_seams(data, cm, 4 * b1);
     data.truncate((unit * r1 - 4 * b0) * width);
     Ok((unit * r0 - 4 * b0) * width)
 }
@@ -1399,9 +1416,10 @@ pub fn inverse_dc_band(
         // The seams from the band's top edge to its bottom edge touch its rows.
         let keys = by * r0..=by * r1;
         let mut p = Rows { data: &mut dc, stride: dw, y_base: by * s0 };
+        let mut cm = Vec::new();
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
-                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse),
+                PlaneKind::Full => pot4_region(&mut p, r, &keys, Dir::Inverse, &mut cm),
                 _ => pot2_region(&mut p, r, &keys, Dir::Inverse),
             }
         }
@@ -1458,10 +1476,11 @@ pub fn forward_plane(
     }
     let double = params.scaled && channel > 0;
     let mut data = plane.data.clone();
+    let mut cm = Vec::new();
     if params.overlap != OverlapMode::None {
         let mut p = Rows { data: &mut data, stride: width, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx * 4, by * 4) {
-            pot4_region(&mut p, r, &(0..=height), Dir::Forward);
+            pot4_region(&mut p, r, &(0..=height), Dir::Forward, &mut cm);
         }
     }
     let (dw, dh) = (bx * mb_w, by * mb_h);
@@ -1485,7 +1504,7 @@ pub fn forward_plane(
         let mut p = Rows { data: &mut dc, stride: dw, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
-                PlaneKind::Full => pot4_region(&mut p, r, &(0..=dh), Dir::Forward),
+                PlaneKind::Full => pot4_region(&mut p, r, &(0..=dh), Dir::Forward, &mut cm),
                 _ => pot2_region(&mut p, r, &(0..=dh), Dir::Forward),
             }
         }
