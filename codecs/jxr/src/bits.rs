@@ -1,5 +1,5 @@
 //! MSB-first bit reading over a byte slice (T.832 clause 8 reads every syntax element most
-//! significant bit first), and the byte-aligned variable-length word VLW_ESC.
+//! significant bit first), its inverse [`BitWriter`], and the variable-length word VLW_ESC.
 //!
 //! The reader keeps up to 64 bits in a buffer, left-aligned, and refills a whole word at a time
 //! while at least 8 bytes remain. Reading past the end never fails on the spot: the missing
@@ -175,6 +175,80 @@ impl<'a> BitReader<'a> {
     }
 }
 
+/// An MSB-first bit writer: the exact inverse of [`BitReader`] (what one writes with
+/// `write(v, n)` the other reads back with `read(n)`).
+#[derive(Clone, Debug, Default)]
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub struct BitWriter {
+    bytes: Vec<u8>,
+    /// Bits not yet in `bytes`, right-aligned: the low `pending` bits of `acc`.
+    acc: u64,
+    /// Fewer than 8 between calls.
+    pending: u32,
+}
+
+#[allow(dead_code)]
+impl BitWriter {
+    /// An empty writer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes the low `n` bits of `value` (`n` ≤ 32), most significant first.
+    #[inline]
+    pub fn write(&mut self, value: u32, n: u32) {
+        debug_assert!(n <= 32);
+        let mask = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+        // pending < 8 and n <= 32: the shift keeps every pending bit (at most 40 in use).
+        self.acc = (self.acc << n) | u64::from(value & mask);
+        self.pending += n;
+        while self.pending >= 8 {
+            self.pending -= 8;
+            self.bytes.push((self.acc >> self.pending) as u8);
+        }
+    }
+
+    /// Writes one bit.
+    #[inline]
+    pub fn bit(&mut self, b: bool) {
+        self.write(u32::from(b), 1);
+    }
+
+    /// Writes zero bits up to the next byte boundary (what [`BitReader::align`] skips).
+    pub fn align(&mut self) {
+        if self.pending != 0 {
+            self.write(0, 8 - self.pending);
+        }
+    }
+
+    /// Bits written so far.
+    pub fn bit_len(&self) -> u64 {
+        self.bytes.len() as u64 * 8 + u64::from(self.pending)
+    }
+
+    /// The bytes written, the last one padded with zero bits.
+    pub fn into_bytes(mut self) -> Vec<u8> {
+        self.align();
+        self.bytes
+    }
+
+    /// Writes `v` as VLW_ESC (T.832 8.2; the inverse of [`BitReader::vlw_esc`]): 16 bits when
+    /// the first byte stays below 0xFB, else 0xFB and 32 bits, else 0xFC and 64 bits.
+    pub fn vlw_esc(&mut self, v: u64) {
+        if v < 0xFB00 {
+            self.write(v as u32, 16);
+        } else if let Ok(v) = u32::try_from(v) {
+            self.write(0xFB, 8);
+            self.write(v, 32);
+        } else {
+            self.write(0xFC, 8);
+            self.write((v >> 32) as u32, 32);
+            self.write(v as u32, 32);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,5 +309,71 @@ mod tests {
         assert_eq!(r.vlw_esc(), Some((1 << 32) | 3));
         assert_eq!(r.byte_pos(), data.len() as u64);
         assert!(!r.overrun());
+    }
+
+    #[test]
+    fn writer_is_the_inverse_of_the_reader() {
+        // xorshift32: random widths (0..=32) and values, including the bits above the width.
+        let mut x = 0x2545_F491u32;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x
+        };
+        let mut w = BitWriter::new();
+        let mut items = Vec::new();
+        for _ in 0..5000 {
+            let n = next() % 33;
+            let v = next();
+            w.write(v, n);
+            items.push((v, n));
+            if next() % 97 == 0 {
+                w.align();
+                items.push((0, u32::MAX));
+            }
+        }
+        let len = w.bit_len();
+        let bytes = w.into_bytes();
+        assert_eq!(bytes.len() as u64, len.div_ceil(8));
+        let mut r = BitReader::new(&bytes);
+        for (v, n) in items {
+            if n == u32::MAX {
+                r.align();
+                continue;
+            }
+            let mask = if n == 32 { u32::MAX } else { (1u32 << n) - 1 };
+            assert_eq!(r.read(n), v & mask, "width {n}");
+        }
+        assert_eq!(r.bit_pos(), len);
+        assert!(!r.overrun());
+    }
+
+    #[test]
+    fn writer_bits_align_and_vlw_esc() {
+        let mut w = BitWriter::new();
+        w.bit(true);
+        w.bit(false);
+        w.bit(true);
+        assert_eq!(w.bit_len(), 3);
+        w.align();
+        assert_eq!(w.bit_len(), 8);
+        w.align();
+        assert_eq!(w.bit_len(), 8);
+        let values = [0u64, 0x1234, 0xFAFF, 0xFB00, 0x0001_0002, u64::from(u32::MAX), 1 << 32, u64::MAX];
+        for v in values {
+            w.vlw_esc(v);
+        }
+        w.write(0b101, 3);
+        let bytes = w.into_bytes();
+        assert_eq!(bytes[0], 0b1010_0000);
+        let mut r = BitReader::new(&bytes);
+        r.align();
+        assert_eq!(r.read(8), 0b1010_0000);
+        for v in values {
+            assert_eq!(r.vlw_esc(), Some(v));
+        }
+        assert_eq!(r.read(3), 0b101);
+        assert_eq!(*bytes.last().unwrap() & 0x1F, 0);
     }
 }
