@@ -14,7 +14,7 @@
 // Loops over channel, block and bit indices mirror the syntax of T.832 and T.835.
 #![allow(clippy::needless_range_loop)]
 
-use crate::bits::BitReader;
+use crate::bits::{BitReader, BitWriter};
 
 /// A code table: for every 8-bit window, `symbol << 4 | length`.
 pub type Lut = [u8; 256];
@@ -132,6 +132,77 @@ pub static CBPLP_42X: Lut = lut(&CBPLP_42X_CODES);
 /// See [`REFINE_CBP2_CODES`].
 pub static REFINE_CBP2: Lut = lut(&REFINE_CBP2_CODES);
 
+/// One code of a table, for encoding: `len` bits, the value of which is `bits`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Code {
+    /// The code, right-aligned.
+    pub bits: u32,
+    /// Its length.
+    pub len: u32,
+}
+
+/// The encoding table of a prefix code given as one bit string per symbol: built from the
+/// same strings as the decoder's [`Lut`], so that encoder and decoder cannot disagree.
+const fn codes<const N: usize>(strings: &[&str; N]) -> [Code; N] {
+    let mut t = [Code { bits: 0, len: 0 }; N];
+    let mut sym = 0;
+    while sym < N {
+        let bytes = strings[sym].as_bytes();
+        let mut bits = 0u32;
+        let mut i = 0;
+        while i < bytes.len() {
+            bits = (bits << 1) | (bytes[i] - b'0') as u32;
+            i += 1;
+        }
+        t[sym] = Code { bits, len: bytes.len() as u32 };
+        sym += 1;
+    }
+    t
+}
+
+/// Encodes `symbol` with `table` (the inverse of [`decode`] with the matching [`Lut`]).
+#[inline]
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub fn encode(w: &mut BitWriter, table: &[Code], symbol: usize) {
+    let c = table[symbol];
+    w.write(c.bits, c.len);
+}
+
+/// Encoding tables of the codes above (`*_CODES`), symbol-indexed.
+pub static DC_YUV_ENC: [Code; 8] = codes(&DC_YUV_CODES);
+/// See [`ABS_LEVEL_CODES`].
+pub static ABS_LEVEL_ENC: [[Code; 7]; 2] = [codes(&ABS_LEVEL_CODES[0]), codes(&ABS_LEVEL_CODES[1])];
+/// See [`FIRST_INDEX_CODES`].
+pub static FIRST_INDEX_ENC: [[Code; 12]; 5] = [
+    codes(&FIRST_INDEX_CODES[0]),
+    codes(&FIRST_INDEX_CODES[1]),
+    codes(&FIRST_INDEX_CODES[2]),
+    codes(&FIRST_INDEX_CODES[3]),
+    codes(&FIRST_INDEX_CODES[4]),
+];
+/// See [`INDEX_CODES`].
+pub static INDEX_ENC: [[Code; 6]; 4] =
+    [codes(&INDEX_CODES[0]), codes(&INDEX_CODES[1]), codes(&INDEX_CODES[2]), codes(&INDEX_CODES[3])];
+/// See [`INDEX2_CODES`].
+pub static INDEX2_ENC: [Code; 4] = codes(&INDEX2_CODES);
+/// See [`RUN_INDEX_CODES`].
+pub static RUN_INDEX_ENC: [Code; 5] = codes(&RUN_INDEX_CODES);
+/// See [`NUM_CBP_CODES`].
+pub static NUM_CBP_ENC: [[Code; 5]; 2] = [codes(&NUM_CBP_CODES[0]), codes(&NUM_CBP_CODES[1])];
+/// See [`NUM_BLKCBP_YUV_CODES`].
+pub static NUM_BLKCBP_YUV_ENC: [[Code; 9]; 2] = [codes(&NUM_BLKCBP_YUV_CODES[0]), codes(&NUM_BLKCBP_YUV_CODES[1])];
+/// See [`NUM_CH_BLK_CODES`].
+pub static NUM_CH_BLK_ENC: [Code; 4] = codes(&NUM_CH_BLK_CODES);
+/// See [`VALUE_012_CODES`].
+pub static VALUE_012_ENC: [Code; 3] = codes(&VALUE_012_CODES);
+/// See [`CBPLP_444_CODES`].
+pub static CBPLP_444_ENC: [Code; 8] = codes(&CBPLP_444_CODES);
+/// See [`CBPLP_42X_CODES`].
+pub static CBPLP_42X_ENC: [Code; 4] = codes(&CBPLP_42X_CODES);
+/// See [`REFINE_CBP2_CODES`].
+pub static REFINE_CBP2_ENC: [Code; 6] = codes(&REFINE_CBP2_CODES);
+
 /// Discriminant deltas of ABSLEVEL_INDEX (T.832 5.6).
 pub const ABS_LEVEL_DELTA: [i32; 7] = [1, 0, -1, -1, -1, -1, -1];
 /// Discriminant deltas of FIRST_INDEX, by delta table (T.832 5.6).
@@ -197,6 +268,21 @@ impl AdaptiveVlc {
     pub const ONE: AdaptiveVlc = AdaptiveVlc { table: 0, delta: 0, delta2: 0, disc: 0, disc2: 0 };
     /// The start state of the 6- and 12-symbol contexts (table 1, delta tables 0 and 1).
     pub const TWO: AdaptiveVlc = AdaptiveVlc { table: 1, delta: 0, delta2: 1, disc: 0, disc2: 0 };
+
+    /// Counts a symbol of a context with one discriminant (T.832 5.6): the same update for
+    /// decoder and encoder.
+    #[inline(always)]
+    pub fn count(&mut self, deltas: &[i32], symbol: usize) {
+        self.disc += deltas[symbol];
+    }
+
+    /// Counts a symbol of a 6- or 12-symbol context: both discriminants, through the delta
+    /// tables the context currently selects (T.832 5.6).
+    #[inline(always)]
+    pub fn count2<const N: usize>(&mut self, deltas: &[[i32; N]], symbol: usize) {
+        self.disc += deltas[self.delta as usize][symbol];
+        self.disc2 += deltas[self.delta2 as usize][symbol];
+    }
 
     /// Adaptation of a two-table context (`_jxr_AdaptVLCTable`).
     pub fn adapt_one(&mut self) {
@@ -501,5 +587,43 @@ mod tests {
         v.disc = 100;
         v.adapt_one();
         assert_eq!((v.table, v.disc), (1, 64));
+    }
+
+    #[test]
+    fn every_encoding_table_round_trips_through_its_decoding_table() {
+        let mut cases: Vec<(&[Code], &Lut)> = vec![
+            (&DC_YUV_ENC, &DC_YUV),
+            (&INDEX2_ENC, &INDEX2),
+            (&RUN_INDEX_ENC, &RUN_INDEX),
+            (&NUM_CH_BLK_ENC, &NUM_CH_BLK),
+            (&VALUE_012_ENC, &VALUE_012),
+            (&CBPLP_444_ENC, &CBPLP_444),
+            (&CBPLP_42X_ENC, &CBPLP_42X),
+            (&REFINE_CBP2_ENC, &REFINE_CBP2),
+        ];
+        cases.extend(ABS_LEVEL_ENC.iter().map(|t| &t[..]).zip(ABS_LEVEL.iter()));
+        cases.extend(FIRST_INDEX_ENC.iter().map(|t| &t[..]).zip(FIRST_INDEX.iter()));
+        cases.extend(INDEX_ENC.iter().map(|t| &t[..]).zip(INDEX.iter()));
+        cases.extend(NUM_CBP_ENC.iter().map(|t| &t[..]).zip(NUM_CBP.iter()));
+        cases.extend(NUM_BLKCBP_YUV_ENC.iter().map(|t| &t[..]).zip(NUM_BLKCBP_YUV.iter()));
+        assert_eq!(cases.len(), 8 + 2 + 5 + 4 + 2 + 2);
+        for (enc, lut) in cases {
+            for sym in 0..enc.len() {
+                // Each code, followed by every other code as a tail: the decoder must stop
+                // exactly at the end of the first.
+                for tail in 0..enc.len() {
+                    let mut w = BitWriter::new();
+                    encode(&mut w, enc, sym);
+                    let len = w.bit_len();
+                    assert_eq!(len, u64::from(enc[sym].len));
+                    encode(&mut w, enc, tail);
+                    let bytes = w.into_bytes();
+                    let mut r = BitReader::new(&bytes);
+                    assert_eq!(decode(&mut r, lut), sym);
+                    assert_eq!(r.bit_pos(), len);
+                    assert_eq!(decode(&mut r, lut), tail);
+                }
+            }
+        }
     }
 }
