@@ -252,6 +252,52 @@ pub fn predict_cbp(fmt: ClrFmt, ch: usize, diff: u32, state: u8, left: Option<u3
     (cbp, cbp.count_ones() as i32 * scale)
 }
 
+/// The inverse of [`predict_cbp`] (what an encoder codes): the difference pattern that
+/// `predict_cbp` turns into `cbp`, given the same state and neighbours. Every propagation step
+/// of the spatial prediction XORs bits into positions it never reads from, so each is its own
+/// inverse: undo them in reverse order, then the neighbour's bit.
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub fn unpredict_cbp(fmt: ClrFmt, ch: usize, cbp: u32, state: u8, left: Option<u32>, top: Option<u32>) -> u32 {
+    let chroma_sub = ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+    let (top_bit, left_bit, all) = match (fmt, chroma_sub) {
+        (ClrFmt::Yuv420, true) => (2, 1, 0xF),
+        (ClrFmt::Yuv422, true) => (6, 1, 0xFF),
+        _ => (10, 5, 0xFFFF),
+    };
+    let mut d = cbp & all;
+    if state == 0 {
+        match (fmt, chroma_sub) {
+            (ClrFmt::Yuv420, true) => {
+                d ^= 0x0C & (d << 2);
+                d ^= 0x02 & (d << 1);
+            }
+            (ClrFmt::Yuv422, true) => {
+                d ^= 0xC0 & (d << 2);
+                d ^= 0x30 & (d << 2);
+                d ^= 0x0C & (d << 2);
+                d ^= 0x02 & (d << 1);
+            }
+            _ => {
+                d ^= (d & 0x3300) << 2;
+                d ^= (d & 0xCC) << 6;
+                d ^= (d & 0x33) << 2;
+                d ^= 0x20 & (d << 1);
+                d ^= 0x10 & (d << 3);
+                d ^= 0x02 & (d << 1);
+            }
+        }
+        d ^= match (left, top) {
+            (Some(l), _) => (l >> left_bit) & 1,
+            (None, Some(t)) => (t >> top_bit) & 1,
+            (None, None) => 1,
+        };
+    } else if state == 2 {
+        d ^= all;
+    }
+    d & all
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,5 +338,37 @@ mod tests {
         assert_eq!(n, 16);
         assert_eq!(predict_cbp(ClrFmt::Yuv444, 0, 0x0F0F, 1, None, None), (0x0F0F, 8));
         assert_eq!(predict_cbp(ClrFmt::Yuv420, 1, 0, 2, None, None), (0xF, 16));
+    }
+
+    #[test]
+    fn unpredict_cbp_inverts_predict_cbp_exhaustively() {
+        let cases = [
+            (ClrFmt::YOnly, 0),
+            (ClrFmt::Yuv444, 1),
+            (ClrFmt::Yuv420, 0),
+            (ClrFmt::Yuv420, 1),
+            (ClrFmt::Yuv422, 2),
+            (ClrFmt::NComponent, 3),
+        ];
+        for (fmt, ch) in cases {
+            let all: u32 = match (fmt, ch) {
+                (ClrFmt::Yuv420, 1..) => 0xF,
+                (ClrFmt::Yuv422, 1..) => 0xFF,
+                _ => 0xFFFF,
+            };
+            // Neighbour patterns with the bit predict_cbp reads clear and set.
+            let neighbours = [None, Some(0), Some(all)];
+            for state in 0..3u8 {
+                for &left in &neighbours {
+                    for &top in &neighbours {
+                        for cbp in 0..=all {
+                            let diff = unpredict_cbp(fmt, ch, cbp, state, left, top);
+                            let (back, _) = predict_cbp(fmt, ch, diff, state, left, top);
+                            assert_eq!(back, cbp, "{fmt:?} ch {ch} state {state} {left:?} {top:?}");
+                        }
+                    }
+                }
+            }
+        }
     }
 }
