@@ -7,11 +7,14 @@
 //! Values are written quantized (model bits and flexbits included) into a macroblock's
 //! coefficient array (all channels, [`MB_COEFFS`] each, layout of [`crate::mb`]); prediction
 //! and dequantization come later.
+//!
+//! [`PlaneEncoder`] is the exact mirror: it writes, from such arrays, what [`PlaneDecoder`]
+//! reads back, with the same adaptive state ([`EntropyState`]) adapting at the same points.
 
 // Loops over channel, block and bit indices mirror the syntax of T.832 and T.835.
 #![allow(clippy::needless_range_loop)]
 
-use crate::bits::BitReader;
+use crate::bits::{BitReader, BitWriter};
 use crate::header::{ClrFmt, MAX_CHANNELS};
 use crate::mb::{hp, MB_COEFFS};
 use crate::predict;
@@ -24,6 +27,10 @@ const TRANSPOSE444: [usize; 16] = [0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7,
 const TRANSPOSE420: [usize; 4] = [0, 2, 1, 3];
 /// 422 chroma LP positions.
 const TRANSPOSE422: [usize; 8] = [0, 2, 1, 3, 4, 6, 5, 7];
+/// The 422 chroma CBP: block `blk` of the pattern coded per 8×8 quad holds bits
+/// `SHIFT422[blk]` and `SHIFT422[blk] + 2` of the 8-block pattern; the coded value 0/1/2
+/// selects `SHIFT422[v + 1]`: the first, the second, or both.
+const SHIFT422: [u32; 4] = [0, 1, 4, 5];
 /// The order of a luma macroblock's blocks in the bitstream: 2×2 quads (T.835 `_jxr_hp_scan_map`).
 const HP_BLOCK_ORDER: [usize; 16] = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 12, 13, 10, 11, 14, 15];
 
@@ -31,15 +38,14 @@ fn corrupt(what: &str) -> Error {
     Error::invalid(format!("JPEG XR: corrupt macroblock data ({what})"))
 }
 
-/// The adaptive entropy-coding state of one plane in one tile (reset at each tile start).
+/// The adaptive entropy-coding state of one plane in one tile (reset at each tile start):
+/// VLC table choice (T.832 5.5.5), model bits (5.5.6), CBPHP prediction (5.5.7), CBPLP
+/// counters (5.5.8) and adaptive scans (5.7). Decoder and encoder both hold one, so that
+/// every adaptation rule exists once.
 #[derive(Clone, Debug)]
-pub struct PlaneDecoder {
-    /// INTERNAL_CLR_FMT.
-    pub fmt: ClrFmt,
-    /// Channels.
-    pub channels: usize,
-    /// TRIM_FLEXBITS of the tile.
-    pub trim: u32,
+struct EntropyState {
+    fmt: ClrFmt,
+    channels: usize,
     vlc: [AdaptiveVlc; V_COUNT],
     model: [Model; 3],
     cbplp_zero: i32,
@@ -50,16 +56,24 @@ pub struct PlaneDecoder {
     cbp_model: CbpModel,
 }
 
-/// One decoded run-level pair: zeros before the coefficient, and its value.
+/// The entropy decoder of one plane in one tile.
+#[derive(Clone, Debug)]
+pub struct PlaneDecoder {
+    /// TRIM_FLEXBITS of the tile.
+    pub trim: u32,
+    st: EntropyState,
+}
+
+/// One run-level pair: zeros before the coefficient, and its value.
 #[derive(Clone, Copy, Debug, Default)]
 struct RunLevel {
     run: u32,
     level: i32,
 }
 
-impl PlaneDecoder {
+impl EntropyState {
     /// The state at the start of a tile.
-    pub fn new(fmt: ClrFmt, channels: usize) -> Self {
+    fn new(fmt: ClrFmt, channels: usize) -> Self {
         let mut vlc = [AdaptiveVlc::ONE; V_COUNT];
         for v in [
             V::FirstIndLpLum,
@@ -77,10 +91,9 @@ impl PlaneDecoder {
         ] {
             vlc[v as usize] = AdaptiveVlc::TWO;
         }
-        PlaneDecoder {
+        EntropyState {
             fmt,
             channels,
-            trim: 0,
             vlc,
             model: [Model::new(BAND_DC), Model::new(BAND_LP), Model::new(BAND_HP)],
             cbplp_zero: 1,
@@ -116,16 +129,126 @@ impl PlaneDecoder {
         self.model[band].update(lap_mean, band, fmt, channels, yonly);
     }
 
+    /// The end of MB_DC: model update and, at an adaptation point, the DC tables.
+    fn end_dc(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
+        self.update_model(lap_mean, BAND_DC);
+        if reset_context(mx, tile_w) {
+            self.vlc[V::AbsLevelDcLum as usize].adapt_one();
+            self.vlc[V::AbsLevelDcChr as usize].adapt_one();
+        }
+    }
+
+    /// The start of MB_LP: the LP scan totals restart every 16 macroblocks.
+    fn start_lp(&mut self, mx: u32) {
+        if mx % 16 == 0 {
+            self.lp_scan.reset_totals();
+        }
+    }
+
+    /// The end of MB_LP: model update and, at an adaptation point, the LP tables.
+    fn end_lp(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
+        self.update_model(lap_mean, BAND_LP);
+        if reset_context(mx, tile_w) {
+            self.adapt(
+                [V::FirstIndLpLum, V::IndLpLum0, V::IndLpLum1, V::FirstIndLpChr, V::IndLpChr0, V::IndLpChr1],
+                &[V::AbsLevelLp0, V::AbsLevelLp1],
+            );
+        }
+    }
+
+    /// The start of MB_HP: the HP scan totals restart every 16 macroblocks.
+    fn start_hp(&mut self, mx: u32) {
+        if mx % 16 == 0 {
+            self.hp_hor.reset_totals();
+            self.hp_ver.reset_totals();
+        }
+    }
+
+    /// The end of MB_HP: model update and, at an adaptation point, the HP and CBP tables.
+    fn end_hp(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
+        self.update_model(lap_mean, BAND_HP);
+        if reset_context(mx, tile_w) {
+            self.adapt(
+                [V::FirstIndHpLum, V::IndHpLum0, V::IndHpLum1, V::FirstIndHpChr, V::IndHpChr0, V::IndHpChr1],
+                &[V::AbsLevelHp0, V::AbsLevelHp1, V::NumCbp, V::NumBlkCbp],
+            );
+        }
+    }
+
+    /// CBPLP of a YUV format (T.832 5.5.8): the largest value, whether the counters say it
+    /// is VLC-coded (else `full_planes` raw bits), and whether the VLC symbol is inverted
+    /// (`max − cbplp`).
+    fn cbplp_coding(&self, full_planes: usize) -> (u32, bool, bool) {
+        let max = full_planes as u32 * 4 - 5;
+        (max, self.cbplp_zero <= 0 || self.cbplp_max < 0, self.cbplp_max < self.cbplp_zero)
+    }
+
+    /// Counts a YUV CBPLP value (T.832 5.5.8).
+    fn count_cbplp(&mut self, cbplp: u32, max: u32) {
+        self.cbplp_zero = (self.cbplp_zero + 1 - if cbplp == 0 { 4 } else { 0 }).clamp(-8, 7);
+        self.cbplp_max = (self.cbplp_max + 1 - if cbplp == max { 4 } else { 0 }).clamp(-8, 7);
+    }
+
+    /// The CBP of channel `ch` from its coded difference (`r_PredCBP`), and the model update.
+    fn predict_cbp(&mut self, ch: usize, diff: u32, left: Option<&[u32]>, top: Option<&[u32]>) -> u32 {
+        let chroma = usize::from(ch > 0);
+        let state = self.cbp_model.state[chroma];
+        let (cbp, n) = predict::predict_cbp(self.fmt, ch, diff, state, left.map(|l| l[ch]), top.map(|t| t[ch]));
+        self.cbp_model.update(chroma, n);
+        cbp
+    }
+}
+
+/// The contexts of a block of run-level symbols: first index, index (by context), absolute
+/// level (by context).
+#[inline(always)]
+fn block_contexts(band: usize, chroma: bool) -> (V, [V; 2], [V; 2]) {
+    match (band, chroma) {
+        (BAND_LP, false) => (V::FirstIndLpLum, [V::IndLpLum0, V::IndLpLum1], [V::AbsLevelLp0, V::AbsLevelLp1]),
+        (BAND_LP, true) => (V::FirstIndLpChr, [V::IndLpChr0, V::IndLpChr1], [V::AbsLevelLp0, V::AbsLevelLp1]),
+        (_, false) => (V::FirstIndHpLum, [V::IndHpLum0, V::IndHpLum1], [V::AbsLevelHp0, V::AbsLevelHp1]),
+        (_, true) => (V::FirstIndHpChr, [V::IndHpChr0, V::IndHpChr1], [V::AbsLevelHp0, V::AbsLevelHp1]),
+    }
+}
+
+/// ABSLEVEL_INDEX: the smallest level of each of the first six symbols, and the raw bits
+/// that follow it (`r_DECODE_ABS_LEVEL`); symbol 6 escapes to a coded width.
+const ABS_REMAP: [u32; 6] = [2, 3, 4, 6, 10, 14];
+/// See [`ABS_REMAP`].
+const ABS_FIXED: [u32; 6] = [0, 0, 1, 2, 2, 2];
+/// The largest absolute level the escape codes: width 29, all ones.
+const MAX_ABS_LEVEL: u32 = 2 + (1 << 29) + ((1 << 29) - 1);
+
+/// RUN_INDEX (`r_DECODE_RUN`): the symbol set (bin) by the largest run possible, and each
+/// symbol's smallest run and raw bits.
+const RUN_BIN: [usize; 15] = [0, 0, 0, 0, 0, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0];
+/// See [`RUN_BIN`].
+const RUN_FIXED: [u32; 15] = [0, 0, 1, 1, 3, 0, 0, 1, 1, 2, 0, 0, 0, 0, 1];
+/// See [`RUN_BIN`].
+const RUN_REMAP: [u32; 15] = [1, 2, 3, 5, 7, 1, 2, 3, 5, 7, 1, 2, 3, 4, 5];
+
+/// NUM_BLKCBP's luma classes (`_jxr_r_MB_CBP`): class `val` codes `FLC[val]` raw bits that
+/// select `OUT[OFF[val] + bits]`.
+const CBP_FLC: [u32; 6] = [0, 2, 1, 2, 2, 0];
+/// See [`CBP_FLC`].
+const CBP_OFF: [usize; 6] = [0, 4, 2, 8, 12, 1];
+/// See [`CBP_FLC`].
+const CBP_OUT: [u32; 16] = [0, 15, 3, 12, 1, 2, 4, 8, 5, 6, 9, 10, 7, 11, 13, 14];
+
+impl PlaneDecoder {
+    /// The state at the start of a tile.
+    pub fn new(fmt: ClrFmt, channels: usize) -> Self {
+        PlaneDecoder { trim: 0, st: EntropyState::new(fmt, channels) }
+    }
+
     /// ABSLEVEL_INDEX and the level it codes (`r_DECODE_ABS_LEVEL`).
     #[inline(always)]
     fn abs_level(&mut self, r: &mut BitReader, v: V) -> u32 {
-        let ctx = &mut self.vlc[v as usize];
+        let ctx = &mut self.st.vlc[v as usize];
         let index = vlc::decode(r, &vlc::ABS_LEVEL[ctx.table as usize]);
-        ctx.disc += vlc::ABS_LEVEL_DELTA[index];
-        const REMAP: [u32; 6] = [2, 3, 4, 6, 10, 14];
-        const FIXED: [u32; 6] = [0, 0, 1, 2, 2, 2];
+        ctx.count(&vlc::ABS_LEVEL_DELTA, index);
         if index < 6 {
-            REMAP[index] + r.read(FIXED[index])
+            ABS_REMAP[index] + r.read(ABS_FIXED[index])
         } else {
             let mut fixed = 4 + r.read(4);
             if fixed == 19 {
@@ -151,11 +274,8 @@ impl PlaneDecoder {
             r.skip((zeros + 1).min(bits));
             return zeros + 1;
         }
-        const RUN_BIN: [usize; 15] = [0, 0, 0, 0, 0, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0];
-        const FIXED: [u32; 15] = [0, 0, 1, 1, 3, 0, 0, 1, 1, 2, 0, 0, 0, 0, 1];
-        const REMAP: [u32; 15] = [1, 2, 3, 5, 7, 1, 2, 3, 5, 7, 1, 2, 3, 4, 5];
         let index = vlc::decode(r, &vlc::RUN_INDEX) + 5 * RUN_BIN[max_run.min(14) as usize];
-        REMAP[index] + r.read(FIXED[index])
+        RUN_REMAP[index] + r.read(RUN_FIXED[index])
     }
 
     /// One block of run-level symbols (`r_DECODE_BLOCK`), starting at coefficient position
@@ -170,16 +290,10 @@ impl PlaneDecoder {
         mut location: u32,
         out: &mut [RunLevel; 16],
     ) -> Result<usize> {
-        let (first_v, ind_v, abs_v) = match (band, chroma) {
-            (BAND_LP, false) => (V::FirstIndLpLum, [V::IndLpLum0, V::IndLpLum1], [V::AbsLevelLp0, V::AbsLevelLp1]),
-            (BAND_LP, true) => (V::FirstIndLpChr, [V::IndLpChr0, V::IndLpChr1], [V::AbsLevelLp0, V::AbsLevelLp1]),
-            (_, false) => (V::FirstIndHpLum, [V::IndHpLum0, V::IndHpLum1], [V::AbsLevelHp0, V::AbsLevelHp1]),
-            (_, true) => (V::FirstIndHpChr, [V::IndHpChr0, V::IndHpChr1], [V::AbsLevelHp0, V::AbsLevelHp1]),
-        };
-        let ctx = &mut self.vlc[first_v as usize];
+        let (first_v, ind_v, abs_v) = block_contexts(band, chroma);
+        let ctx = &mut self.st.vlc[first_v as usize];
         let index = vlc::decode(r, &vlc::FIRST_INDEX[ctx.table as usize]);
-        ctx.disc += vlc::FIRST_INDEX_DELTA[ctx.delta as usize][index];
-        ctx.disc2 += vlc::FIRST_INDEX_DELTA[ctx.delta2 as usize][index];
+        ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
         let mut srn = index >> 2;
         let mut context = (index & 1) & srn;
         let sign = r.bit();
@@ -212,10 +326,9 @@ impl PlaneDecoder {
             } else if location == 15 {
                 vlc::decode(r, &vlc::INDEX2)
             } else {
-                let ctx = &mut self.vlc[ind_v[context] as usize];
+                let ctx = &mut self.st.vlc[ind_v[context] as usize];
                 let index = vlc::decode(r, &vlc::INDEX[ctx.table as usize]);
-                ctx.disc += vlc::INDEX_DELTA[ctx.delta as usize][index];
-                ctx.disc2 += vlc::INDEX_DELTA[ctx.delta2 as usize][index];
+                ctx.count2(&vlc::INDEX_DELTA, index);
                 index
             };
             srn = index >> 1;
@@ -234,8 +347,8 @@ impl PlaneDecoder {
     /// MB_DC (`_jxr_r_MB_DC`): the DC of every channel, unpredicted.
     pub fn dc(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) {
         let mut lap_mean = [0i32; 2];
-        let bits = self.model[BAND_DC].bits;
-        if self.fmt.is_yuv() {
+        let bits = self.st.model[BAND_DC].bits;
+        if self.st.fmt.is_yuv() {
             let flags = vlc::decode(r, &vlc::DC_YUV);
             for (ch, flag) in [(0usize, 4usize), (1, 2), (2, 1)] {
                 let chroma = ch > 0;
@@ -246,18 +359,14 @@ impl PlaneDecoder {
         } else {
             // YONLY, YUVK and NCOMPONENT: every channel's level uses the luma DC table (T.835
             // `_jxr_r_MB_DC`, jxrlib `m_pAHexpt[3]`); only the model bits are chroma's.
-            for ch in 0..self.channels {
+            for ch in 0..self.st.channels {
                 let chroma = ch > 0;
                 let coded = r.bit();
                 lap_mean[usize::from(chroma)] += i32::from(coded);
                 c[ch * MB_COEFFS] = self.dc_value(r, bits[usize::from(chroma)], false, coded);
             }
         }
-        self.update_model(lap_mean, BAND_DC);
-        if reset_context(mx, tile_w) {
-            self.vlc[V::AbsLevelDcLum as usize].adapt_one();
-            self.vlc[V::AbsLevelDcChr as usize].adapt_one();
-        }
+        self.st.end_dc(lap_mean, mx, tile_w);
     }
 
     /// DEC_DC (`r_DEC_DC`).
@@ -278,17 +387,16 @@ impl PlaneDecoder {
 
     /// MB_LP (`_jxr_r_MB_LP`): the LP coefficients of every channel, unpredicted.
     pub fn lp(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
-        if mx % 16 == 0 {
-            self.lp_scan.reset_totals();
-        }
-        let sub = matches!(self.fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
-        let full_planes = if sub { 2 } else { self.channels };
-        let cbplp = if self.fmt.is_yuv() {
-            let max = full_planes as u32 * 4 - 5;
-            let cbplp = if self.cbplp_zero <= 0 || self.cbplp_max < 0 {
+        self.st.start_lp(mx);
+        let fmt = self.st.fmt;
+        let sub = matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+        let full_planes = if sub { 2 } else { self.st.channels };
+        let cbplp = if fmt.is_yuv() {
+            let (max, coded, inverted) = self.st.cbplp_coding(full_planes);
+            let cbplp = if coded {
                 let table = if sub { &vlc::CBPLP_42X } else { &vlc::CBPLP_444 };
                 let v = vlc::decode(r, table) as u32;
-                if self.cbplp_max < self.cbplp_zero {
+                if inverted {
                     max - v
                 } else {
                     v
@@ -296,12 +404,11 @@ impl PlaneDecoder {
             } else {
                 r.read(full_planes as u32)
             };
-            self.cbplp_zero = (self.cbplp_zero + 1 - if cbplp == 0 { 4 } else { 0 }).clamp(-8, 7);
-            self.cbplp_max = (self.cbplp_max + 1 - if cbplp == max { 4 } else { 0 }).clamp(-8, 7);
+            self.st.count_cbplp(cbplp, max);
             cbplp
         } else {
             let mut cbplp = 0;
-            for ch in 0..self.channels {
+            for ch in 0..self.st.channels {
                 cbplp |= r.read(1) << ch;
             }
             cbplp
@@ -313,7 +420,7 @@ impl PlaneDecoder {
             let chroma = ndx > 0;
             let mut nonzero = 0;
             if (cbplp >> ndx) & 1 != 0 {
-                let location = match (self.fmt, chroma) {
+                let location = match (fmt, chroma) {
                     (ClrFmt::Yuv420, true) => 10,
                     (ClrFmt::Yuv422, true) => 2,
                     _ => 1,
@@ -327,12 +434,8 @@ impl PlaneDecoder {
                         *temp.get_mut(i).ok_or_else(|| corrupt("chroma LP past the end"))? = p.level;
                         i += 1;
                     }
-                    const REMAP: [usize; 7] = [4, 1, 2, 3, 5, 6, 7];
-                    let (off, count) = if self.fmt == ClrFmt::Yuv420 { (1, 6) } else { (0, 14) };
-                    for (k, &t) in temp[..count].iter().enumerate() {
-                        let remap = REMAP[(k >> 1) + off];
-                        let remap = if self.fmt == ClrFmt::Yuv420 { TRANSPOSE420[remap] } else { TRANSPOSE422[remap] };
-                        input[(k & 1) + 1][remap] = t;
+                    for (k, &t) in temp[..sub_chroma_lp_len(fmt)].iter().enumerate() {
+                        input[(k & 1) + 1][sub_chroma_lp_pos(fmt, k)] = t;
                     }
                 } else {
                     let mut i = 1usize;
@@ -341,16 +444,16 @@ impl PlaneDecoder {
                         if i > 15 {
                             return Err(corrupt("LP past the end"));
                         }
-                        let k = self.lp_scan.hit(i - 1);
+                        let k = self.st.lp_scan.hit(i - 1);
                         input[ndx][k] = p.level;
                         i += 1;
                     }
                 }
             }
-            let model_bits = self.model[BAND_LP].bits[usize::from(chroma)];
+            let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
             lap_mean[usize::from(chroma)] += nonzero as i32;
             if model_bits > 0 {
-                match (self.fmt, chroma) {
+                match (fmt, chroma) {
                     (ClrFmt::Yuv420, true) => {
                         for &k in &TRANSPOSE420[1..4] {
                             input[1][k] = refine(r, input[1][k], model_bits);
@@ -370,7 +473,7 @@ impl PlaneDecoder {
                     }
                 }
             }
-            match (self.fmt, chroma) {
+            match (fmt, chroma) {
                 (ClrFmt::Yuv420, true) => {
                     for ch in 1..3 {
                         c[ch * MB_COEFFS + 1..ch * MB_COEFFS + 4].copy_from_slice(&input[ch][1..4]);
@@ -384,43 +487,35 @@ impl PlaneDecoder {
                 _ => c[ndx * MB_COEFFS + 1..ndx * MB_COEFFS + 16].copy_from_slice(&input[ndx][1..16]),
             }
         }
-        self.update_model(lap_mean, BAND_LP);
-        if reset_context(mx, tile_w) {
-            self.adapt(
-                [V::FirstIndLpLum, V::IndLpLum0, V::IndLpLum1, V::FirstIndLpChr, V::IndLpChr0, V::IndLpChr1],
-                &[V::AbsLevelLp0, V::AbsLevelLp1],
-            );
-        }
+        self.st.end_lp(lap_mean, mx, tile_w);
         Ok(())
     }
 
     /// MB_CBP (`_jxr_r_MB_CBP` and `r_PredCBP`): the coded-block patterns of every channel,
     /// predicted from the neighbours' (`left`/`top`: their patterns, inside the tile).
     pub fn cbp(&mut self, r: &mut BitReader, left: Option<&[u32]>, top: Option<&[u32]>, out: &mut [u32]) -> Result<()> {
-        const FLC: [u32; 6] = [0, 2, 1, 2, 2, 0];
-        const OFF: [usize; 6] = [0, 4, 2, 8, 12, 1];
-        const OUT: [u32; 16] = [0, 15, 3, 12, 1, 2, 4, 8, 5, 6, 9, 10, 7, 11, 13, 14];
+        let fmt = self.st.fmt;
         let mut diff = [0u32; MAX_CHANNELS];
-        let per_channel = matches!(self.fmt, ClrFmt::Yuvk | ClrFmt::NComponent);
-        let coded_channels = if per_channel { self.channels } else { 1 };
-        let five = matches!(self.fmt, ClrFmt::YOnly | ClrFmt::Yuvk | ClrFmt::NComponent);
+        let per_channel = matches!(fmt, ClrFmt::Yuvk | ClrFmt::NComponent);
+        let coded_channels = if per_channel { self.st.channels } else { 1 };
+        let five = matches!(fmt, ClrFmt::YOnly | ClrFmt::Yuvk | ClrFmt::NComponent);
         for chan in 0..coded_channels {
-            let ctx = &mut self.vlc[V::NumCbp as usize];
+            let ctx = &mut self.st.vlc[V::NumCbp as usize];
             let num = vlc::decode(r, &vlc::NUM_CBP[ctx.table as usize]);
-            ctx.disc += vlc::NUM_CBP_DELTA[num];
+            ctx.count(&vlc::NUM_CBP_DELTA, num);
             let cbp = refine_cbp(r, num);
             for blk in 0..4 {
                 if cbp & (1 << blk) == 0 {
                     continue;
                 }
-                let ctx = &mut self.vlc[V::NumBlkCbp as usize];
+                let ctx = &mut self.st.vlc[V::NumBlkCbp as usize];
                 let num_blk = if five {
                     let n = vlc::decode(r, &vlc::NUM_CBP[ctx.table as usize]);
-                    ctx.disc += vlc::NUM_CBP_DELTA[n];
+                    ctx.count(&vlc::NUM_CBP_DELTA, n);
                     n
                 } else {
                     let n = vlc::decode(r, &vlc::NUM_BLKCBP_YUV[ctx.table as usize]);
-                    ctx.disc += vlc::NUM_BLKCBP9_DELTA[n];
+                    ctx.count(&vlc::NUM_BLKCBP9_DELTA, n);
                     n
                 };
                 let mut val = num_blk + 1;
@@ -433,9 +528,9 @@ impl PlaneDecoder {
                     }
                     val -= 6;
                 }
-                let code = OFF[val] + r.read(FLC[val]) as usize;
-                blkcbp += OUT[code];
-                match self.fmt {
+                let code = CBP_OFF[val] + r.read(CBP_FLC[val]) as usize;
+                blkcbp += CBP_OUT[code];
+                match fmt {
                     ClrFmt::Yuv444 => {
                         diff[0] |= (blkcbp & 0xF) << (blk * 4);
                         for (bit, ch) in [(0x10, 1), (0x20, 2)] {
@@ -446,12 +541,11 @@ impl PlaneDecoder {
                         }
                     }
                     ClrFmt::Yuv422 => {
-                        const SHIFT: [u32; 4] = [0, 1, 4, 5];
                         diff[0] |= (blkcbp & 0xF) << (blk * 4);
                         for (bit, ch) in [(0x10, 1), (0x20, 2)] {
                             if blkcbp & bit != 0 {
                                 let v = vlc::decode(r, &vlc::VALUE_012);
-                                diff[ch] |= SHIFT[v + 1] << SHIFT[blk];
+                                diff[ch] |= SHIFT422[v + 1] << SHIFT422[blk];
                             }
                         }
                     }
@@ -464,12 +558,8 @@ impl PlaneDecoder {
                 }
             }
         }
-        for ch in 0..self.channels {
-            let chroma = usize::from(ch > 0);
-            let state = self.cbp_model.state[chroma];
-            let (cbp, n) = predict::predict_cbp(self.fmt, ch, diff[ch], state, left.map(|l| l[ch]), top.map(|t| t[ch]));
-            self.cbp_model.update(chroma, n);
-            out[ch] = cbp;
+        for ch in 0..self.st.channels {
+            out[ch] = self.st.predict_cbp(ch, diff[ch], left, top);
         }
         Ok(())
     }
@@ -489,19 +579,16 @@ impl PlaneDecoder {
         tile_w: u32,
         flex_inline: bool,
     ) -> Result<[u32; 2]> {
-        if mx % 16 == 0 {
-            self.hp_hor.reset_totals();
-            self.hp_ver.reset_totals();
-        }
-        let bits = self.model[BAND_HP].bits;
+        self.st.start_hp(mx);
+        let bits = self.st.model[BAND_HP].bits;
         // A local copy of the reader stays in registers.
         let mut local = reader.clone();
         let r = &mut local;
         let mut lap_mean = [0i32; 2];
         let mut pairs = [RunLevel::default(); 16];
-        for ch in 0..self.channels {
+        for ch in 0..self.st.channels {
             let chroma = ch > 0;
-            let blocks = predict_blocks(self.fmt, ch);
+            let blocks = predict_blocks(self.st.fmt, ch);
             let model_bits = bits[usize::from(chroma)];
             let mut pattern = cbp[ch];
             for block in 0..blocks {
@@ -511,7 +598,7 @@ impl PlaneDecoder {
                     // The block's coefficients are zero until here (the row was cleared):
                     // write each level where the adaptive scan puts it.
                     let block = &mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16];
-                    let scan = if mode == 1 { &mut self.hp_ver } else { &mut self.hp_hor };
+                    let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
                     let mut k = 1usize;
                     for p in &pairs[..n] {
                         k += p.run as usize;
@@ -530,13 +617,7 @@ impl PlaneDecoder {
             }
         }
         *reader = local;
-        self.update_model(lap_mean, BAND_HP);
-        if reset_context(mx, tile_w) {
-            self.adapt(
-                [V::FirstIndHpLum, V::IndHpLum0, V::IndHpLum1, V::FirstIndHpChr, V::IndHpChr0, V::IndHpChr1],
-                &[V::AbsLevelHp0, V::AbsLevelHp1, V::NumCbp, V::NumBlkCbp],
-            );
-        }
+        self.st.end_hp(lap_mean, mx, tile_w);
         Ok(bits)
     }
 
@@ -545,6 +626,608 @@ impl PlaneDecoder {
     pub fn block_flex(&mut self, r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32) {
         block_flex(r, c, ch, b, model_bits, self.trim);
     }
+}
+
+fn uncodable(what: &str) -> Error {
+    Error::invalid(format!("JPEG XR encoder: {what} cannot be coded"))
+}
+
+/// The absolute value of a coefficient split at `model_bits` (T.832 5.5.6): the level the
+/// run-level symbols code, and the raw low bits (refinement or flexbits).
+#[inline]
+fn split(v: i32, model_bits: u32) -> (u32, u32) {
+    let a = v.unsigned_abs();
+    (a >> model_bits, a & ((1u32 << model_bits) - 1))
+}
+
+/// The signed level of a coefficient, checked against what ABSLEVEL_INDEX can code.
+#[inline]
+fn signed_level(v: i32, model_bits: u32) -> Result<i32> {
+    let (level, _) = split(v, model_bits);
+    if level > MAX_ABS_LEVEL {
+        return Err(uncodable("a coefficient this large for its model bits"));
+    }
+    // level <= 2^30 + 1: fits.
+    Ok(if v < 0 { -(level as i32) } else { level as i32 })
+}
+
+/// [`CBP_OUT`] inverted: the code of each 4-block pattern.
+const CBP_CODE: [usize; 16] = {
+    let mut t = [0; 16];
+    let mut c = 0;
+    while c < 16 {
+        t[CBP_OUT[c] as usize] = c;
+        c += 1;
+    }
+    t
+};
+
+/// The class (`val` of `_jxr_r_MB_CBP`) of each code of [`CBP_OUT`].
+const CBP_CLASS: [usize; 16] = {
+    let mut t = [0; 16];
+    let mut c = 0;
+    while c < 16 {
+        let mut val = 0;
+        while !(CBP_OFF[val] <= c && c < CBP_OFF[val] + (1 << CBP_FLC[val])) {
+            val += 1;
+        }
+        t[c] = val;
+        c += 1;
+    }
+    t
+};
+
+/// REFINE_CBP written (the inverse of [`refine_cbp`]): a 4-bit pattern whose number of set
+/// bits was coded before.
+fn refine_cbp_encode(w: &mut BitWriter, pattern: u32) {
+    match pattern.count_ones() {
+        1 => w.write(pattern.trailing_zeros(), 2),
+        2 => {
+            let sym = vlc::REFINE_CBP2_VALUES.iter().position(|&p| p == pattern).expect("two of four bits");
+            vlc::encode(w, &vlc::REFINE_CBP2_ENC, sym);
+        }
+        3 => w.write((!pattern & 0xF).trailing_zeros(), 2),
+        _ => {}
+    }
+}
+
+/// REFINE_LP written (the inverse of [`refine`]): the `model_bits` low bits of `v`, and its
+/// sign when its level is zero and those bits are not.
+#[inline]
+fn refine_encode(w: &mut BitWriter, v: i32, model_bits: u32) {
+    let (level, fine) = split(v, model_bits);
+    w.write(fine, model_bits);
+    if level == 0 && fine != 0 {
+        w.bit(v < 0);
+    }
+}
+
+/// The 2-bit part of the 422 chroma pattern `d` that 8×8 quad `blk` holds (see [`SHIFT422`]):
+/// bit 0 its first block, bit 1 its second.
+#[inline]
+fn pair422(d: u32, blk: usize) -> u32 {
+    ((d >> SHIFT422[blk]) & 1) | (((d >> (SHIFT422[blk] + 2)) & 1) << 1)
+}
+
+/// Run-level pairs of `levels` (in coding order). Returns the count.
+#[inline]
+fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> usize {
+    let (mut n, mut run) = (0, 0);
+    for level in levels {
+        if level == 0 {
+            run += 1;
+        } else {
+            out[n] = RunLevel { run, level };
+            n += 1;
+            run = 0;
+        }
+    }
+    n
+}
+
+/// The entropy encoder of one plane in one tile (reset at each tile start): writes what
+/// [`PlaneDecoder`] reads, from the same coefficient arrays, adapting its [`EntropyState`] at
+/// the same points. After an error, the writer and the state are not usable.
+#[derive(Clone, Debug)]
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub struct PlaneEncoder {
+    /// TRIM_FLEXBITS of the tile.
+    pub trim: u32,
+    st: EntropyState,
+}
+
+#[allow(dead_code)]
+impl PlaneEncoder {
+    /// The state at the start of a tile.
+    pub fn new(fmt: ClrFmt, channels: usize) -> Self {
+        PlaneEncoder { trim: 0, st: EntropyState::new(fmt, channels) }
+    }
+
+    /// ABSLEVEL_INDEX and its raw bits for `level` ≥ 2 (the inverse of `r_DECODE_ABS_LEVEL`).
+    fn abs_level(&mut self, w: &mut BitWriter, v: V, level: u32) -> Result<()> {
+        debug_assert!(level >= 2);
+        if level > MAX_ABS_LEVEL {
+            return Err(uncodable("a level this large"));
+        }
+        let index = if level < 18 { ABS_REMAP.iter().rposition(|&r| r <= level).unwrap_or(0) } else { 6 };
+        let ctx = &mut self.st.vlc[v as usize];
+        vlc::encode(w, &vlc::ABS_LEVEL_ENC[ctx.table as usize], index);
+        ctx.count(&vlc::ABS_LEVEL_DELTA, index);
+        if index < 6 {
+            w.write(level - ABS_REMAP[index], ABS_FIXED[index]);
+        } else {
+            // The escape: a width of 4..=29 bits, coded in 4 bits, then 2 more from 19 on, then
+            // 3 more from 22 on; then level − 2 − 2^width in that width.
+            let m = level - 2;
+            let fixed = 31 - m.leading_zeros();
+            w.write((fixed - 4).min(15), 4);
+            if fixed >= 19 {
+                w.write((fixed - 19).min(3), 2);
+                if fixed >= 22 {
+                    w.write(fixed - 22, 3);
+                }
+            }
+            w.write(m - (1 << fixed), fixed);
+        }
+        Ok(())
+    }
+
+    /// A run of `run` ≥ 1 zeros when at most `max_run` positions remain (the inverse of
+    /// `r_DECODE_RUN`).
+    fn run(w: &mut BitWriter, run: u32, max_run: i32) -> Result<()> {
+        if run == 0 || run as i32 > max_run {
+            return Err(uncodable("a run past the end of a block"));
+        }
+        if max_run < 5 {
+            // 1, 01, 001, ...; the longest run possible drops its final 1.
+            if max_run > 1 {
+                if (run as i32) < max_run {
+                    w.write(1, run);
+                } else {
+                    w.write(0, run - 1);
+                }
+            }
+            return Ok(());
+        }
+        let bin = 5 * RUN_BIN[max_run.min(14) as usize];
+        for i in 0..5 {
+            let (low, bits) = (RUN_REMAP[bin + i], RUN_FIXED[bin + i]);
+            if run >= low && run - low < 1 << bits {
+                vlc::encode(w, &vlc::RUN_INDEX_ENC, i);
+                w.write(run - low, bits);
+                return Ok(());
+            }
+        }
+        Err(uncodable("a run this long"))
+    }
+
+    /// One block of run-level symbols (the inverse of `r_DECODE_BLOCK`) starting at position
+    /// `location`; `pairs` is not empty and ends inside the block.
+    fn block(
+        &mut self,
+        w: &mut BitWriter,
+        chroma: bool,
+        band: usize,
+        mut location: u32,
+        pairs: &[RunLevel],
+    ) -> Result<()> {
+        let (first_v, ind_v, abs_v) = block_contexts(band, chroma);
+        // What follows pair i: 0 nothing, 1 a coefficient right after, 2 one after a run.
+        let srn = |i: usize| match pairs.get(i + 1) {
+            None => 0usize,
+            Some(p) if p.run == 0 => 1,
+            Some(_) => 2,
+        };
+        let first = *pairs.first().ok_or_else(|| uncodable("an empty coded block"))?;
+        let mag = first.level.unsigned_abs();
+        let next = srn(0);
+        let index = (next << 2) | (usize::from(mag > 1) << 1) | usize::from(first.run == 0);
+        let ctx = &mut self.st.vlc[first_v as usize];
+        vlc::encode(w, &vlc::FIRST_INDEX_ENC[ctx.table as usize], index);
+        ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
+        let mut context = (index & 1) & next;
+        w.bit(first.level < 0);
+        if mag > 1 {
+            self.abs_level(w, abs_v[context], mag)?;
+        }
+        if first.run != 0 {
+            Self::run(w, first.run, 15 - location as i32)?;
+        }
+        location += first.run + 1;
+        for i in 1..pairs.len() {
+            let p = pairs[i];
+            if p.run != 0 {
+                Self::run(w, p.run, 15 - location as i32)?;
+            }
+            location += p.run + 1;
+            if location > 16 {
+                return Err(uncodable("a coefficient past the end of a block"));
+            }
+            let next = srn(i);
+            let mag = p.level.unsigned_abs();
+            let index = (next << 1) | usize::from(mag > 1);
+            if location > 15 {
+                // The last position: nothing can follow, one bit says whether level > 1.
+                w.write(index as u32, 1);
+            } else if location == 15 {
+                vlc::encode(w, &vlc::INDEX2_ENC, index);
+            } else {
+                let ctx = &mut self.st.vlc[ind_v[context] as usize];
+                vlc::encode(w, &vlc::INDEX_ENC[ctx.table as usize], index);
+                ctx.count2(&vlc::INDEX_DELTA, index);
+            }
+            context &= next;
+            w.bit(p.level < 0);
+            if mag > 1 {
+                self.abs_level(w, abs_v[context], mag)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// MB_DC (the inverse of `_jxr_r_MB_DC`): the DC of every channel, unpredicted.
+    pub fn dc(&mut self, w: &mut BitWriter, c: &[i32], mx: u32, tile_w: u32) -> Result<()> {
+        let bits = self.st.model[BAND_DC].bits;
+        let channels = self.st.channels;
+        // Checked first: nothing is written for a macroblock that cannot be coded.
+        for ch in 0..channels {
+            let (level, _) = split(c[ch * MB_COEFFS], bits[usize::from(ch > 0)]);
+            if level >= MAX_ABS_LEVEL {
+                return Err(uncodable("a DC value this large for its model bits"));
+            }
+        }
+        let coded = |ch: usize| split(c[ch * MB_COEFFS], bits[usize::from(ch > 0)]).0 != 0;
+        let mut lap_mean = [0i32; 2];
+        if self.st.fmt.is_yuv() {
+            let flags = (usize::from(coded(0)) << 2) | (usize::from(coded(1)) << 1) | usize::from(coded(2));
+            vlc::encode(w, &vlc::DC_YUV_ENC, flags);
+            for ch in 0..3 {
+                let chroma = ch > 0;
+                lap_mean[usize::from(chroma)] += i32::from(coded(ch));
+                self.dc_value(w, c[ch * MB_COEFFS], bits[usize::from(chroma)], chroma)?;
+            }
+        } else {
+            for ch in 0..channels {
+                let chroma = ch > 0;
+                w.bit(coded(ch));
+                lap_mean[usize::from(chroma)] += i32::from(coded(ch));
+                self.dc_value(w, c[ch * MB_COEFFS], bits[usize::from(chroma)], false)?;
+            }
+        }
+        self.st.end_dc(lap_mean, mx, tile_w);
+        Ok(())
+    }
+
+    /// DEC_DC written: level + 1 when coded, the raw low bits, the sign of a non-zero value.
+    fn dc_value(&mut self, w: &mut BitWriter, v: i32, model_bits: u32, chroma: bool) -> Result<()> {
+        let (level, fine) = split(v, model_bits);
+        if level != 0 {
+            let v_ctx = if chroma { V::AbsLevelDcChr } else { V::AbsLevelDcLum };
+            self.abs_level(w, v_ctx, level + 1)?;
+        }
+        if model_bits > 0 {
+            w.write(fine, model_bits);
+        }
+        if v != 0 {
+            w.bit(v < 0);
+        }
+        Ok(())
+    }
+
+    /// MB_LP (the inverse of `_jxr_r_MB_LP`): CBPLP, the LP run-level blocks through the
+    /// adaptive LP scan (or the joint U/V block of 420/422 chroma), and the refinement bits.
+    pub fn lp(&mut self, w: &mut BitWriter, c: &[i32], mx: u32, tile_w: u32) -> Result<()> {
+        self.st.start_lp(mx);
+        let fmt = self.st.fmt;
+        let sub = matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+        let full_planes = if sub { 2 } else { self.st.channels };
+        // The pairs of every plane first (CBPLP precedes them), hitting the scan in the
+        // decoder's order: a hit only reorders the position hit and the one before it, so the
+        // positions still to visit keep their coefficients.
+        let mut pairs = [[RunLevel::default(); 16]; MAX_CHANNELS];
+        let mut counts = [0usize; MAX_CHANNELS];
+        let mut cbplp = 0u32;
+        for ndx in 0..full_planes {
+            let chroma = ndx > 0;
+            let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
+            let mut levels = [0i32; 15];
+            let len = if sub && chroma {
+                for k in 0..sub_chroma_lp_len(fmt) {
+                    levels[k] = signed_level(c[((k & 1) + 1) * MB_COEFFS + sub_chroma_lp_pos(fmt, k)], model_bits)?;
+                }
+                sub_chroma_lp_len(fmt)
+            } else {
+                for p in 0..15 {
+                    let k = usize::from(self.st.lp_scan.order[p]);
+                    levels[p] = signed_level(c[ndx * MB_COEFFS + k], model_bits)?;
+                    if levels[p] != 0 {
+                        self.st.lp_scan.hit(p);
+                    }
+                }
+                15
+            };
+            counts[ndx] = run_levels(levels[..len].iter().copied(), &mut pairs[ndx]);
+            cbplp |= u32::from(counts[ndx] > 0) << ndx;
+        }
+        if fmt.is_yuv() {
+            let (max, coded, inverted) = self.st.cbplp_coding(full_planes);
+            if coded {
+                let table: &[vlc::Code] = if sub { &vlc::CBPLP_42X_ENC } else { &vlc::CBPLP_444_ENC };
+                vlc::encode(w, table, (if inverted { max - cbplp } else { cbplp }) as usize);
+            } else {
+                w.write(cbplp, full_planes as u32);
+            }
+            self.st.count_cbplp(cbplp, max);
+        } else {
+            for ch in 0..self.st.channels {
+                w.bit((cbplp >> ch) & 1 != 0);
+            }
+        }
+        let mut lap_mean = [0i32; 2];
+        for ndx in 0..full_planes {
+            let chroma = ndx > 0;
+            if counts[ndx] > 0 {
+                let location = match (fmt, chroma) {
+                    (ClrFmt::Yuv420, true) => 10,
+                    (ClrFmt::Yuv422, true) => 2,
+                    _ => 1,
+                };
+                self.block(w, chroma, BAND_LP, location, &pairs[ndx][..counts[ndx]])?;
+            }
+            lap_mean[usize::from(chroma)] += counts[ndx] as i32;
+            let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
+            if model_bits > 0 {
+                match (fmt, chroma) {
+                    (ClrFmt::Yuv420, true) => {
+                        for &k in &TRANSPOSE420[1..4] {
+                            refine_encode(w, c[MB_COEFFS + k], model_bits);
+                            refine_encode(w, c[2 * MB_COEFFS + k], model_bits);
+                        }
+                    }
+                    (ClrFmt::Yuv422, true) => {
+                        for &k in &TRANSPOSE422[1..8] {
+                            refine_encode(w, c[MB_COEFFS + k], model_bits);
+                            refine_encode(w, c[2 * MB_COEFFS + k], model_bits);
+                        }
+                    }
+                    _ => {
+                        for &k in &TRANSPOSE444[1..16] {
+                            refine_encode(w, c[ndx * MB_COEFFS + k], model_bits);
+                        }
+                    }
+                }
+            }
+        }
+        self.st.end_lp(lap_mean, mx, tile_w);
+        Ok(())
+    }
+
+    /// MB_CBP and MB_HP: computes each channel's coded-block pattern (bit `j`: the `j`-th
+    /// block in bitstream order, [`HP_BLOCK_ORDER`] for 16-block channels) from the HP levels
+    /// at the current HP model bits, writes it predicted from the neighbours' patterns
+    /// (`left`/`top`, inside the tile) and then the HP blocks, each followed by its flexbits
+    /// when `flex_inline`. `cbp_out` receives the patterns (what [`PlaneDecoder::cbp`]
+    /// outputs). Returns the HP model bits used, as [`PlaneDecoder::hp`] does.
+    #[allow(clippy::too_many_arguments)]
+    pub fn cbp_hp(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        left: Option<&[u32]>,
+        top: Option<&[u32]>,
+        cbp_out: &mut [u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        let bits = self.st.model[BAND_HP].bits;
+        for ch in 0..self.st.channels {
+            let model_bits = bits[usize::from(ch > 0)];
+            let blocks = predict_blocks(self.st.fmt, ch);
+            let mut pattern = 0;
+            for j in 0..blocks {
+                let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
+                let base = ch * MB_COEFFS + hp(b, 1);
+                if c[base..base + 15].iter().any(|&v| split(v, model_bits).0 != 0) {
+                    pattern |= 1 << j;
+                }
+            }
+            cbp_out[ch] = pattern;
+        }
+        self.cbp(w, left, top, cbp_out)?;
+        self.hp(w, c, cbp_out, mode, mx, tile_w, flex_inline)
+    }
+
+    /// MB_CBP (the inverse of `_jxr_r_MB_CBP` and `r_PredCBP`) of the patterns `cbp`.
+    fn cbp(&mut self, w: &mut BitWriter, left: Option<&[u32]>, top: Option<&[u32]>, cbp: &[u32]) -> Result<()> {
+        let fmt = self.st.fmt;
+        let mut diff = [0u32; MAX_CHANNELS];
+        // Channel by channel, as the decoder predicts: the chroma state channel 2 sees is
+        // the one channel 1 left.
+        for ch in 0..self.st.channels {
+            let state = self.st.cbp_model.state[usize::from(ch > 0)];
+            diff[ch] = predict::unpredict_cbp(fmt, ch, cbp[ch], state, left.map(|l| l[ch]), top.map(|t| t[ch]));
+            if self.st.predict_cbp(ch, diff[ch], left, top) != cbp[ch] {
+                return Err(uncodable("a coded-block pattern outside the macroblock"));
+            }
+        }
+        let per_channel = matches!(fmt, ClrFmt::Yuvk | ClrFmt::NComponent);
+        let coded_channels = if per_channel { self.st.channels } else { 1 };
+        let five = matches!(fmt, ClrFmt::YOnly | ClrFmt::Yuvk | ClrFmt::NComponent);
+        for chan in 0..coded_channels {
+            // Each 8×8 quad: its 4 luma bits and its U and V parts.
+            let mut parts = [(0u32, 0u32, 0u32); 4];
+            let mut quads = 0u32;
+            for blk in 0..4 {
+                let y = (diff[chan] >> (blk * 4)) & 0xF;
+                let (u, v) = match fmt {
+                    ClrFmt::Yuv444 => ((diff[1] >> (blk * 4)) & 0xF, (diff[2] >> (blk * 4)) & 0xF),
+                    ClrFmt::Yuv422 => (pair422(diff[1], blk), pair422(diff[2], blk)),
+                    ClrFmt::Yuv420 => ((diff[1] >> blk) & 1, (diff[2] >> blk) & 1),
+                    _ => (0, 0),
+                };
+                parts[blk] = (y, u, v);
+                if y | u | v != 0 {
+                    quads |= 1 << blk;
+                }
+            }
+            let num = quads.count_ones() as usize;
+            let ctx = &mut self.st.vlc[V::NumCbp as usize];
+            vlc::encode(w, &vlc::NUM_CBP_ENC[ctx.table as usize], num);
+            ctx.count(&vlc::NUM_CBP_DELTA, num);
+            refine_cbp_encode(w, quads);
+            for blk in 0..4 {
+                if quads & (1 << blk) == 0 {
+                    continue;
+                }
+                let (y, u, v) = parts[blk];
+                let code = CBP_CODE[y as usize];
+                let class = CBP_CLASS[code];
+                let chr = usize::from(u != 0) | (usize::from(v != 0) << 1);
+                // Classes 0..=5 of luma alone are 1..=5 (never 0: the quad is coded); with
+                // chroma, 6.. (the last symbol escapes to 9 + a 0/1/2 code).
+                let val = if chr == 0 { class } else { class + 6 };
+                let num_blk = val.min(9) - 1;
+                let ctx = &mut self.st.vlc[V::NumBlkCbp as usize];
+                if five {
+                    vlc::encode(w, &vlc::NUM_CBP_ENC[ctx.table as usize], num_blk);
+                    ctx.count(&vlc::NUM_CBP_DELTA, num_blk);
+                } else {
+                    vlc::encode(w, &vlc::NUM_BLKCBP_YUV_ENC[ctx.table as usize], num_blk);
+                    ctx.count(&vlc::NUM_BLKCBP9_DELTA, num_blk);
+                }
+                if val >= 6 {
+                    vlc::encode(w, &vlc::VALUE_012_ENC, chr - 1);
+                    if val >= 9 {
+                        vlc::encode(w, &vlc::VALUE_012_ENC, val - 9);
+                    }
+                }
+                w.write((code - CBP_OFF[class]) as u32, CBP_FLC[class]);
+                match fmt {
+                    ClrFmt::Yuv444 => {
+                        for x in [u, v] {
+                            if x != 0 {
+                                vlc::encode(w, &vlc::NUM_CH_BLK_ENC, x.count_ones() as usize - 1);
+                                refine_cbp_encode(w, x);
+                            }
+                        }
+                    }
+                    ClrFmt::Yuv422 => {
+                        for x in [u, v] {
+                            if x != 0 {
+                                vlc::encode(w, &vlc::VALUE_012_ENC, x as usize - 1);
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// MB_HP (the inverse of `_jxr_r_MB_HP`) of the coded blocks of `cbp`.
+    #[allow(clippy::too_many_arguments)]
+    fn hp(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        cbp: &[u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        self.st.start_hp(mx);
+        let bits = self.st.model[BAND_HP].bits;
+        let mut lap_mean = [0i32; 2];
+        let mut pairs = [RunLevel::default(); 16];
+        for ch in 0..self.st.channels {
+            let chroma = ch > 0;
+            let blocks = predict_blocks(self.st.fmt, ch);
+            let model_bits = bits[usize::from(chroma)];
+            let mut pattern = cbp[ch];
+            for j in 0..blocks {
+                let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
+                if pattern & 1 != 0 {
+                    let block = &c[ch * MB_COEFFS + hp(b, 1) - 1..][..16];
+                    let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
+                    // As for LP: hits in scan order leave the positions ahead unchanged.
+                    let mut levels = [0i32; 15];
+                    for p in 0..15 {
+                        levels[p] = signed_level(block[usize::from(scan.order[p])], model_bits)?;
+                        if levels[p] != 0 {
+                            scan.hit(p);
+                        }
+                    }
+                    let n = run_levels(levels.into_iter(), &mut pairs);
+                    self.block(w, chroma, BAND_HP, 1, &pairs[..n])?;
+                    lap_mean[usize::from(chroma)] += n as i32;
+                }
+                if flex_inline {
+                    block_flex_encode(w, c, ch, b, model_bits, self.trim)?;
+                }
+                pattern >>= 1;
+            }
+        }
+        self.st.end_hp(lap_mean, mx, tile_w);
+        Ok(bits)
+    }
+}
+
+/// BLOCK_FLEXBITS written (the inverse of [`block_flex`]): for each HP coefficient of block
+/// `b` of channel `ch`, in refinement order, its low `model_bits` bits without the `trim`
+/// lowest (which must be zero), and the sign of a coefficient whose level is zero.
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, model_bits: u32, trim: u32) -> Result<()> {
+    let base = ch * MB_COEFFS + hp(b, 1);
+    let block = &c[base..base + 15];
+    let lost = (1u32 << trim.min(model_bits)) - 1;
+    if block.iter().any(|&v| split(v, model_bits).1 & lost != 0) {
+        return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
+    }
+    if trim >= model_bits {
+        return Ok(());
+    }
+    let n = model_bits - trim;
+    for group in &FLEX_ORDER {
+        for &i in group {
+            let v = block[usize::from(i)];
+            let (level, fine) = split(v, model_bits);
+            let fine = fine >> trim;
+            w.write(fine, n);
+            if level == 0 && fine != 0 {
+                w.bit(v < 0);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// MB_FLEXBITS written (the inverse of [`flex_mb`]): the flexbits of every block of a
+/// macroblock for a FLEXBITS packet, with the HP model bits the macroblock was coded with
+/// (what [`PlaneEncoder::cbp_hp`] returned).
+// The encoder that uses it is being built on top of the entropy coder.
+#[allow(dead_code)]
+pub fn flex_mb_encode(
+    w: &mut BitWriter,
+    c: &[i32],
+    fmt: ClrFmt,
+    channels: usize,
+    trim: u32,
+    model_bits: [u32; 2],
+) -> Result<()> {
+    for ch in 0..channels {
+        let blocks = predict_blocks(fmt, ch);
+        for j in 0..blocks {
+            let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
+            block_flex_encode(w, c, ch, b, model_bits[usize::from(ch > 0)], trim)?;
+        }
+    }
+    Ok(())
 }
 
 /// BLOCK_FLEXBITS (`r_BLOCK_FLEXBITS`): the refinement bits of all 15 HP coefficients of block
@@ -606,6 +1289,28 @@ pub fn flex_mb(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: usi
     *reader = local;
 }
 
+/// Coefficients of the joint U/V LP block of 420 (6) and 422 (14) chroma.
+#[inline(always)]
+fn sub_chroma_lp_len(fmt: ClrFmt) -> usize {
+    if fmt == ClrFmt::Yuv420 {
+        6
+    } else {
+        14
+    }
+}
+
+/// The LP coefficient (of U for even `k`, V for odd) at position `k` of the joint U/V LP
+/// block of 420 or 422 chroma (`_jxr_r_MB_LP`'s remapping).
+#[inline(always)]
+fn sub_chroma_lp_pos(fmt: ClrFmt, k: usize) -> usize {
+    const REMAP: [usize; 7] = [4, 1, 2, 3, 5, 6, 7];
+    if fmt == ClrFmt::Yuv420 {
+        TRANSPOSE420[REMAP[(k >> 1) + 1]]
+    } else {
+        TRANSPOSE422[REMAP[k >> 1]]
+    }
+}
+
 /// HP blocks of channel `ch`.
 fn predict_blocks(fmt: ClrFmt, ch: usize) -> usize {
     match (fmt, ch) {
@@ -644,5 +1349,306 @@ fn refine_cbp(r: &mut BitReader, num: usize) -> u32 {
         3 => 0xF ^ (1 << r.read(2)),
         4 => 0xF,
         _ => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// xorshift64.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+
+        fn below(&mut self, n: u32) -> u32 {
+            (self.next() % u64::from(n.max(1))) as u32
+        }
+
+        /// ±(`low` + a value below `n`).
+        fn pm(&mut self, low: u32, n: u32) -> i32 {
+            let m = (low + self.below(n)) as i32;
+            if self.next() & 1 != 0 {
+                -m
+            } else {
+                m
+            }
+        }
+    }
+
+    /// True for the coefficients the decoder writes: all but the unused LP and HP positions
+    /// of 420 and 422 chroma.
+    fn meaningful(fmt: ClrFmt, ch: usize, i: usize) -> bool {
+        match (fmt, ch) {
+            (ClrFmt::Yuv420, 1..) => i < 4 || (16..hp(4, 1)).contains(&i),
+            (ClrFmt::Yuv422, 1..) => i < 8 || (16..hp(8, 1)).contains(&i),
+            _ => true,
+        }
+    }
+
+    /// One macroblock of pseudo-random coefficients: `profile` 0 sparse and small, 1 mixed,
+    /// 2 dense and large (model bits grow), 3 mixed with occasional large values; whole
+    /// channels and whole HP blocks zero now and then. HP values are multiples of 2^`trim`
+    /// (so that flexbits trimmed by `trim` lose nothing).
+    fn random_mb(rng: &mut Rng, fmt: ClrFmt, channels: usize, profile: u32, trim: u32) -> Vec<i32> {
+        let mut c = vec![0i32; channels * MB_COEFFS];
+        for ch in 0..channels {
+            if rng.below(10) == 0 {
+                continue;
+            }
+            let zero_blocks: Vec<bool> = (0..16).map(|_| rng.below(3) == 0).collect();
+            for i in 0..MB_COEFFS {
+                if !meaningful(fmt, ch, i) || (i >= 16 && zero_blocks[(i - 16) / 15]) {
+                    continue;
+                }
+                let v = match profile {
+                    0 => {
+                        if rng.below(8) == 0 {
+                            rng.pm(1, 20)
+                        } else {
+                            0
+                        }
+                    }
+                    2 => rng.pm(0, 1 << 18),
+                    _ => match rng.below(16) {
+                        0..=5 => 0,
+                        6..=10 => rng.pm(1, 3),
+                        11..=13 => rng.pm(0, if profile == 1 { 300 } else { 5000 }),
+                        14 => rng.pm(0, 64),
+                        _ => rng.pm(0, 1 << 18),
+                    },
+                };
+                c[ch * MB_COEFFS + i] = if i >= 16 { v & !((1 << trim) - 1) } else { v };
+            }
+        }
+        c
+    }
+
+    /// Encodes `rows` × `width` macroblocks of one tile with [`PlaneEncoder`] (flexbits inline
+    /// or in a separate packet), decodes them with [`PlaneDecoder`] and checks every value,
+    /// pattern and model bit, and the bit positions. Returns the largest DC and HP model bits.
+    fn round_trip(
+        fmt: ClrFmt,
+        channels: usize,
+        (width, rows): (usize, usize),
+        flex_inline: bool,
+        trim: u32,
+        mut gen: impl FnMut(usize, usize) -> Vec<i32>,
+    ) -> (u32, u32) {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ (width * 31 + channels) as u64);
+        let mbs: Vec<Vec<i32>> = (0..rows * width).map(|i| gen(i % width, i / width)).collect();
+        let modes: Vec<u8> = (0..rows * width).map(|_| rng.below(3) as u8).collect();
+        let mut enc = PlaneEncoder::new(fmt, channels);
+        enc.trim = trim;
+        let (mut w, mut wf) = (BitWriter::new(), BitWriter::new());
+        let mut cbp_rows = [vec![0u32; width * channels], vec![0u32; width * channels]];
+        let mut patterns = Vec::new();
+        let mut hp_bits = Vec::new();
+        let (mut max_dc, mut max_hp) = (0, 0);
+        for my in 0..rows {
+            for mx in 0..width {
+                let i = my * width + mx;
+                let c = &mbs[i];
+                let (x, tw) = (mx as u32, width as u32);
+                enc.dc(&mut w, c, x, tw).unwrap();
+                enc.lp(&mut w, c, x, tw).unwrap();
+                // The neighbours' patterns as tiles.rs passes them: two rows, alternating.
+                let [c0, c1] = &mut cbp_rows;
+                let (cur_row, prev_row) = if my % 2 == 0 { (c0, &*c1) } else { (c1, &*c0) };
+                let (before, rest) = cur_row.split_at_mut(mx * channels);
+                let left = (mx > 0).then(|| &before[(mx - 1) * channels..]);
+                let top = (my > 0).then(|| &prev_row[mx * channels..(mx + 1) * channels]);
+                let cur = &mut rest[..channels];
+                let bits = enc.cbp_hp(&mut w, c, left, top, cur, modes[i], x, tw, flex_inline).unwrap();
+                if !flex_inline {
+                    flex_mb_encode(&mut wf, c, fmt, channels, trim, bits).unwrap();
+                }
+                patterns.push(cur.to_vec());
+                hp_bits.push(bits);
+                max_dc = max_dc.max(enc.st.model[BAND_DC].bits[0]);
+                max_hp = max_hp.max(bits[0]).max(bits[1]);
+            }
+        }
+        let (len, flen) = (w.bit_len(), wf.bit_len());
+        let (bytes, fbytes) = (w.into_bytes(), wf.into_bytes());
+        let mut dec = PlaneDecoder::new(fmt, channels);
+        dec.trim = trim;
+        let (mut r, mut rf) = (BitReader::new(&bytes), BitReader::new(&fbytes));
+        let mut cbp_rows = [vec![0u32; width * channels], vec![0u32; width * channels]];
+        for my in 0..rows {
+            for mx in 0..width {
+                let i = my * width + mx;
+                let (x, tw) = (mx as u32, width as u32);
+                let mut d = vec![0i32; channels * MB_COEFFS];
+                dec.dc(&mut r, &mut d, x, tw);
+                dec.lp(&mut r, &mut d, x, tw).unwrap();
+                let [c0, c1] = &mut cbp_rows;
+                let (cur_row, prev_row) = if my % 2 == 0 { (c0, &*c1) } else { (c1, &*c0) };
+                let (before, rest) = cur_row.split_at_mut(mx * channels);
+                let left = (mx > 0).then(|| &before[(mx - 1) * channels..]);
+                let top = (my > 0).then(|| &prev_row[mx * channels..(mx + 1) * channels]);
+                let cur = &mut rest[..channels];
+                dec.cbp(&mut r, left, top, cur).unwrap();
+                assert_eq!(cur, &patterns[i][..], "{fmt:?} CBP of macroblock ({mx}, {my})");
+                let bits = dec.hp(&mut r, &mut d, cur, modes[i], x, tw, flex_inline).unwrap();
+                assert_eq!(bits, hp_bits[i]);
+                if !flex_inline {
+                    flex_mb(&mut rf, &mut d, fmt, channels, trim, bits);
+                }
+                if d != mbs[i] {
+                    let k = (0..d.len()).find(|&k| d[k] != mbs[i][k]).unwrap();
+                    panic!(
+                        "{fmt:?}/{channels} flex_inline {flex_inline}: macroblock ({mx}, {my}) channel {} coefficient {}: {} != {}",
+                        k / MB_COEFFS,
+                        k % MB_COEFFS,
+                        d[k],
+                        mbs[i][k]
+                    );
+                }
+            }
+        }
+        assert_eq!(r.bit_pos(), len);
+        assert_eq!(rf.bit_pos(), flen);
+        assert!(!r.overrun() && !rf.overrun());
+        (max_dc, max_hp)
+    }
+
+    const FORMATS: [(ClrFmt, usize); 7] = [
+        (ClrFmt::YOnly, 1),
+        (ClrFmt::Yuv420, 3),
+        (ClrFmt::Yuv422, 3),
+        (ClrFmt::Yuv444, 3),
+        (ClrFmt::Yuvk, 4),
+        (ClrFmt::NComponent, 2),
+        (ClrFmt::NComponent, 5),
+    ];
+
+    #[test]
+    fn encoder_round_trips_through_the_decoder_for_every_format() {
+        for (n, &(fmt, channels)) in FORMATS.iter().enumerate() {
+            for (flex_inline, trim) in [(true, 0), (false, 0), (true, 2), (false, 1)] {
+                let mut rng = Rng(0x2545_F491_4F6C_DD1D + n as u64 * 977 + u64::from(trim));
+                round_trip(fmt, channels, (71, 3), flex_inline, trim, |mx, my| {
+                    let profile = ((mx + my * 5) / 9 % 4) as u32;
+                    random_mb(&mut rng, fmt, channels, profile, trim)
+                });
+            }
+        }
+    }
+
+    #[test]
+    fn model_bits_reach_their_extremes_and_back() {
+        for &(fmt, channels) in &FORMATS {
+            let mut rng = Rng(0xDEAD_BEEF_CAFE_F00D);
+            // 30 dense, large macroblocks (every level non-zero: the model bits climb to 15),
+            // then sparse ones (they fall back).
+            let (max_dc, max_hp) = round_trip(fmt, channels, (80, 2), true, 0, |mx, _| {
+                if mx < 30 {
+                    let mut c = random_mb(&mut rng, fmt, channels, 2, 0);
+                    for ch in 0..channels {
+                        c[ch * MB_COEFFS] = rng.pm((1 << 18) - 999, 1000);
+                        for i in 1..MB_COEFFS {
+                            if meaningful(fmt, ch, i) {
+                                c[ch * MB_COEFFS + i] = rng.pm((1 << 18) - (1 << 16), 1 << 16);
+                            }
+                        }
+                    }
+                    c
+                } else {
+                    random_mb(&mut rng, fmt, channels, 0, 0)
+                }
+            });
+            assert_eq!(max_dc, 15, "{fmt:?}");
+            assert!(max_hp >= 12, "{fmt:?}: {max_hp}");
+        }
+    }
+
+    #[test]
+    fn extreme_values_round_trip_or_fail_cleanly() {
+        for &(fmt, channels) in &FORMATS {
+            // At the tile start the model bits are DC 8, LP 4, HP 0: DC and LP take any i32,
+            // HP levels up to 2^30 + 1.
+            let max_hp = MAX_ABS_LEVEL as i32;
+            let mut c = vec![0i32; channels * MB_COEFFS];
+            for ch in 0..channels {
+                c[ch * MB_COEFFS] = if ch % 2 == 0 { i32::MIN } else { i32::MAX };
+                c[ch * MB_COEFFS + 1] = i32::MAX;
+                c[ch * MB_COEFFS + 2] = i32::MIN;
+                c[ch * MB_COEFFS + hp(0, 1)] = max_hp;
+                c[ch * MB_COEFFS + hp(1, 15)] = -max_hp;
+            }
+            let mbs = [c.clone(), vec![0; c.len()]];
+            round_trip(fmt, channels, (2, 1), true, 0, |mx, _| mbs[mx].clone());
+            // Beyond: an error, not a panic.
+            let mut cbp = vec![0u32; channels];
+            for bad in [i32::MIN, i32::MAX, max_hp + 1] {
+                let mut c = c.clone();
+                c[hp(0, 1)] = bad;
+                let mut enc = PlaneEncoder::new(fmt, channels);
+                let mut w = BitWriter::new();
+                enc.dc(&mut w, &c, 0, 1).unwrap();
+                enc.lp(&mut w, &c, 0, 1).unwrap();
+                assert!(enc.cbp_hp(&mut w, &c, None, None, &mut cbp, 0, 0, 1, true).is_err());
+            }
+            // Flexbits below TRIM_FLEXBITS cannot be coded.
+            let mut c = vec![0i32; channels * MB_COEFFS];
+            c[hp(3, 4)] = 1;
+            let mut w = BitWriter::new();
+            assert!(flex_mb_encode(&mut w, &c, fmt, channels, 1, [2, 2]).is_err());
+            assert!(flex_mb_encode(&mut w, &c, fmt, channels, 0, [1, 1]).is_ok());
+        }
+    }
+
+    #[test]
+    fn runs_and_levels_round_trip_for_every_length() {
+        // Every run at every maximum, and levels around every ABSLEVEL_INDEX boundary.
+        let mut enc = PlaneEncoder::new(ClrFmt::YOnly, 1);
+        let mut w = BitWriter::new();
+        let mut want = Vec::new();
+        for max_run in 1..=14 {
+            for run in 1..=max_run as u32 {
+                PlaneEncoder::run(&mut w, run, max_run).unwrap();
+                want.push((Some(max_run), run));
+            }
+        }
+        let mut levels: Vec<u32> = (2..40).collect();
+        for e in 4..30 {
+            levels.extend([(1 << e) + 1, (1 << e) + 2, (1 << e) + 3, (2 << e) + 1]);
+        }
+        levels.push(MAX_ABS_LEVEL);
+        for &l in &levels {
+            enc.abs_level(&mut w, V::AbsLevelHp1, l).unwrap();
+            want.push((None, l));
+        }
+        assert!(enc.abs_level(&mut w, V::AbsLevelHp1, MAX_ABS_LEVEL + 1).is_err());
+        assert!(PlaneEncoder::run(&mut w, 5, 4).is_err());
+        let bytes = w.into_bytes();
+        let mut r = BitReader::new(&bytes);
+        let mut dec = PlaneDecoder::new(ClrFmt::YOnly, 1);
+        for (max_run, v) in want {
+            match max_run {
+                Some(m) => assert_eq!(PlaneDecoder::run(&mut r, m), v, "run {v} of at most {m}"),
+                None => assert_eq!(dec.abs_level(&mut r, V::AbsLevelHp1), v),
+            }
+        }
+        assert_eq!(dec.st.vlc, enc.st.vlc);
+    }
+
+    #[test]
+    fn cbp_classes_invert_the_decoder_tables() {
+        for nibble in 0..16u32 {
+            let code = CBP_CODE[nibble as usize];
+            assert_eq!(CBP_OUT[code], nibble);
+            let class = CBP_CLASS[code];
+            assert!(CBP_OFF[class] <= code && code < CBP_OFF[class] + (1 << CBP_FLC[class]));
+            // The class is the number of coded blocks' code group: 0 only for nothing coded.
+            assert_eq!(class == 0, nibble == 0);
+        }
     }
 }
