@@ -130,6 +130,7 @@ impl EntropyState {
     }
 
     /// The end of MB_DC: model update and, at an adaptation point, the DC tables.
+    #[inline]
     fn end_dc(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
         self.update_model(lap_mean, BAND_DC);
         if reset_context(mx, tile_w) {
@@ -139,6 +140,7 @@ impl EntropyState {
     }
 
     /// The start of MB_LP: the LP scan totals restart every 16 macroblocks.
+    #[inline]
     fn start_lp(&mut self, mx: u32) {
         if mx % 16 == 0 {
             self.lp_scan.reset_totals();
@@ -146,6 +148,7 @@ impl EntropyState {
     }
 
     /// The end of MB_LP: model update and, at an adaptation point, the LP tables.
+    #[inline]
     fn end_lp(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
         self.update_model(lap_mean, BAND_LP);
         if reset_context(mx, tile_w) {
@@ -157,6 +160,7 @@ impl EntropyState {
     }
 
     /// The start of MB_HP: the HP scan totals restart every 16 macroblocks.
+    #[inline]
     fn start_hp(&mut self, mx: u32) {
         if mx % 16 == 0 {
             self.hp_hor.reset_totals();
@@ -165,6 +169,7 @@ impl EntropyState {
     }
 
     /// The end of MB_HP: model update and, at an adaptation point, the HP and CBP tables.
+    #[inline]
     fn end_hp(&mut self, lap_mean: [i32; 2], mx: u32, tile_w: u32) {
         self.update_model(lap_mean, BAND_HP);
         if reset_context(mx, tile_w) {
@@ -178,18 +183,21 @@ impl EntropyState {
     /// CBPLP of a YUV format (T.832 5.5.8): the largest value, whether the counters say it
     /// is VLC-coded (else `full_planes` raw bits), and whether the VLC symbol is inverted
     /// (`max − cbplp`).
+    #[inline]
     fn cbplp_coding(&self, full_planes: usize) -> (u32, bool, bool) {
         let max = full_planes as u32 * 4 - 5;
         (max, self.cbplp_zero <= 0 || self.cbplp_max < 0, self.cbplp_max < self.cbplp_zero)
     }
 
     /// Counts a YUV CBPLP value (T.832 5.5.8).
+    #[inline]
     fn count_cbplp(&mut self, cbplp: u32, max: u32) {
         self.cbplp_zero = (self.cbplp_zero + 1 - if cbplp == 0 { 4 } else { 0 }).clamp(-8, 7);
         self.cbplp_max = (self.cbplp_max + 1 - if cbplp == max { 4 } else { 0 }).clamp(-8, 7);
     }
 
     /// The CBP of channel `ch` from its coded difference (`r_PredCBP`), and the model update.
+    #[inline]
     fn predict_cbp(&mut self, ch: usize, diff: u32, left: Option<&[u32]>, top: Option<&[u32]>) -> u32 {
         let chroma = usize::from(ch > 0);
         let state = self.cbp_model.state[chroma];
