@@ -1551,7 +1551,7 @@ mod tests {
     }
 
     #[test]
-    fn model_bits_reach_their_extremes_and_back() {
+    fn model_bits_reach_their_maximum() {
         for &(fmt, channels) in &FORMATS {
             let mut rng = Rng(0xDEAD_BEEF_CAFE_F00D);
             // 30 dense, large macroblocks (every level non-zero: the model bits climb to 15),
