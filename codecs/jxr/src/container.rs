@@ -10,8 +10,10 @@
 //! [`parse_container`] returns the codestream slices ([`Container::image`],
 //! [`Container::alpha`]), the [`PixelFormat`] the GUID names and the metadata worth keeping.
 
-use hdrcodec_core::bytes::ByteReader;
-use hdrcodec_core::tiff::{Entry, FieldType, Ifd, Tiff, MAGIC_HD_PHOTO, MAGIC_JPEG_XR};
+use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
+use hdrcodec_core::tiff::{
+    write_header, Entry, FieldType, Ifd, IfdWriter, Tiff, HEADER_LEN, MAGIC_HD_PHOTO, MAGIC_JPEG_XR,
+};
 use hdrcodec_core::{Error, Result};
 
 /// Tags of the JPEG XR IFD (T.832 Table A.4; jxrlib `JXRMeta.h`).
@@ -529,11 +531,106 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
     })
 }
 
+/// What [`write_container`] stores besides the pixel format, the sizes and the codestreams.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContainerMeta {
+    /// ICC_PROFILE (UNDEFINED bytes).
+    pub icc: Option<Vec<u8>>,
+    /// XMP_METADATA (BYTE).
+    pub xmp: Option<Vec<u8>>,
+    /// PTM_COLOR_INFO: colour primaries, transfer characteristics, matrix coefficients and the
+    /// full-range flag (T.832 A.7.4, H.273 code points).
+    pub ptm_color_info: Option<[u8; 4]>,
+    /// WIDTH_RESOLUTION and HEIGHT_RESOLUTION in pixels per inch.
+    pub resolution: (f32, f32),
+}
+
+impl Default for ContainerMeta {
+    /// No metadata and 96 dpi, which jxrlib's encoder writes when its source has no
+    /// resolution (`JXRGlue.c: PKImageEncode_Initialize`).
+    fn default() -> Self {
+        ContainerMeta { icc: None, xmp: None, ptm_color_info: None, resolution: (96.0, 96.0) }
+    }
+}
+
+/// Writes a JPEG XR file (T.832 Annex A) around the codestream `image` and, for a format with
+/// alpha, an optional planar alpha codestream: "II", 0xBC, version 1, the first IFD's offset
+/// (8), one IFD with its entries sorted by tag (A.3; jxrlib's own order is not always sorted,
+/// JXR-NOTES §8 quirk 5), the values that do not fit in 4 bytes, then the codestreams.
+///
+/// The field types are jxrlib's (`JXRGlueJxr.c: WriteContainerPre`), which [`parse_container`]
+/// reads: PIXEL_FORMAT BYTE × 16, SPATIAL_XFRM_PRIMARY LONG 0 (as JxrEncApp; the codestream's
+/// orientation is then ignored by jxrlib), IMAGE_WIDTH / IMAGE_HEIGHT LONG, the resolutions
+/// FLOAT, the offsets and byte counts LONG, ICC_PROFILE UNDEFINED, XMP_METADATA and
+/// PTM_COLOR_INFO BYTE. ALPHA_BYTE_COUNT is the real length, not jxrlib's offset + length
+/// (JXR-NOTES §8 quirk 4).
+pub fn write_container(
+    format: &PixelFormat,
+    width: u32,
+    height: u32,
+    image: &[u8],
+    alpha: Option<&[u8]>,
+    meta: &ContainerMeta,
+) -> Result<Vec<u8>> {
+    if width == 0 || height == 0 {
+        return Err(Error::invalid(format!("a {width}x{height} JPEG XR image")));
+    }
+    if image.is_empty() || alpha.is_some_and(<[u8]>::is_empty) {
+        return Err(Error::invalid("an empty JPEG XR codestream"));
+    }
+    if alpha.is_some() && !format.alpha {
+        return Err(Error::invalid(format!("an alpha codestream for {}, which has no alpha", format.name)));
+    }
+    let mut ifd = IfdWriter::new();
+    ifd.bytes(tag::PIXEL_FORMAT, &format.guid);
+    ifd.long(tag::SPATIAL_XFRM_PRIMARY, 0);
+    ifd.long(tag::IMAGE_WIDTH, width);
+    ifd.long(tag::IMAGE_HEIGHT, height);
+    ifd.floats(tag::WIDTH_RESOLUTION, &[meta.resolution.0]);
+    ifd.floats(tag::HEIGHT_RESOLUTION, &[meta.resolution.1]);
+    if let Some(icc) = &meta.icc {
+        ifd.undefined(tag::ICC_PROFILE, icc);
+    }
+    if let Some(xmp) = &meta.xmp {
+        ifd.bytes(tag::XMP_METADATA, xmp);
+    }
+    if let Some(ptm) = &meta.ptm_color_info {
+        ifd.bytes(tag::PTM_COLOR_INFO, ptm);
+    }
+    // The offsets are placeholders until the IFD's size is known; their values do not change
+    // that size (every LONG is inline).
+    let too_big = || Error::limit("the JPEG XR file would outgrow the container's 32-bit offsets");
+    let long = |v: u64| u32::try_from(v).map_err(|_| too_big());
+    ifd.long(tag::IMAGE_OFFSET, 0);
+    ifd.long(tag::IMAGE_BYTE_COUNT, long(image.len() as u64)?);
+    if let Some(a) = alpha {
+        ifd.long(tag::ALPHA_OFFSET, 0);
+        ifd.long(tag::ALPHA_BYTE_COUNT, long(a.len() as u64)?);
+    }
+    // The IFD follows the 8-byte header (an even offset, as A.3 asks); the values after it are
+    // padded to even lengths, so the codestream starts right after them.
+    let image_at = HEADER_LEN as u64 + ifd.size();
+    let alpha_at = image_at + image.len() as u64;
+    let end = alpha_at + alpha.map_or(0, |a| a.len() as u64);
+    long(end)?;
+    ifd.long(tag::IMAGE_OFFSET, long(image_at)?);
+    if alpha.is_some() {
+        ifd.long(tag::ALPHA_OFFSET, long(alpha_at)?);
+    }
+    let mut w = ByteWriter::new(ByteOrder::Little);
+    let link = write_header(&mut w, MAGIC_JPEG_XR);
+    ifd.write(&mut w, link)?;
+    debug_assert_eq!(w.len() as u64, image_at);
+    w.bytes(image);
+    if let Some(a) = alpha {
+        w.bytes(a);
+    }
+    Ok(w.into_vec())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
-    use hdrcodec_core::tiff::{write_header, IfdWriter};
     use std::path::PathBuf;
 
     /// A small file as jxrlib lays it out, with every tag this module reads. Returns the file
@@ -684,6 +781,67 @@ mod tests {
                 assert_eq!(c as u8, code);
             }
         }
+    }
+
+    #[test]
+    fn written_containers_read_back() {
+        let image = b"WMPHOTO\0 primary codestream, odd length";
+        let alpha = b"WMPHOTO\0 alpha";
+        let rgba = PIXEL_FORMATS.iter().find(|f| f.name == "128bppRGBAFloat").unwrap();
+        let rgbe = PIXEL_FORMATS.iter().find(|f| f.name == "32bppRGBE").unwrap();
+        let full = ContainerMeta {
+            icc: Some(b"an ICC profile of some length".to_vec()),
+            xmp: Some(b"<x:xmpmeta/>".to_vec()),
+            ptm_color_info: Some([9, 16, 9, 1]),
+            resolution: (300.0, 72.5),
+        };
+        // Short blobs (<= 4 bytes) sit inside their entries.
+        let tiny = ContainerMeta { icc: Some(vec![1, 2, 3]), xmp: Some(vec![b'x']), ..ContainerMeta::default() };
+        for (format, alpha, meta) in [
+            (rgba, Some(&alpha[..]), &full),
+            (rgba, None, &ContainerMeta::default()),
+            (rgbe, None, &full),
+            (rgbe, None, &tiny),
+        ] {
+            let file = write_container(format, 1240, 3, image, alpha, meta).unwrap();
+            assert_eq!(&file[..8], &[b'I', b'I', 0xBC, 1, 8, 0, 0, 0]);
+            let c = parse_container(&file).unwrap();
+            assert_eq!(c.version, 1);
+            assert_eq!(c.pixel_format, format);
+            assert_eq!((c.width, c.height, c.orientation), (Some(1240), Some(3), Some(0)));
+            assert_eq!(c.image, image);
+            assert_eq!(c.alpha, alpha);
+            assert_eq!(c.resolution, Some(meta.resolution));
+            assert_eq!(c.icc_profile, meta.icc.as_deref());
+            assert_eq!(c.xmp, meta.xmp.as_deref());
+            assert_eq!(c.ptm_color_info, meta.ptm_color_info);
+            assert_eq!(c.exif_ifd, None);
+            // Sorted entries of jxrlib's types.
+            let tiff = Tiff::parse(&file, MAGIC_JPEG_XR).unwrap();
+            let ifd = tiff.first_ifd().unwrap();
+            let types: Vec<(u16, Option<FieldType>)> = ifd.entries.iter().map(|e| (e.tag, e.field_type())).collect();
+            assert!(types.windows(2).all(|p| p[0].0 < p[1].0), "{types:?}");
+            for (t, ty) in types {
+                let want = match t {
+                    tag::PIXEL_FORMAT | tag::XMP_METADATA | tag::PTM_COLOR_INFO => FieldType::Byte,
+                    tag::ICC_PROFILE => FieldType::Undefined,
+                    tag::WIDTH_RESOLUTION | tag::HEIGHT_RESOLUTION => FieldType::Float,
+                    _ => FieldType::Long,
+                };
+                assert_eq!(ty, Some(want), "tag {t:#x}");
+            }
+            // The codestreams come last, back to back.
+            let mut tail = image.to_vec();
+            tail.extend_from_slice(alpha.unwrap_or_default());
+            assert!(file.ends_with(&tail));
+        }
+        assert_eq!(ContainerMeta::default().resolution, (96.0, 96.0));
+        // Invalid requests are errors.
+        let d = ContainerMeta::default();
+        assert!(write_container(rgbe, 0, 3, image, None, &d).is_err());
+        assert!(write_container(rgbe, 3, 3, &[], None, &d).is_err());
+        assert!(write_container(rgbe, 3, 3, image, Some(alpha), &d).is_err());
+        assert!(write_container(rgba, 3, 3, image, Some(&[]), &d).is_err());
     }
 
     fn corpus(name: &str) -> Option<Vec<u8>> {

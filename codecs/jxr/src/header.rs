@@ -503,6 +503,407 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
     Ok(Codestream { image, primary, alpha, packets, profile_level, header_len })
 }
 
+// ---------------------------------------------------------------------------------------------
+// Writing: the exact inverses of `parse`, `read_plane_header` and `read_qp_set`.
+// ---------------------------------------------------------------------------------------------
+
+/// A minimal MSB-first bit writer for the headers (T.832 clause 8 writes every syntax element
+/// most significant bit first), kept here until the shared writer lands.
+// TODO: replace with bits::BitWriter
+#[derive(Clone, Debug, Default)]
+pub struct HeaderBits {
+    bytes: Vec<u8>,
+    /// Bits of the last, unfinished byte, right-aligned.
+    acc: u8,
+    /// Number of bits in `acc` (0..8).
+    used: u32,
+}
+
+impl HeaderBits {
+    /// An empty writer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes the low `n` bits of `value` (`n` ≤ 64), most significant first. Higher bits of
+    /// `value` must be zero; callers check their ranges first (a debug assertion guards it).
+    pub fn write(&mut self, value: u64, n: u32) {
+        debug_assert!(n <= 64 && (n == 64 || value >> n == 0), "{value} does not fit in {n} bits");
+        for i in (0..n).rev() {
+            self.bit((value >> i) & 1 != 0);
+        }
+    }
+
+    /// Writes one bit.
+    pub fn bit(&mut self, b: bool) {
+        self.acc = (self.acc << 1) | u8::from(b);
+        self.used += 1;
+        if self.used == 8 {
+            self.bytes.push(self.acc);
+            self.acc = 0;
+            self.used = 0;
+        }
+    }
+
+    /// Pads with zero bits to the next byte boundary (every header ends on one, T.832 8.3).
+    pub fn align(&mut self) {
+        while self.used != 0 {
+            self.bit(false);
+        }
+    }
+
+    /// Bytes written so far, counting an unfinished byte.
+    pub fn byte_len(&self) -> usize {
+        self.bytes.len() + usize::from(self.used != 0)
+    }
+
+    /// Writes a VLW_ESC value (T.832 8.2) on a byte boundary: 16 bits below 0xFB00, else 0xFB
+    /// and 32 bits, else 0xFC and 64 bits (the inverse of [`BitReader::vlw_esc`]).
+    pub fn vlw_esc(&mut self, v: u64) {
+        self.align();
+        if v < 0xFB00 {
+            self.write(v, 16);
+        } else if v <= u64::from(u32::MAX) {
+            self.write(0xFB, 8);
+            self.write(v, 32);
+        } else {
+            self.write(0xFC, 8);
+            self.write(v, 64);
+        }
+    }
+
+    /// The bytes, the last one padded with zeros.
+    pub fn into_bytes(mut self) -> Vec<u8> {
+        self.align();
+        self.bytes
+    }
+}
+
+/// Writes one quantizer set of a plane with `channels` channels (T.832 8.3.5; the inverse of
+/// [`read_qp_set`]). The set must be one that reading gives back: mode 0 with every channel at
+/// the luma index, mode 1 with every chroma channel at one index, mode 2 with any indices,
+/// indices past `channels` zero, and mode 0 for a single channel (which codes no mode).
+/// CHANNEL_MODE 3 is reserved (T.832 Table 34) and refused, although jxrlib reads it as 2.
+pub fn write_qp_set(w: &mut HeaderBits, set: &QpSet, channels: usize) -> Result<()> {
+    if !(1..=MAX_CHANNELS).contains(&channels) {
+        return Err(Error::invalid(format!("JPEG XR: a QP set for {channels} channels (1-16)")));
+    }
+    let (used, rest) = set.index.split_at(channels);
+    if rest.iter().any(|&i| i != 0) {
+        return Err(Error::invalid("JPEG XR: a QP set has indices past its plane's channels"));
+    }
+    let consistent = match set.mode {
+        0 => used.iter().all(|&i| i == used[0]),
+        1 => channels > 1 && used[1..].iter().all(|&i| i == used[1]),
+        2 => channels > 1,
+        _ => false,
+    };
+    if !consistent {
+        return Err(Error::invalid(format!(
+            "JPEG XR: QP set mode {} cannot code the indices {:?} of {channels} channel(s)",
+            set.mode, used
+        )));
+    }
+    // One channel codes no CHANNEL_MODE (T.832 8.3.5: only when NUM_CHANNELS > 1).
+    if channels > 1 {
+        w.write(u64::from(set.mode), 2);
+    }
+    w.write(u64::from(used[0]), 8);
+    match set.mode {
+        0 => {}
+        1 => w.write(u64::from(used[1]), 8),
+        _ => used[1..].iter().for_each(|&i| w.write(u64::from(i), 8)),
+    }
+    Ok(())
+}
+
+/// Writes a band's IMAGE_PLANE_UNIFORM flag and, for a uniform band, its QP set.
+fn write_qp_source(w: &mut HeaderBits, source: &QpSource, channels: usize) -> Result<()> {
+    match source {
+        QpSource::Uniform(set) => {
+            w.bit(true);
+            write_qp_set(w, set, channels)
+        }
+        QpSource::PerTile => {
+            w.bit(false);
+            Ok(())
+        }
+    }
+}
+
+/// Writes IMAGE_PLANE_HEADER (T.832 8.3.2; the inverse of `read_plane_header`).
+fn write_plane_header(w: &mut HeaderBits, p: &PlaneHeader, bitdepth: u8, alpha: bool) -> Result<()> {
+    let what = if alpha { "alpha" } else { "primary" };
+    let bad = |why: String| Err(Error::invalid(format!("JPEG XR {what} plane header: {why}")));
+    if alpha && p.clr_fmt != ClrFmt::YOnly {
+        return bad("the alpha plane must be YONLY (T.832 8.3.2)".into());
+    }
+    let (code, channels_ok) = match p.clr_fmt {
+        ClrFmt::YOnly => (0, p.channels == 1),
+        ClrFmt::Yuv420 => (1, p.channels == 3),
+        ClrFmt::Yuv422 => (2, p.channels == 3),
+        ClrFmt::Yuv444 => (3, p.channels == 3),
+        ClrFmt::Yuvk => (4, p.channels == 4),
+        // NUM_COMPONENTS_MINUS1 has 4 bits; its 12-bit escape is not read by jxrlib (16 max).
+        ClrFmt::NComponent => (6, (1..=MAX_CHANNELS).contains(&p.channels)),
+    };
+    if !channels_ok {
+        return bad(format!("{} channels for INTERNAL_CLR_FMT {:?}", p.channels, p.clr_fmt));
+    }
+    let (cx, cy) = p.chroma_centering;
+    let centering_ok = match p.clr_fmt {
+        ClrFmt::Yuv420 => cx < 8 && cy < 8,
+        ClrFmt::Yuv422 => cx < 8 && cy == 0,
+        _ => (cx, cy) == (0, 0),
+    };
+    if !centering_ok {
+        return bad(format!("chroma centering {:?} cannot be coded for {:?}", p.chroma_centering, p.clr_fmt));
+    }
+    // SHIFT_BITS for BD16, BD16S, BD32 (reserved) and BD32S; LEN_MANTISSA and EXP_BIAS for
+    // BD32F (T.832 8.3.2); nothing otherwise, so the fields must then be 0.
+    let (has_shift, has_bias) = match bitdepth {
+        2 | 3 | 5 | 6 => (true, false),
+        7 => (true, true),
+        _ => (false, false),
+    };
+    if (!has_shift && p.shift_or_mantissa != 0) || (!has_bias && p.exp_bias != 0) {
+        return bad(format!("OUTPUT_BITDEPTH {bitdepth} codes no SHIFT_BITS / LEN_MANTISSA / EXP_BIAS"));
+    }
+    // With RESERVED_I and RESERVED_J written as 0 (as every encoder does: JXR-NOTES §8 quirk
+    // 7), an absent band has its lower band's quantizers and nothing else can be coded.
+    if !p.bands.has_lp() && p.lp != p.dc {
+        return bad("DCONLY, but the LP quantizers differ from the DC ones".into());
+    }
+    if !p.bands.has_hp() && p.hp != p.lp {
+        return bad("no HP band, but the HP quantizers differ from the LP ones".into());
+    }
+    w.write(code, 3);
+    w.bit(p.scaled);
+    w.write(p.bands as u64, 4);
+    match p.clr_fmt {
+        ClrFmt::Yuv420 => {
+            // RESERVED_E, CHROMA_CENTERING_X, RESERVED_F, CHROMA_CENTERING_Y.
+            w.write(0, 1);
+            w.write(u64::from(cx), 3);
+            w.write(0, 1);
+            w.write(u64::from(cy), 3);
+        }
+        ClrFmt::Yuv422 => {
+            w.write(0, 1);
+            w.write(u64::from(cx), 3);
+            w.write(0, 4);
+        }
+        ClrFmt::Yuv444 => w.write(0, 8),
+        ClrFmt::NComponent => {
+            w.write(p.channels as u64 - 1, 4);
+            w.write(0, 4);
+        }
+        ClrFmt::YOnly | ClrFmt::Yuvk => {}
+    }
+    if has_shift {
+        w.write(u64::from(p.shift_or_mantissa), 8);
+    }
+    if has_bias {
+        w.write(u64::from(p.exp_bias), 8);
+    }
+    write_qp_source(w, &p.dc, p.channels)?;
+    if p.bands.has_lp() {
+        w.bit(false); // RESERVED_I
+        write_qp_source(w, &p.lp, p.channels)?;
+        if p.bands.has_hp() {
+            w.bit(false); // RESERVED_J
+            write_qp_source(w, &p.hp, p.channels)?;
+        }
+    }
+    w.align();
+    Ok(())
+}
+
+/// Checks that `image` describes a codestream [`parse`] reads back as `image`.
+fn check_image_header(image: &ImageHeader) -> Result<()> {
+    let bad = |why: String| Err(Error::invalid(format!("JPEG XR image header: {why}")));
+    if !matches!(image.sub_version, 0 | 1 | 9) || image.hard_tiling != (image.sub_version == 9) {
+        return bad(format!(
+            "sub-version {} with hard tiling {} (0, 1 or 9 = hard tiles; jxrlib reads no other)",
+            image.sub_version, image.hard_tiling
+        ));
+    }
+    if image.orientation > 7 || image.overlap > 2 || image.output_clr_fmt > 15 || image.output_bitdepth > 15 {
+        return bad(format!(
+            "orientation {}, overlap {}, OUTPUT_CLR_FMT {} or OUTPUT_BITDEPTH {} out of range",
+            image.orientation, image.overlap, image.output_clr_fmt, image.output_bitdepth
+        ));
+    }
+    let max_size: u64 = if image.short_header { 1 << 16 } else { 1 << 32 };
+    if image.width == 0 || image.height == 0 || u64::from(image.width) > max_size || u64::from(image.height) > max_size
+    {
+        return bad(format!(
+            "{}x{} does not fit the {} header's size fields",
+            image.width,
+            image.height,
+            if image.short_header { "short" } else { "long" }
+        ));
+    }
+    let [top, left, bottom, right] = image.margins.map(u64::from);
+    let (w, h) = (u64::from(image.width), u64::from(image.height));
+    if image.windowing {
+        if image.margins.iter().any(|&m| m >= 64) {
+            return bad(format!("window margins {:?} exceed the 6-bit fields", image.margins));
+        }
+        if (w + left + right) % 16 != 0 || (h + top + bottom) % 16 != 0 {
+            return bad(format!("window margins {:?} do not make whole macroblocks", image.margins));
+        }
+    } else if image.margins != [0, 0, ((16 - h % 16) % 16) as u32, ((16 - w % 16) % 16) as u32] {
+        // Without WINDOWING_FLAG the margins are implied (T.832 8.3.1).
+        return bad(format!("margins {:?} without WINDOWING_FLAG", image.margins));
+    }
+    if u64::from(image.mb_width) * 16 != w + left + right || u64::from(image.mb_height) * 16 != h + top + bottom {
+        return bad(format!("{}x{} macroblocks for the extended size", image.mb_width, image.mb_height));
+    }
+    let tile_max: u32 = if image.short_header { 0xFF } else { 0xFFFF };
+    for (sizes, total, what) in
+        [(&image.tile_widths, image.mb_width, "column widths"), (&image.tile_heights, image.mb_height, "row heights")]
+    {
+        let sum: u64 = sizes.iter().map(|&s| u64::from(s)).sum();
+        if sizes.is_empty() || sizes.len() > MAX_TILES || sizes.contains(&0) || sum != u64::from(total) {
+            return bad(format!("tile {what} {sizes:?} do not make {total} macroblocks"));
+        }
+        // The last size is implied; the others have 8 or 16 bits.
+        if sizes[..sizes.len() - 1].iter().any(|&s| s > tile_max) {
+            return bad(format!("tile {what} {sizes:?} exceed the {}-bit fields", tile_max.count_ones()));
+        }
+        if !image.tiling && sizes.len() != 1 {
+            return bad(format!("several tile {what} without TILING_FLAG"));
+        }
+    }
+    if !image.index_table && (image.frequency_mode || image.tile_count() > 1) {
+        return bad("frequency mode or several tiles need an index table (T.832 8.3.1)".into());
+    }
+    Ok(())
+}
+
+/// Writes a complete codestream (T.832 8.3): `WMPHOTO\0`, IMAGE_HEADER, the primary and
+/// (when `alpha` is given) interleaved alpha IMAGE_PLANE_HEADERs, the INDEX_TABLE if
+/// `image.index_table`, SUBSEQUENT_BYTES and PROFILE_LEVEL_INFO, then `packets` in the order
+/// given: one per tile in spatial mode, one per tile and band (tile-major) in frequency mode,
+/// exactly one without an index table.
+///
+/// As JxrEncApp (`strenc.c: writeIndexTable, writeIndexTableNull`): with an index table,
+/// SUBSEQUENT_BYTES is the escape 0xFF and no profile is stamped (Annex B then infers
+/// Advanced/255); without one, SUBSEQUENT_BYTES is 4 and a single PROFILE_LEVEL_INFO says
+/// Advanced (111), level 255. An empty packet is written as the escape 0xFF, as jxrlib writes
+/// a dropped packet ([`parse`] reads it as the first packet's offset); the others' index
+/// entries are their offsets from the end of the headers, so that `parse(...).packets` are
+/// their absolute offsets.
+///
+/// Every field is checked against its syntax element: a header that cannot be coded, or that
+/// [`parse`] would not read back as given, is an [`Error`], never a panic.
+pub fn write_codestream(
+    image: &ImageHeader,
+    primary: &PlaneHeader,
+    alpha: Option<&PlaneHeader>,
+    packets: &[Vec<u8>],
+) -> Result<Vec<u8>> {
+    check_image_header(image)?;
+    if image.alpha_plane != alpha.is_some() {
+        return Err(Error::invalid("JPEG XR: ALPHA_IMAGE_PLANE_FLAG disagrees with the alpha plane header given"));
+    }
+    if alpha.is_some_and(|a| a.bands != primary.bands) {
+        // jxrlib decodes the alpha plane band by band with the primary's packets.
+        return Err(Error::invalid("JPEG XR: the alpha plane has other bands than the primary plane"));
+    }
+    let per_tile = if image.frequency_mode { primary.bands.count() } else { 1 };
+    let entries = if image.index_table { image.tile_count() * per_tile } else { 1 };
+    if packets.len() != entries {
+        return Err(Error::invalid(format!("JPEG XR: {} packets given, the headers need {entries}", packets.len())));
+    }
+    if !image.index_table && packets[0].is_empty() {
+        return Err(Error::invalid("JPEG XR: the only packet is empty"));
+    }
+
+    let mut w = HeaderBits::new();
+    // IMAGE_HEADER (T.832 8.3.1).
+    w.write(1, 4); // VERSION_INFO (RESERVED_B)
+    w.write(u64::from(image.sub_version), 4); // HARD_TILING_FLAG + RESERVED_C
+    w.bit(image.tiling);
+    w.bit(image.frequency_mode);
+    w.write(u64::from(image.orientation), 3);
+    w.bit(image.index_table);
+    w.write(u64::from(image.overlap), 2);
+    w.bit(image.short_header);
+    w.bit(image.long_word);
+    w.bit(image.windowing);
+    w.bit(image.trim_flexbits);
+    w.bit(image.tile_stretch);
+    w.bit(image.red_blue_not_swapped);
+    w.bit(image.premultiplied_alpha);
+    w.bit(image.alpha_plane);
+    w.write(u64::from(image.output_clr_fmt), 4);
+    w.write(u64::from(image.output_bitdepth), 4);
+    let size_bits = if image.short_header { 16 } else { 32 };
+    w.write(u64::from(image.width) - 1, size_bits);
+    w.write(u64::from(image.height) - 1, size_bits);
+    if image.tiling {
+        // NUM_VER_TILES_MINUS1 counts tile columns, NUM_HOR_TILES_MINUS1 rows.
+        w.write(image.tile_widths.len() as u64 - 1, 12);
+        w.write(image.tile_heights.len() as u64 - 1, 12);
+    }
+    let tile_bits = if image.short_header { 8 } else { 16 };
+    for sizes in [&image.tile_widths, &image.tile_heights] {
+        for &s in &sizes[..sizes.len() - 1] {
+            w.write(u64::from(s), tile_bits);
+        }
+    }
+    if image.tile_stretch {
+        // jxrlib's "tile stretch" (RESERVED_D): 8 bits per tile, which it skips.
+        for _ in 0..image.tile_count() {
+            w.write(0, 8);
+        }
+    }
+    if image.windowing {
+        for m in image.margins {
+            w.write(u64::from(m), 6);
+        }
+    }
+    w.align();
+    write_plane_header(&mut w, primary, image.output_bitdepth, false)?;
+    if let Some(a) = alpha {
+        write_plane_header(&mut w, a, image.output_bitdepth, true)?;
+    }
+
+    if image.index_table {
+        // INDEX_TABLE (T.832 8.3.3): 0x0001, then each packet's offset from the first byte
+        // after the headers (after SUBSEQUENT_BYTES), which is where the packets start.
+        w.write(1, 16);
+        let mut offset = 0u64;
+        for p in packets {
+            if p.is_empty() {
+                w.write(0xFF, 8);
+            } else {
+                w.vlw_esc(offset);
+                offset += p.len() as u64;
+            }
+        }
+        w.write(0xFF, 8); // SUBSEQUENT_BYTES: escaped, no profile (as JxrEncApp)
+    } else {
+        // SUBSEQUENT_BYTES = 4, then PROFILE_IDC 111 (Advanced), LEVEL_IDC 255, 15 reserved
+        // bits and LAST_FLAG (T.832 8.3.4, B.2), as JxrEncApp stamps a file without a table.
+        w.vlw_esc(4);
+        w.write(111, 8);
+        w.write(255, 8);
+        w.write(1, 16);
+    }
+
+    let mut out = b"WMPHOTO\0".to_vec();
+    let headers = w.into_bytes();
+    out.reserve(headers.len() + packets.iter().map(Vec::len).sum::<usize>());
+    out.extend_from_slice(&headers);
+    for p in packets {
+        out.extend_from_slice(p);
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -604,6 +1005,407 @@ mod tests {
         let full = header(40, 40, None);
         for n in 0..full.len() - 4 {
             assert!(parse(&full[..n]).is_err(), "prefix of {n} bytes");
+        }
+    }
+
+    fn set(mode: u8, idx: &[u8]) -> QpSet {
+        let mut s = QpSet { mode, ..QpSet::default() };
+        s.index[..idx.len()].copy_from_slice(idx);
+        s
+    }
+
+    /// A one-tile image header of `width` x `height` with the implied margins.
+    fn image(width: u32, height: u32) -> ImageHeader {
+        let (mb_width, mb_height) = (width.div_ceil(16), height.div_ceil(16));
+        ImageHeader {
+            sub_version: 1,
+            hard_tiling: false,
+            tiling: false,
+            frequency_mode: false,
+            orientation: 0,
+            index_table: false,
+            overlap: 1,
+            short_header: true,
+            long_word: true,
+            windowing: false,
+            trim_flexbits: false,
+            tile_stretch: false,
+            red_blue_not_swapped: false,
+            premultiplied_alpha: false,
+            alpha_plane: false,
+            output_clr_fmt: 7,
+            output_bitdepth: 4,
+            width,
+            height,
+            margins: [0, 0, mb_height * 16 - height, mb_width * 16 - width],
+            tile_widths: vec![mb_width],
+            tile_heights: vec![mb_height],
+            mb_width,
+            mb_height,
+        }
+    }
+
+    fn plane(clr_fmt: ClrFmt, channels: usize) -> PlaneHeader {
+        PlaneHeader {
+            clr_fmt,
+            scaled: true,
+            bands: Bands::All,
+            channels,
+            chroma_centering: (0, 0),
+            shift_or_mantissa: 0,
+            exp_bias: 0,
+            dc: QpSource::Uniform(set(0, &vec![3; channels])),
+            lp: QpSource::PerTile,
+            hp: QpSource::PerTile,
+        }
+    }
+
+    /// Packets of varied lengths (some empty when `holes`), each starting with its number.
+    fn packets(n: usize, holes: bool) -> Vec<Vec<u8>> {
+        (0..n)
+            .map(|i| {
+                if holes && i % 5 == 3 {
+                    Vec::new()
+                } else {
+                    (0..(i * 37) % 300 + 1).map(|j| (i + j) as u8).collect()
+                }
+            })
+            .collect()
+    }
+
+    /// Writes, parses, and checks that everything comes back.
+    fn round_trip(image: &ImageHeader, primary: &PlaneHeader, alpha: Option<&PlaneHeader>, packets: &[Vec<u8>]) {
+        let data = write_codestream(image, primary, alpha, packets).unwrap();
+        let cs = parse(&data).unwrap_or_else(|e| panic!("{e}: {image:?} {primary:?}"));
+        assert_eq!(&cs.image, image);
+        assert_eq!(&cs.primary, primary);
+        assert_eq!(cs.alpha.as_ref(), alpha);
+        assert_eq!(cs.packets.len(), packets.len());
+        assert_eq!(cs.profile_level, (!image.index_table).then_some((111, 255)));
+        let mut end = cs.header_len as usize;
+        for (p, &at) in packets.iter().zip(&cs.packets) {
+            if p.is_empty() {
+                assert_eq!(at, cs.header_len, "an empty packet reads as offset 0");
+            } else {
+                assert_eq!(at as usize, end);
+                assert_eq!(&data[end..end + p.len()], &p[..]);
+                end += p.len();
+            }
+        }
+        assert_eq!(end, data.len());
+    }
+
+    #[test]
+    fn header_bits_and_vlw_esc_read_back() {
+        let values = [0u64, 1, 0xFAFF, 0xFB00, 0x1234_5678, u64::from(u32::MAX), u64::from(u32::MAX) + 1, u64::MAX];
+        let mut w = HeaderBits::new();
+        w.write(5, 3);
+        for v in values {
+            w.vlw_esc(v);
+            w.write(1, 1);
+        }
+        w.write(0xDEAD_BEEF_0123_4567, 64);
+        let bytes = w.into_bytes();
+        let mut r = BitReader::new(&bytes);
+        assert_eq!(r.read(3), 5);
+        for v in values {
+            r.align();
+            assert_eq!(r.vlw_esc(), Some(v));
+            assert_eq!(r.read(1), 1);
+        }
+        assert_eq!(r.read_u64(64), 0xDEAD_BEEF_0123_4567);
+        r.align();
+        assert_eq!(r.byte_pos(), bytes.len() as u64);
+    }
+
+    #[test]
+    fn qp_sets_read_back() {
+        let cases: &[(usize, QpSet)] = &[
+            (1, set(0, &[7])),
+            (3, set(0, &[4, 4, 4])),
+            (3, set(1, &[4, 9, 9])),
+            (3, set(2, &[4, 9, 200])),
+            (4, set(1, &[1, 2, 2, 2])),
+            (16, set(2, &(0..16).collect::<Vec<u8>>())),
+            (16, set(0, &[6; 16])),
+        ];
+        for &(channels, s) in cases {
+            let mut w = HeaderBits::new();
+            write_qp_set(&mut w, &s, channels).unwrap();
+            let bytes = w.into_bytes();
+            assert_eq!(read_qp_set(&mut BitReader::new(&bytes), channels), s, "{channels} channels");
+        }
+        let bad: &[(usize, QpSet)] = &[
+            (1, set(1, &[7])),
+            (3, set(0, &[4, 5, 4])),
+            (3, set(1, &[4, 9, 8])),
+            (3, set(3, &[4, 9, 8])),
+            (3, set(2, &[4, 9, 8, 1])),
+            (1, set(2, &[4])),
+            (0, set(0, &[])),
+            (17, set(0, &[])),
+        ];
+        for &(channels, s) in bad {
+            assert!(write_qp_set(&mut HeaderBits::new(), &s, channels).is_err(), "{channels} {s:?}");
+        }
+    }
+
+    #[test]
+    fn codestreams_read_back() {
+        // Every ClrFmt with its extra fields, every bit depth's fields, every band set, QPs
+        // uniform and per tile, LP and HP separate and shared.
+        let formats = [
+            (ClrFmt::YOnly, 1, (0, 0)),
+            (ClrFmt::Yuv420, 3, (3, 5)),
+            (ClrFmt::Yuv422, 3, (4, 0)),
+            (ClrFmt::Yuv444, 3, (0, 0)),
+            (ClrFmt::Yuvk, 4, (0, 0)),
+            (ClrFmt::NComponent, 7, (0, 0)),
+            (ClrFmt::NComponent, 16, (0, 0)),
+            (ClrFmt::NComponent, 1, (0, 0)),
+        ];
+        let depths = [(1u8, 0u8, 0u8), (2, 3, 0), (3, 0, 0), (4, 0, 0), (6, 10, 0), (7, 13, 4), (7, 23, 127)];
+        let bands = [Bands::All, Bands::NoFlexbits, Bands::NoHighpass, Bands::DcOnly];
+        let mut n = 0usize;
+        for (fi, &(clr_fmt, channels, centering)) in formats.iter().enumerate() {
+            for (di, &(depth, shift, bias)) in depths.iter().enumerate() {
+                for (bi, &band) in bands.iter().enumerate() {
+                    n += 1;
+                    let k = fi + di + bi;
+                    let mut p = plane(clr_fmt, channels);
+                    p.chroma_centering = centering;
+                    p.shift_or_mantissa = shift;
+                    p.exp_bias = bias;
+                    p.bands = band;
+                    p.scaled = k % 2 == 0;
+                    let idx: Vec<u8> = (0..channels as u8).map(|c| c * 11 + k as u8).collect();
+                    let uni = |mode: u8| {
+                        let mut s = set(2, &idx);
+                        if channels == 1 || mode == 0 {
+                            s = set(0, &vec![idx[0]; channels]);
+                        } else if mode == 1 {
+                            let mut v = vec![idx[1]; channels];
+                            v[0] = idx[0];
+                            s = set(1, &v);
+                        }
+                        QpSource::Uniform(s)
+                    };
+                    p.dc = if k % 3 == 0 { QpSource::PerTile } else { uni((k % 3) as u8) };
+                    p.lp = match k % 4 {
+                        0 => p.dc,
+                        1 => QpSource::PerTile,
+                        _ => uni((k / 2 % 3) as u8),
+                    };
+                    // HP: shared with LP (same source written twice) or separate.
+                    p.hp = if k % 2 == 0 { p.lp } else { uni(((k + 1) % 3) as u8) };
+                    if !band.has_lp() {
+                        p.lp = p.dc;
+                    }
+                    if !band.has_hp() {
+                        p.hp = p.lp;
+                    }
+                    let mut img = image(100 + k as u32, 40 + n as u32);
+                    img.output_bitdepth = depth;
+                    img.output_clr_fmt = (k % 9) as u8;
+                    img.short_header = n % 2 == 0;
+                    img.orientation = (n % 8) as u8;
+                    img.overlap = (n % 3) as u8;
+                    img.trim_flexbits = n % 5 == 0;
+                    img.red_blue_not_swapped = n % 7 == 0;
+                    img.frequency_mode = n % 3 == 0;
+                    img.index_table = img.frequency_mode || n % 4 == 0;
+                    let count = if img.frequency_mode { band.count() } else { 1 };
+                    round_trip(&img, &p, None, &packets(count, img.index_table));
+                    // With an alpha plane of the same bands.
+                    if clr_fmt == ClrFmt::Yuv444 {
+                        let mut a = plane(ClrFmt::YOnly, 1);
+                        a.bands = band;
+                        a.scaled = false;
+                        if !band.has_hp() {
+                            (a.lp, a.hp) = (a.dc, a.dc);
+                        }
+                        img.alpha_plane = true;
+                        round_trip(&img, &p, Some(&a), &packets(count, img.index_table));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn tiled_windowed_codestreams_read_back() {
+        // Long header, 3 x 4 tiles, hard tiles, tile stretch, frequency mode with holes.
+        let mut img = image(1000, 700);
+        img.short_header = false;
+        img.tiling = true;
+        img.index_table = true;
+        img.frequency_mode = true;
+        img.sub_version = 9;
+        img.hard_tiling = true;
+        img.tile_stretch = true;
+        img.tile_widths = vec![20, 1, 42];
+        img.tile_heights = vec![10, 10, 10, 14];
+        let mut p = plane(ClrFmt::Yuv444, 3);
+        p.lp = QpSource::Uniform(set(1, &[5, 6, 6]));
+        p.hp = QpSource::PerTile;
+        round_trip(&img, &p, None, &packets(12 * 4, true));
+        // Spatial, large packets (VLW_ESC 32-bit offsets).
+        img.frequency_mode = false;
+        let big: Vec<Vec<u8>> = (0..12).map(|i| vec![i as u8; 0x5000 + i]).collect();
+        round_trip(&img, &p, None, &big);
+        // Short header, windowing with all four margins, tiles in one direction, alpha.
+        let mut img = image(20, 16);
+        img.windowing = true;
+        img.margins = [2, 3, 14, 9];
+        img.mb_width = 2;
+        img.mb_height = 2;
+        img.tiling = true;
+        img.index_table = true;
+        img.tile_widths = vec![1, 1];
+        img.tile_heights = vec![2];
+        img.alpha_plane = true;
+        let a = plane(ClrFmt::YOnly, 1);
+        round_trip(&img, &plane(ClrFmt::Yuv420, 3), Some(&a), &packets(2, false));
+        // A tiling flag with a single tile, and no index table.
+        let mut img = image(33, 17);
+        img.tiling = true;
+        round_trip(&img, &plane(ClrFmt::YOnly, 1), None, &packets(1, false));
+        // Largest sizes of the short header and of the 8-bit tile fields.
+        let mut img = image(65536, 16);
+        img.tiling = true;
+        img.index_table = true;
+        img.tile_widths = vec![255, 4096 - 255];
+        round_trip(&img, &plane(ClrFmt::YOnly, 1), None, &packets(2, false));
+    }
+
+    #[test]
+    fn uncodable_headers_are_errors() {
+        let p = plane(ClrFmt::Yuv444, 3);
+        let one = packets(1, false);
+        let err = |img: &ImageHeader, p: &PlaneHeader, a: Option<&PlaneHeader>, n: usize| {
+            assert!(write_codestream(img, p, a, &packets(n, false)).is_err(), "{img:?} {p:?}");
+        };
+        assert!(write_codestream(&image(17, 5), &p, None, &one).is_ok());
+        // Sizes beyond the short header's fields.
+        err(&image(65537, 16), &p, None, 1);
+        let mut img = image(4000, 16);
+        img.tiling = true;
+        img.index_table = true;
+        img.tile_widths = vec![256, 250 - 6];
+        err(&img, &p, None, 2);
+        // Tile sizes that do not sum to the macroblock size, zero tiles, tiles without TILING_FLAG.
+        let mut img = image(64, 64);
+        img.tiling = true;
+        img.index_table = true;
+        img.tile_widths = vec![1, 2];
+        err(&img, &p, None, 2);
+        img.tile_widths = vec![4, 0];
+        err(&img, &p, None, 2);
+        img.tile_widths = vec![];
+        err(&img, &p, None, 0);
+        img.tile_widths = vec![2, 2];
+        img.tiling = false;
+        err(&img, &p, None, 2);
+        // Several tiles or frequency mode without an index table; a wrong packet count.
+        img.tiling = true;
+        img.index_table = false;
+        err(&img, &p, None, 1);
+        let mut img = image(64, 64);
+        img.frequency_mode = true;
+        err(&img, &p, None, 4);
+        img.index_table = true;
+        err(&img, &p, None, 3);
+        err(&image(64, 64), &p, None, 2);
+        assert!(write_codestream(&image(64, 64), &p, None, &[Vec::new()]).is_err());
+        // Margins: too large, not whole macroblocks, given without windowing, wrong MB counts.
+        let mut img = image(20, 16);
+        img.windowing = true;
+        img.margins = [0, 0, 0, 64 + 12];
+        img.mb_width = 6;
+        err(&img, &p, None, 1);
+        img.margins = [0, 0, 0, 11];
+        err(&img, &p, None, 1);
+        let mut img = image(20, 16);
+        img.margins = [1, 0, 15, 12];
+        err(&img, &p, None, 1);
+        let mut img = image(20, 16);
+        img.mb_width = 3;
+        img.tile_widths = vec![3];
+        err(&img, &p, None, 1);
+        // Zero size, bad sub-version, orientation, overlap.
+        let mut img = image(16, 16);
+        img.width = 0;
+        err(&img, &p, None, 1);
+        for f in [
+            |i: &mut ImageHeader| i.sub_version = 2,
+            |i: &mut ImageHeader| i.hard_tiling = true,
+            |i: &mut ImageHeader| i.orientation = 8,
+            |i: &mut ImageHeader| i.overlap = 3,
+            |i: &mut ImageHeader| i.output_bitdepth = 16,
+            |i: &mut ImageHeader| i.alpha_plane = true,
+        ] {
+            let mut img = image(16, 16);
+            f(&mut img);
+            err(&img, &p, None, 1);
+        }
+        // Channels the format does not allow, fields it does not code, QPs it cannot code.
+        let img = image(16, 16);
+        for f in [
+            |p: &mut PlaneHeader| p.channels = 4,
+            |p: &mut PlaneHeader| p.clr_fmt = ClrFmt::YOnly,
+            |p: &mut PlaneHeader| p.clr_fmt = ClrFmt::Yuvk,
+            |p: &mut PlaneHeader| {
+                p.clr_fmt = ClrFmt::NComponent;
+                p.channels = 17
+            },
+            |p: &mut PlaneHeader| p.chroma_centering = (1, 0),
+            |p: &mut PlaneHeader| {
+                p.clr_fmt = ClrFmt::Yuv422;
+                p.chroma_centering = (1, 1)
+            },
+            |p: &mut PlaneHeader| {
+                p.clr_fmt = ClrFmt::Yuv420;
+                p.chroma_centering = (8, 1)
+            },
+            |p: &mut PlaneHeader| p.shift_or_mantissa = 1,
+            |p: &mut PlaneHeader| p.exp_bias = 1,
+            |p: &mut PlaneHeader| p.dc = QpSource::Uniform(set(0, &[1, 2, 3])),
+            |p: &mut PlaneHeader| {
+                p.bands = Bands::DcOnly;
+                p.lp = p.dc
+            },
+            |p: &mut PlaneHeader| {
+                p.bands = Bands::NoHighpass;
+                p.hp = p.dc
+            },
+        ] {
+            let mut q = p.clone();
+            f(&mut q);
+            err(&img, &q, None, 1);
+        }
+        // The alpha plane: YONLY only, same bands as the primary, flag and header agree.
+        let mut img = image(16, 16);
+        img.alpha_plane = true;
+        let mut a = plane(ClrFmt::YOnly, 1);
+        assert!(write_codestream(&img, &p, Some(&a), &one).is_ok());
+        a.bands = Bands::DcOnly;
+        a.lp = a.dc;
+        a.hp = a.dc;
+        err(&img, &p, Some(&a), 1);
+        err(&img, &p, Some(&p), 1);
+        err(&image(16, 16), &p, Some(&plane(ClrFmt::YOnly, 1)), 1);
+    }
+
+    #[test]
+    fn rewriting_a_hand_made_header_keeps_it() {
+        // The hand-made header sets RESERVED_J (jxrlib's "HP uses LP"); the rewrite codes HP
+        // explicitly and reads back the same.
+        for data in [header(17, 5, None), header(20, 16, Some([2, 3, 14, 9]))] {
+            let cs = parse(&data).unwrap();
+            let packet = data[cs.packets[0] as usize..].to_vec();
+            let again = write_codestream(&cs.image, &cs.primary, cs.alpha.as_ref(), &[packet]).unwrap();
+            let cs2 = parse(&again).unwrap();
+            assert_eq!((cs2.image, cs2.primary, cs2.alpha), (cs.image, cs.primary, cs.alpha));
         }
     }
 }
