@@ -45,6 +45,8 @@ struct Seen {
     dropped: usize,
     /// Codestreams whose packets are not stored in index-table order.
     out_of_order: usize,
+    /// Codestreams without an index table (one spatial tile: the explicit profile stamp).
+    no_index_table: usize,
 }
 
 /// Re-writes one codestream from its parsed headers and its packets, and checks that the
@@ -54,6 +56,7 @@ fn rewrite_codestream(codestream: &[u8], what: &str, seen: &mut Seen) -> Vec<u8>
     let packets = packets(codestream, &cs);
     seen.dropped += packets.iter().filter(|p| p.is_empty()).count();
     seen.out_of_order += usize::from(!cs.packets.is_sorted());
+    seen.no_index_table += usize::from(!cs.image.index_table);
     let out =
         write_codestream(&cs.image, &cs.primary, cs.alpha.as_ref(), &packets).unwrap_or_else(|e| panic!("{what}: {e}"));
     let again = header::parse(&out).unwrap();
@@ -141,7 +144,8 @@ fn rewritten_corpus_files_decode_the_same() {
 
 /// Tiled streams from JxrEncApp (the corpus files are single tiles): GoldenGate decoded by
 /// JxrDecApp and re-encoded with tiles in frequency order (band-major and tile-major packets)
-/// and in spatial order, with trimmed flexbits and a dropped band.
+/// and in spatial order, with trimmed flexbits and dropped bands, and one spatial tile without
+/// an index table.
 #[test]
 fn rewritten_tiled_jxrencapp_streams_decode_the_same() {
     let Some(dec) = decoder() else { return };
@@ -162,6 +166,7 @@ fn rewritten_tiled_jxrencapp_streams_decode_the_same() {
         ("lossless_tiles", "-U 2 2"),
         ("no_highpass", "-q 0.8 -U 2 2 -s 2"),
         ("dc_only_spatial", "-q 0.8 -U 2 2 -s 3 -f"),
+        ("spatial_one_tile", "-q 0.8 -f"),
     ];
     let mut seen = Seen::default();
     for (name, args) in variants {
@@ -173,4 +178,5 @@ fn rewritten_tiled_jxrencapp_streams_decode_the_same() {
     }
     // JxrEncApp's default (progressive) layout stores packets band-major, not in index order.
     assert!(seen.out_of_order > 0, "every stream's packets were in index order");
+    assert!(seen.no_index_table > 0, "every stream had an index table");
 }
