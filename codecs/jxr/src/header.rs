@@ -563,7 +563,7 @@ impl HeaderBits {
     }
 
     /// Writes a VLW_ESC value (T.832 8.2) on a byte boundary: 16 bits below 0xFB00, else 0xFB
-    /// and 32 bits, else 0xFC and 64 bits (the inverse of [`BitReader::vlw_esc`]).
+    /// and 32 bits, else 0xFC and 64 bits (the inverse of `BitReader::vlw_esc` (in `bits`)).
     pub fn vlw_esc(&mut self, v: u64) {
         self.align();
         if v < 0xFB00 {
