@@ -9,6 +9,7 @@
 //!
 //! [`parse_container`] returns the codestream slices ([`Container::image`],
 //! [`Container::alpha`]), the [`PixelFormat`] the GUID names and the metadata worth keeping.
+//! [`write_container`] writes a file around one or two codestreams, with [`ContainerMeta`].
 
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::tiff::{

@@ -15,6 +15,11 @@
 //!   has at most 16 channels);
 //! - a window whose extended size is not a multiple of 16 is the legacy layout in which the
 //!   coded sizes already include the right and bottom margins.
+//!
+//! [`write_codestream`] and [`write_qp_set`] are the inverses of [`parse`] and [`read_qp_set`]
+//! for the encoder: they write what JxrEncApp writes (RESERVED_C, RESERVED_I and RESERVED_J
+//! as jxrlib does, SUBSEQUENT_BYTES and the profile stamp as `strenc.c` does) and refuse any
+//! header that [`parse`] would not read back as given.
 
 use crate::bits::BitReader;
 use hdrcodec_core::{Error, Result};
@@ -558,7 +563,7 @@ impl HeaderBits {
     }
 
     /// Writes a VLW_ESC value (T.832 8.2) on a byte boundary: 16 bits below 0xFB00, else 0xFB
-    /// and 32 bits, else 0xFC and 64 bits (the inverse of [`BitReader::vlw_esc`]).
+    /// and 32 bits, else 0xFC and 64 bits (the inverse of `BitReader::vlw_esc` (in `bits`)).
     pub fn vlw_esc(&mut self, v: u64) {
         self.align();
         if v < 0xFB00 {

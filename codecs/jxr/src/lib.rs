@@ -6,6 +6,8 @@
 //! and adaptive code tables), `macroblock` (DC, LP, HP, CBP and flexbits), `predict` and
 //! `quant` (prediction and quantization), `transform` (the inverse lapped transform), `output`
 //! (colour conversion and output formatting, T.832 9.10), `tiles` and [`decoder`].
+//! For the encoder, [`header::write_codestream`] and [`container::write_container`] write the
+//! headers and the file around coded packets.
 //!
 //! Entropy decoding gives, for every macroblock and channel, the 256 dequantized and
 //! predicted coefficients the inverse transform reads ([`decode_coefficients`], layout in
