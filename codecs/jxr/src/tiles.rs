@@ -69,10 +69,10 @@ impl<'h> PlaneWork<'h> {
         self.hdr.channels * MB_COEFFS
     }
 
-    /// Clears the slot of row `my` before it is decoded.
+    /// Clears the side information of row `my` before it is decoded (its coefficients are
+    /// cleared a macroblock at a time, by [`dc`](Self::dc), while they are in cache).
     fn start_row(&mut self, my: usize) {
         let s = my % 2;
-        self.rows[s].fill(0);
         self.side[s].fill(MbSide::default());
         self.cbp[s].fill(0);
     }
@@ -83,10 +83,14 @@ impl<'h> PlaneWork<'h> {
         &mut self.rows[my % 2][mx * stride..(mx + 1) * stride]
     }
 
-    /// MB_DC of macroblock (`mx`, `my`).
+    /// MB_DC of macroblock (`mx`, `my`), the first syntax element of a macroblock in either
+    /// bitstream order: clears the macroblock's coefficients first (the later bands write only
+    /// their non-zero values).
     fn dc(&mut self, r: &mut BitReader, mx: usize, my: usize) {
         let (stride, w) = (self.stride(), self.w as u32);
-        self.dec.dc(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w);
+        let c = &mut self.rows[my % 2][mx * stride..(mx + 1) * stride];
+        c.fill(0);
+        self.dec.dc(r, c, mx as u32, w);
     }
 
     /// MB_LP of macroblock (`mx`, `my`).
