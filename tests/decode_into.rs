@@ -24,8 +24,6 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
     let decoded = u64::from(w * h) * 3 * 4;
     let registry = hdrcodec::registry();
     let mut checked = Vec::new();
-    // Decode-only codecs (JPEG XR, until its encoder lands) are checked on real files in
-    // their own tests (tests/jxr_reference.rs).
     for codec in registry.codecs().iter().filter(|c| c.can_encode()) {
         let mut settings = EncodeSettings::default().with_effort(0);
         if codec.name() == "hdrc" {
@@ -37,7 +35,11 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
         let whole = codec.decode(&file, &Limits::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
         let row_len = w as usize * whole.channels().count();
         let stride = row_len + 5;
-        let limits = Limits::default().with_max_alloc_bytes(decoded * 2 / 3);
+        // JPEG XR's band buffers are a fixed number of macroblock rows (about 21 rows of
+        // coefficients and two 128-row bands of samples): on 768 rows, about the image's size
+        // (on 13 MP, 3% of it). `decode` still needs more.
+        let budget = if name == "jxr" { decoded * 5 / 4 } else { decoded * 2 / 3 };
+        let limits = Limits::default().with_max_alloc_bytes(budget);
         let options = DecodeOptions::new(limits.clone());
 
         let mut f32_buf = vec![-7.0f32; stride * h as usize];
@@ -63,7 +65,7 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
         assert!(codec.decode(&file, &limits).is_err(), "{name}: decode should not fit the budget");
         checked.push(name);
     }
-    for name in ["exr", "pfm", "rgbe", "logluv32", "logluv24", "logl16", "bc6h", "bc6h-ktx2", "hdrc"] {
+    for name in ["exr", "pfm", "rgbe", "logluv32", "logluv24", "logl16", "bc6h", "bc6h-ktx2", "hdrc", "jxr"] {
         assert!(checked.contains(&name), "{name} not checked: {checked:?}");
     }
 }

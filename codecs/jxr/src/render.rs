@@ -228,11 +228,13 @@ fn decode_impl(
     // Working memory: the window (band + halo of coefficient rows), the next band's rows
     // being decoded meanwhile, the samples of two bands (one being transformed, the one
     // before it being formatted) and a band of formatted rows.
-    let band = transform::BAND_MB_ROWS;
-    let coeff_rows = 2 * band + 5;
+    // (A small image has fewer rows than that.)
+    let band = transform::BAND_MB_ROWS.min(mb_h);
+    let coeff_rows = (2 * band + 5).min(mb_h + 2);
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
+    let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8);
     let sample_bytes =
-        ((band + 1) * 16 * mb_w * 16 * 4 * (primary.channels + 2)) as u64 + (band * 16 * out.row_bytes(width)) as u64;
+        (sample_rows * mb_w * 16 * 4 * (primary.channels + 2)) as u64 + (band * 16 * out.row_bytes(width)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     let mut sink = sink;
