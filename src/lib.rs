@@ -48,7 +48,6 @@ fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
         Arc::new(logluv::LogLuvTiffCodec::new(logluv::Encoding::LogL16)),
         Arc::new(bc6h::Bc6hDdsCodec),
         Arc::new(bc6h::Bc6hKtx2Codec),
-        // Decoding only until its encoder lands (`can_encode` is false).
         Arc::new(jxr::JxrCodec),
     ]
 }

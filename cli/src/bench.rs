@@ -12,9 +12,8 @@
 //! ([`hdrcodec::prepare_colour`]), so a format without primaries stores the samples as they
 //! are, reads them back unspecified, and is scored in the reference's primaries.
 //!
-//! JPEG XR, which we decode but do not encode yet, has rows of another kind
-//! ([`Encoder::Jxrlib`]): jxrlib's `JxrEncApp` writes the file (an outside program, timed as
-//! such), our decoder reads it (quality and our decode speed, as in every row), and jxrlib's
+//! JPEG XR has, beside our encoder's rows, peer rows of another kind ([`Encoder::Jxrlib`]):
+//! jxrlib's `JxrEncApp` writes the file (an outside program, timed as such), our decoder reads it (quality and our decode speed, as in every row), and jxrlib's
 //! `JxrDecApp` decoding the same file is the peer's decode speed and the check that our samples
 //! equal jxrlib's. Without `JxrEncApp` on PATH those rows say "not installed".
 
@@ -94,7 +93,11 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     }
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
-    // JPEG XR: we decode only, so jxrlib writes the files (see `Encoder::Jxrlib`).
+    // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer
+    // (see `Encoder::Jxrlib`).
+    for q in [100, 90, 70, 50] {
+        add("jxr", format!("jxr:q{q}"), EncodeSettings::default().with_quality(q));
+    }
     if let Ok(codec) = registry.by_name("jxr") {
         for (variant, args) in JXRLIB_SETTINGS {
             let (label, settings) = (format!("jxr(jxrlib-enc):{variant}"), EncodeSettings::default());

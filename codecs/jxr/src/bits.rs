@@ -178,8 +178,6 @@ impl<'a> BitReader<'a> {
 /// An MSB-first bit writer: the exact inverse of [`BitReader`] (what one writes with
 /// `write(v, n)` the other reads back with `read(n)`).
 #[derive(Clone, Debug, Default)]
-// The encoder that uses it is being built on top of the entropy coder.
-#[allow(dead_code)]
 pub struct BitWriter {
     bytes: Vec<u8>,
     /// Bits not yet in `bytes`, right-aligned: the low `pending` bits of `acc`.
@@ -188,7 +186,6 @@ pub struct BitWriter {
     pending: u32,
 }
 
-#[allow(dead_code)]
 impl BitWriter {
     /// An empty writer.
     pub fn new() -> Self {

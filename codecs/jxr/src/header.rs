@@ -21,7 +21,7 @@
 //! as jxrlib does, SUBSEQUENT_BYTES and the profile stamp as `strenc.c` does) and refuse any
 //! header that [`parse`] would not read back as given.
 
-use crate::bits::BitReader;
+use crate::bits::{BitReader, BitWriter};
 use hdrcodec_core::{Error, Result};
 
 /// Most channels a plane may have (jxrlib's MAX_CHANNELS).
@@ -188,6 +188,42 @@ pub struct ImageHeader {
 }
 
 impl ImageHeader {
+    /// The header of a `width` × `height` image of one tile in spatial order, without
+    /// windowing, in OUTPUT_CLR_FMT `output_clr_fmt` and OUTPUT_BITDEPTH `output_bitdepth`,
+    /// with what JxrEncApp writes elsewhere (sub-version 1, overlap 1, LONG_WORD_FLAG; the
+    /// short header when the sizes fit it). The macroblock grid extends the image right and
+    /// down (the margins are what the extension adds).
+    pub fn new(width: u32, height: u32, output_clr_fmt: u8, output_bitdepth: u8) -> Self {
+        let (mb_width, mb_height) = (width.div_ceil(16), height.div_ceil(16));
+        ImageHeader {
+            sub_version: 1,
+            hard_tiling: false,
+            tiling: false,
+            frequency_mode: false,
+            orientation: 0,
+            index_table: false,
+            overlap: 1,
+            // 16-bit sizes and 8-bit tile sizes (in macroblocks).
+            short_header: width <= 1 << 16 && height <= 1 << 16 && mb_width <= 256 && mb_height <= 256,
+            long_word: true,
+            windowing: false,
+            trim_flexbits: false,
+            tile_stretch: false,
+            red_blue_not_swapped: false,
+            premultiplied_alpha: false,
+            alpha_plane: false,
+            output_clr_fmt,
+            output_bitdepth,
+            width,
+            height,
+            margins: [0, 0, mb_height * 16 - height, mb_width * 16 - width],
+            tile_widths: vec![mb_width],
+            tile_heights: vec![mb_height],
+            mb_width,
+            mb_height,
+        }
+    }
+
     /// Number of tiles.
     pub fn tile_count(&self) -> usize {
         self.tile_widths.len() * self.tile_heights.len()
@@ -512,84 +548,12 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
 // Writing: the exact inverses of `parse`, `read_plane_header` and `read_qp_set`.
 // ---------------------------------------------------------------------------------------------
 
-/// A minimal MSB-first bit writer for the headers (T.832 clause 8 writes every syntax element
-/// most significant bit first), kept here until the shared writer lands.
-// TODO: replace with bits::BitWriter
-#[derive(Clone, Debug, Default)]
-pub struct HeaderBits {
-    bytes: Vec<u8>,
-    /// Bits of the last, unfinished byte, right-aligned.
-    acc: u8,
-    /// Number of bits in `acc` (0..8).
-    used: u32,
-}
-
-impl HeaderBits {
-    /// An empty writer.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Writes the low `n` bits of `value` (`n` ≤ 64), most significant first. Higher bits of
-    /// `value` must be zero; callers check their ranges first (a debug assertion guards it).
-    pub fn write(&mut self, value: u64, n: u32) {
-        debug_assert!(n <= 64 && (n == 64 || value >> n == 0), "{value} does not fit in {n} bits");
-        for i in (0..n).rev() {
-            self.bit((value >> i) & 1 != 0);
-        }
-    }
-
-    /// Writes one bit.
-    pub fn bit(&mut self, b: bool) {
-        self.acc = (self.acc << 1) | u8::from(b);
-        self.used += 1;
-        if self.used == 8 {
-            self.bytes.push(self.acc);
-            self.acc = 0;
-            self.used = 0;
-        }
-    }
-
-    /// Pads with zero bits to the next byte boundary (every header ends on one, T.832 8.3).
-    pub fn align(&mut self) {
-        while self.used != 0 {
-            self.bit(false);
-        }
-    }
-
-    /// Bytes written so far, counting an unfinished byte.
-    pub fn byte_len(&self) -> usize {
-        self.bytes.len() + usize::from(self.used != 0)
-    }
-
-    /// Writes a VLW_ESC value (T.832 8.2) on a byte boundary: 16 bits below 0xFB00, else 0xFB
-    /// and 32 bits, else 0xFC and 64 bits (the inverse of `BitReader::vlw_esc` (in `bits`)).
-    pub fn vlw_esc(&mut self, v: u64) {
-        self.align();
-        if v < 0xFB00 {
-            self.write(v, 16);
-        } else if v <= u64::from(u32::MAX) {
-            self.write(0xFB, 8);
-            self.write(v, 32);
-        } else {
-            self.write(0xFC, 8);
-            self.write(v, 64);
-        }
-    }
-
-    /// The bytes, the last one padded with zeros.
-    pub fn into_bytes(mut self) -> Vec<u8> {
-        self.align();
-        self.bytes
-    }
-}
-
 /// Writes one quantizer set of a plane with `channels` channels (T.832 8.3.5; the inverse of
 /// [`read_qp_set`]). The set must be one that reading gives back: mode 0 with every channel at
 /// the luma index, mode 1 with every chroma channel at one index, mode 2 with any indices,
 /// indices past `channels` zero, and mode 0 for a single channel (which codes no mode).
 /// CHANNEL_MODE 3 is reserved (T.832 Table 34) and refused, although jxrlib reads it as 2.
-pub fn write_qp_set(w: &mut HeaderBits, set: &QpSet, channels: usize) -> Result<()> {
+pub fn write_qp_set(w: &mut BitWriter, set: &QpSet, channels: usize) -> Result<()> {
     if !(1..=MAX_CHANNELS).contains(&channels) {
         return Err(Error::invalid(format!("JPEG XR: a QP set for {channels} channels (1-16)")));
     }
@@ -611,19 +575,19 @@ pub fn write_qp_set(w: &mut HeaderBits, set: &QpSet, channels: usize) -> Result<
     }
     // One channel codes no CHANNEL_MODE (T.832 8.3.5: only when NUM_CHANNELS > 1).
     if channels > 1 {
-        w.write(u64::from(set.mode), 2);
+        w.write(u32::from(set.mode), 2);
     }
-    w.write(u64::from(used[0]), 8);
+    w.write(u32::from(used[0]), 8);
     match set.mode {
         0 => {}
-        1 => w.write(u64::from(used[1]), 8),
-        _ => used[1..].iter().for_each(|&i| w.write(u64::from(i), 8)),
+        1 => w.write(u32::from(used[1]), 8),
+        _ => used[1..].iter().for_each(|&i| w.write(u32::from(i), 8)),
     }
     Ok(())
 }
 
 /// Writes a band's IMAGE_PLANE_UNIFORM flag and, for a uniform band, its QP set.
-fn write_qp_source(w: &mut HeaderBits, source: &QpSource, channels: usize) -> Result<()> {
+fn write_qp_source(w: &mut BitWriter, source: &QpSource, channels: usize) -> Result<()> {
     match source {
         QpSource::Uniform(set) => {
             w.bit(true);
@@ -637,7 +601,7 @@ fn write_qp_source(w: &mut HeaderBits, source: &QpSource, channels: usize) -> Re
 }
 
 /// Writes IMAGE_PLANE_HEADER (T.832 8.3.2; the inverse of `read_plane_header`).
-fn write_plane_header(w: &mut HeaderBits, p: &PlaneHeader, bitdepth: u8, alpha: bool) -> Result<()> {
+fn write_plane_header(w: &mut BitWriter, p: &PlaneHeader, bitdepth: u8, alpha: bool) -> Result<()> {
     let what = if alpha { "alpha" } else { "primary" };
     let bad = |why: String| Err(Error::invalid(format!("JPEG XR {what} plane header: {why}")));
     if alpha && p.clr_fmt != ClrFmt::YOnly {
@@ -684,32 +648,32 @@ fn write_plane_header(w: &mut HeaderBits, p: &PlaneHeader, bitdepth: u8, alpha: 
     }
     w.write(code, 3);
     w.bit(p.scaled);
-    w.write(p.bands as u64, 4);
+    w.write(p.bands as u32, 4);
     match p.clr_fmt {
         ClrFmt::Yuv420 => {
             // RESERVED_E, CHROMA_CENTERING_X, RESERVED_F, CHROMA_CENTERING_Y.
             w.write(0, 1);
-            w.write(u64::from(cx), 3);
+            w.write(u32::from(cx), 3);
             w.write(0, 1);
-            w.write(u64::from(cy), 3);
+            w.write(u32::from(cy), 3);
         }
         ClrFmt::Yuv422 => {
             w.write(0, 1);
-            w.write(u64::from(cx), 3);
+            w.write(u32::from(cx), 3);
             w.write(0, 4);
         }
         ClrFmt::Yuv444 => w.write(0, 8),
         ClrFmt::NComponent => {
-            w.write(p.channels as u64 - 1, 4);
+            w.write(p.channels as u32 - 1, 4);
             w.write(0, 4);
         }
         ClrFmt::YOnly | ClrFmt::Yuvk => {}
     }
     if has_shift {
-        w.write(u64::from(p.shift_or_mantissa), 8);
+        w.write(u32::from(p.shift_or_mantissa), 8);
     }
     if has_bias {
-        w.write(u64::from(p.exp_bias), 8);
+        w.write(u32::from(p.exp_bias), 8);
     }
     write_qp_source(w, &p.dc, p.channels)?;
     if p.bands.has_lp() {
@@ -826,15 +790,15 @@ pub fn write_codestream(
         return Err(Error::invalid("JPEG XR: the only packet is empty"));
     }
 
-    let mut w = HeaderBits::new();
+    let mut w = BitWriter::new();
     // IMAGE_HEADER (T.832 8.3.1).
     w.write(1, 4); // VERSION_INFO (RESERVED_B)
-    w.write(u64::from(image.sub_version), 4); // HARD_TILING_FLAG + RESERVED_C
+    w.write(u32::from(image.sub_version), 4); // HARD_TILING_FLAG + RESERVED_C
     w.bit(image.tiling);
     w.bit(image.frequency_mode);
-    w.write(u64::from(image.orientation), 3);
+    w.write(u32::from(image.orientation), 3);
     w.bit(image.index_table);
-    w.write(u64::from(image.overlap), 2);
+    w.write(u32::from(image.overlap), 2);
     w.bit(image.short_header);
     w.bit(image.long_word);
     w.bit(image.windowing);
@@ -843,20 +807,20 @@ pub fn write_codestream(
     w.bit(image.red_blue_not_swapped);
     w.bit(image.premultiplied_alpha);
     w.bit(image.alpha_plane);
-    w.write(u64::from(image.output_clr_fmt), 4);
-    w.write(u64::from(image.output_bitdepth), 4);
+    w.write(u32::from(image.output_clr_fmt), 4);
+    w.write(u32::from(image.output_bitdepth), 4);
     let size_bits = if image.short_header { 16 } else { 32 };
-    w.write(u64::from(image.width) - 1, size_bits);
-    w.write(u64::from(image.height) - 1, size_bits);
+    w.write(image.width - 1, size_bits);
+    w.write(image.height - 1, size_bits);
     if image.tiling {
         // NUM_VER_TILES_MINUS1 counts tile columns, NUM_HOR_TILES_MINUS1 rows.
-        w.write(image.tile_widths.len() as u64 - 1, 12);
-        w.write(image.tile_heights.len() as u64 - 1, 12);
+        w.write(image.tile_widths.len() as u32 - 1, 12);
+        w.write(image.tile_heights.len() as u32 - 1, 12);
     }
     let tile_bits = if image.short_header { 8 } else { 16 };
     for sizes in [&image.tile_widths, &image.tile_heights] {
         for &s in &sizes[..sizes.len() - 1] {
-            w.write(u64::from(s), tile_bits);
+            w.write(s, tile_bits);
         }
     }
     if image.tile_stretch {
@@ -867,7 +831,7 @@ pub fn write_codestream(
     }
     if image.windowing {
         for m in image.margins {
-            w.write(u64::from(m), 6);
+            w.write(m, 6);
         }
     }
     w.align();
@@ -1021,33 +985,7 @@ mod tests {
 
     /// A one-tile image header of `width` x `height` with the implied margins.
     fn image(width: u32, height: u32) -> ImageHeader {
-        let (mb_width, mb_height) = (width.div_ceil(16), height.div_ceil(16));
-        ImageHeader {
-            sub_version: 1,
-            hard_tiling: false,
-            tiling: false,
-            frequency_mode: false,
-            orientation: 0,
-            index_table: false,
-            overlap: 1,
-            short_header: true,
-            long_word: true,
-            windowing: false,
-            trim_flexbits: false,
-            tile_stretch: false,
-            red_blue_not_swapped: false,
-            premultiplied_alpha: false,
-            alpha_plane: false,
-            output_clr_fmt: 7,
-            output_bitdepth: 4,
-            width,
-            height,
-            margins: [0, 0, mb_height * 16 - height, mb_width * 16 - width],
-            tile_widths: vec![mb_width],
-            tile_heights: vec![mb_height],
-            mb_width,
-            mb_height,
-        }
+        ImageHeader { short_header: true, ..ImageHeader::new(width, height, 7, 4) }
     }
 
     fn plane(clr_fmt: ClrFmt, channels: usize) -> PlaneHeader {
@@ -1101,29 +1039,6 @@ mod tests {
     }
 
     #[test]
-    fn header_bits_and_vlw_esc_read_back() {
-        let values = [0u64, 1, 0xFAFF, 0xFB00, 0x1234_5678, u64::from(u32::MAX), u64::from(u32::MAX) + 1, u64::MAX];
-        let mut w = HeaderBits::new();
-        w.write(5, 3);
-        for v in values {
-            w.vlw_esc(v);
-            w.write(1, 1);
-        }
-        w.write(0xDEAD_BEEF_0123_4567, 64);
-        let bytes = w.into_bytes();
-        let mut r = BitReader::new(&bytes);
-        assert_eq!(r.read(3), 5);
-        for v in values {
-            r.align();
-            assert_eq!(r.vlw_esc(), Some(v));
-            assert_eq!(r.read(1), 1);
-        }
-        assert_eq!(r.read_u64(64), 0xDEAD_BEEF_0123_4567);
-        r.align();
-        assert_eq!(r.byte_pos(), bytes.len() as u64);
-    }
-
-    #[test]
     fn qp_sets_read_back() {
         let cases: &[(usize, QpSet)] = &[
             (1, set(0, &[7])),
@@ -1135,7 +1050,7 @@ mod tests {
             (16, set(0, &[6; 16])),
         ];
         for &(channels, s) in cases {
-            let mut w = HeaderBits::new();
+            let mut w = BitWriter::new();
             write_qp_set(&mut w, &s, channels).unwrap();
             let bytes = w.into_bytes();
             assert_eq!(read_qp_set(&mut BitReader::new(&bytes), channels), s, "{channels} channels");
@@ -1151,7 +1066,7 @@ mod tests {
             (17, set(0, &[])),
         ];
         for &(channels, s) in bad {
-            assert!(write_qp_set(&mut HeaderBits::new(), &s, channels).is_err(), "{channels} {s:?}");
+            assert!(write_qp_set(&mut BitWriter::new(), &s, channels).is_err(), "{channels} {s:?}");
         }
     }
 

@@ -1,13 +1,13 @@
 //! `hdrcodec-jxr`: JPEG XR (ITU-T T.832 | ISO/IEC 29199-2), the lossy HDR codec of the
-//! hdrcodec family, decoded bit-exactly as jxrlib decodes it.
+//! hdrcodec family, decoded bit-exactly as jxrlib decodes it, and encoded ([`encoder`]) into
+//! files jxrlib decodes to exactly our decoder's samples.
 //!
 //! Modules follow the bitstream's layers: [`container`] (Annex A), `bits` (bit reader and
 //! variable-length words), [`header`] (image and plane headers, index table), `vlc` (the fixed
 //! and adaptive code tables), `macroblock` (DC, LP, HP, CBP and flexbits), `predict` and
-//! `quant` (prediction and quantization), `transform` (the inverse lapped transform), `output`
-//! (colour conversion and output formatting, T.832 9.10), `tiles` and [`decoder`].
-//! For the encoder, [`header::write_codestream`] and [`container::write_container`] write the
-//! headers and the file around coded packets.
+//! `quant` (prediction and quantization), `transform` (the lapped transform), `output`
+//! (colour conversion and output formatting, T.832 9.10), `tiles`, [`decoder`] and
+//! [`encoder`]; the writing side of each layer sits next to its reading side.
 //!
 //! Entropy decoding gives, for every macroblock and channel, the 256 dequantized and
 //! predicted coefficients the inverse transform reads ([`decode_coefficients`], layout in
@@ -31,6 +31,7 @@ mod bits;
 mod colour;
 pub mod container;
 pub mod decoder;
+pub mod encoder;
 pub mod header;
 mod macroblock;
 pub mod mb;
@@ -50,8 +51,8 @@ pub use render::{decode_raw, decode_raw_into, raw_layout};
 
 use hdrcodec_core::sink::RowSink;
 use hdrcodec_core::{
-    Channels, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo,
-    Limits, Result,
+    Channels, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec,
+    ImageInfo, Limits, Result,
 };
 
 /// The JPEG XR codec of the family (`jxr`, id `JXR `).
@@ -105,14 +106,20 @@ impl ImageCodec for JxrCodec {
         head.len() >= 4 && head[..3] == *b"II\xBC" && head[3] <= 1
     }
     /// Decoding reads PTM_COLOR_INFO (H.273 primaries); without it the samples are scRGB by
-    /// convention (see the crate documentation). Files are not written yet.
+    /// convention (see the crate documentation). The encoder writes PTM_COLOR_INFO for the
+    /// primaries H.273 names and none for BT.709.
     fn color_signalling(&self) -> ColorSignalling {
-        ColorSignalling::None
+        ColorSignalling::Only(&[
+            ColorPrimaries::Bt709,
+            ColorPrimaries::Bt2020,
+            ColorPrimaries::DisplayP3,
+            ColorPrimaries::DciP3,
+            ColorPrimaries::Xyz,
+        ])
     }
-    /// The headers only (see [`probe_jxr`]).
-    /// Decoding only, for now: the encoder is the next issue.
-    fn can_encode(&self) -> bool {
-        false
+    /// Half and float files are scRGB: 1.0 is 80 cd/m² (the encoder scales to it).
+    fn records_nits_per_unit(&self) -> bool {
+        true
     }
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe_jxr(data, limits)
@@ -123,20 +130,36 @@ impl ImageCodec for JxrCodec {
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         render::decode_rows(data, options, sink)
     }
-    /// The encoder is the next issue.
+    /// See [`encoder`]: options `format`, `overlap`, `lossless`, `tile`.
     fn encode_to(
         &self,
-        _image: &HdrImage,
-        _settings: &EncodeSettings,
-        _out: &mut dyn std::io::Write,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
     ) -> Result<EncodeReport> {
-        Err(Error::unsupported("JPEG XR encoding (not implemented yet)"))
+        let options = encoder::EncodeOptions::from_settings(settings)?;
+        let (file, report) = encoder::encode(image, &options, &settings.pool)?;
+        out.write_all(&file)?;
+        Ok(report)
     }
 }
 
 /// What the unit tests of several modules share.
 #[cfg(test)]
 mod testing {
+    use crate::header::ClrFmt;
+
+    /// Every internal colour format, with a channel count (NCOMPONENT twice).
+    pub(crate) const FORMATS: [(ClrFmt, usize); 7] = [
+        (ClrFmt::YOnly, 1),
+        (ClrFmt::Yuv420, 3),
+        (ClrFmt::Yuv422, 3),
+        (ClrFmt::Yuv444, 3),
+        (ClrFmt::Yuvk, 4),
+        (ClrFmt::NComponent, 2),
+        (ClrFmt::NComponent, 5),
+    ];
+
     /// A small deterministic generator (xorshift) for the random tests.
     pub(crate) fn rng(seed: u64) -> impl FnMut() -> u64 {
         let mut s = seed | 1;

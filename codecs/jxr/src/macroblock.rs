@@ -737,15 +737,12 @@ fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> us
 /// [`PlaneDecoder`] reads, from the same coefficient arrays, adapting its [`EntropyState`] at
 /// the same points. After an error, the writer and the state are not usable.
 #[derive(Clone, Debug)]
-// The encoder that uses it is being built on top of the entropy coder.
-#[allow(dead_code)]
 pub struct PlaneEncoder {
     /// TRIM_FLEXBITS of the tile.
     pub trim: u32,
     st: EntropyState,
 }
 
-#[allow(dead_code)]
 impl PlaneEncoder {
     /// The state at the start of a tile.
     pub fn new(fmt: ClrFmt, channels: usize) -> Self {
@@ -1188,8 +1185,6 @@ impl PlaneEncoder {
 /// BLOCK_FLEXBITS written (the inverse of [`block_flex`]): for each HP coefficient of block
 /// `b` of channel `ch`, in refinement order, its low `model_bits` bits without the `trim`
 /// lowest (which must be zero), and the sign of a coefficient whose level is zero.
-// The encoder that uses it is being built on top of the entropy coder.
-#[allow(dead_code)]
 pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, model_bits: u32, trim: u32) -> Result<()> {
     let base = ch * MB_COEFFS + hp(b, 1);
     let block = &c[base..base + 15];
@@ -1218,7 +1213,7 @@ pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, mode
 /// MB_FLEXBITS written (the inverse of [`flex_mb`]): the flexbits of every block of a
 /// macroblock for a FLEXBITS packet, with the HP model bits the macroblock was coded with
 /// (what [`PlaneEncoder::cbp_hp`] returned).
-// The encoder that uses it is being built on top of the entropy coder.
+// For a FLEXBITS packet of its own (frequency order, which the encoder does not write yet).
 #[allow(dead_code)]
 pub fn flex_mb_encode(
     w: &mut BitWriter,
@@ -1527,15 +1522,7 @@ mod tests {
         (max_dc, max_hp)
     }
 
-    const FORMATS: [(ClrFmt, usize); 7] = [
-        (ClrFmt::YOnly, 1),
-        (ClrFmt::Yuv420, 3),
-        (ClrFmt::Yuv422, 3),
-        (ClrFmt::Yuv444, 3),
-        (ClrFmt::Yuvk, 4),
-        (ClrFmt::NComponent, 2),
-        (ClrFmt::NComponent, 5),
-    ];
+    use crate::testing::FORMATS;
 
     #[test]
     fn encoder_round_trips_through_the_decoder_for_every_format() {

@@ -185,6 +185,50 @@ pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
     }
 }
 
+/// The encoder's side of [`int_to_half_bits`]: a half's bit pattern as the integer sample
+/// that codes it (sign and magnitude; negative zero becomes zero).
+#[inline(always)]
+pub fn half_bits_to_int(h: u16) -> i32 {
+    let magnitude = i32::from(h & 0x7fff);
+    if h & 0x8000 != 0 {
+        -magnitude
+    } else {
+        magnitude
+    }
+}
+
+/// The encoder's side of [`int_to_float_bits`]: the integer sample whose mini-float (with
+/// `len_mantissa` ≤ 23 mantissa bits and exponent bias `exp_bias`) is nearest to `f`, ties
+/// away from zero (as jxrlib's `float2pixel` rounds). Values past the largest mini-float
+/// that decodes to a finite single become the largest; `f` must be finite.
+pub fn float_to_int(f: f32, exp_bias: i8, len_mantissa: u32) -> i32 {
+    let lm = len_mantissa.min(23) as i32;
+    let a = f64::from(f.abs());
+    if a == 0.0 || !a.is_finite() {
+        return 0;
+    }
+    let eb = i32::from(exp_bias);
+    // Exponent field e0 ≥ 1: value (1 + m / 2^lm) · 2^(e0 − eb); e0 = 0: m · 2^(1 − eb − lm).
+    let scale = |a: f64, e: i32| a * 2f64.powi(e);
+    let e = ((a.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    let e0 = e + eb;
+    let h: i64 = if e0 < 1 {
+        scale(a, eb + lm - 1).round() as i64
+    } else {
+        // The fraction below the hidden bit, rounded; a carry moves to the exponent, which is
+        // what adding to the integer does.
+        (i64::from(e0) << lm) + (scale(a, lm - e) - f64::from(1 << lm)).round() as i64
+    };
+    // Largest exponent field whose IEEE exponent (e0 + 127 − eb) stays below 255.
+    let max = ((i64::from(127 + eb)) << lm) | ((1 << lm) - 1);
+    let h = h.min(max).min(i64::from(i32::MAX)) as i32;
+    if f.is_sign_negative() {
+        -h
+    } else {
+        h
+    }
+}
+
 /// One channel of RGBE (jxrlib `inverseConvert`): (mantissa, exponent).
 #[inline(always)]
 fn rgbe_channel(v: i32) -> (u8, u8) {
@@ -946,6 +990,37 @@ mod tests {
         // b = 0 - 10; r = 10 + ((-10 + 1) >> 1) - 0 = 5; g = 0 + (5 >> 1) = 2; U = -r.
         assert_eq!(forward_cc(10, 0, 0), (2, -5, -10));
         assert_eq!(inverse_cc(2, -5, -10), (10, 0, 0));
+    }
+
+    #[test]
+    fn encoder_sample_conversions_invert_the_decoder_ones() {
+        for h in 0..=u16::MAX {
+            if h != 0x8000 {
+                assert_eq!(int_to_half_bits(half_bits_to_int(h)), h, "{h:#06x}");
+            }
+        }
+        for (eb, lm) in [(4i8, 13u32), (0, 23), (127, 10), (1, 5)] {
+            let max = ((127 + i32::from(eb)) << lm) | ((1 << lm) - 1);
+            let check = |h: i32| {
+                if h.abs() > max {
+                    return;
+                }
+                let f = f32::from_bits(int_to_float_bits(h, eb, lm));
+                assert_eq!(float_to_int(f, eb, lm), h, "h {h} eb {eb} lm {lm} f {f:e}");
+            };
+            for h in (-70_000..70_000).chain((1 << 20)..(1 << 20) + 5000) {
+                check(h);
+            }
+            // The largest finite mini-float.
+            check(max);
+            // Halfway between two mini-floats rounds away from zero; beyond the largest clamps.
+            let (a, b) = (int_to_float_bits(9000, eb, lm), int_to_float_bits(9001, eb, lm));
+            let mid = (f64::from(f32::from_bits(a)) + f64::from(f32::from_bits(b))) / 2.0;
+            if 9001 <= max && mid as f32 as f64 == mid {
+                assert_eq!(float_to_int(mid as f32, eb, lm), 9001);
+            }
+        }
+        assert_eq!(float_to_int(f32::MAX, 4, 13), ((127 + 4) << 13) | 0x1fff);
     }
 
     #[test]

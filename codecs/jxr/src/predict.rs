@@ -128,6 +128,41 @@ pub fn predict_dclp(
     mode
 }
 
+/// The encoder's side of [`predict_dclp`]: turns the quantized DC and LP coefficients of
+/// `cur` into the residuals the bitstream carries, so that [`predict_dclp`] with the same
+/// neighbours gives `cur` back. Every prediction adds a neighbour's value, except in 4:2:2
+/// chroma, where coefficient 5 adds the macroblock's own (final) coefficient 1: those are
+/// undone first, while coefficient 1 still holds its final value. Returns the DC mode.
+#[allow(clippy::too_many_arguments)]
+pub fn unpredict_dclp(
+    fmt: ClrFmt,
+    channels: usize,
+    cur: &mut [i32],
+    left: Option<&[i32]>,
+    top: Option<&[i32]>,
+    top_left: Option<&[i32]>,
+    same_lp_qp_left: bool,
+    same_lp_qp_top: bool,
+) -> u8 {
+    // What predict_dclp adds to a macroblock of zeros is the prediction from the
+    // neighbours alone.
+    let mut pred = vec![0i32; channels * MB_COEFFS];
+    let mode = predict_dclp(fmt, channels, &mut pred, left, top, top_left, same_lp_qp_left, same_lp_qp_top);
+    if fmt == ClrFmt::Yuv422 && mode == 1 {
+        for ch in 1..channels.min(3) {
+            let o = ch * MB_COEFFS;
+            // With DC from the top, coefficient 5 of 4:2:2 chroma adds coefficient 1 after
+            // that one's own prediction: the final value, not the neighbours' part of it that
+            // the zeros gave.
+            pred[o + 5] = pred[o + 5].wrapping_sub(pred[o + 1]).wrapping_add(cur[o + 1]);
+        }
+    }
+    for (c, p) in cur.iter_mut().zip(&pred) {
+        *c = c.wrapping_sub(*p);
+    }
+    mode
+}
+
 /// HP prediction direction of a macroblock from its (predicted) LP coefficients (T.832
 /// 9.3.3): 0 from the left, 1 from the top, 2 none.
 pub fn hp_mode(fmt: ClrFmt, cur: &[i32]) -> u8 {
@@ -207,6 +242,55 @@ pub fn predict_hp(fmt: ClrFmt, c: &mut [i32], ch: usize, mode: u8) {
     }
 }
 
+/// The encoder's side of [`predict_hp`]: HP coefficients to residuals, in the reverse of
+/// the decoder's order, so that each block subtracts its neighbour's final values.
+pub fn unpredict_hp(fmt: ClrFmt, c: &mut [i32], ch: usize, mode: u8) {
+    fn step(c: &mut [i32], o: usize, to: usize, from: usize, ks: [usize; 3]) {
+        for k in ks {
+            let v = c[o + hp(from, k)];
+            let d = &mut c[o + hp(to, k)];
+            *d = d.wrapping_sub(v);
+        }
+    }
+    let (blocks_per_row, blocks) = match fmt {
+        ClrFmt::Yuv420 => (2, 4),
+        ClrFmt::Yuv422 => (2, 8),
+        _ => (0, 0),
+    };
+    if blocks > 0 {
+        for chroma in [2, 1] {
+            let o = chroma * MB_COEFFS;
+            match mode {
+                0 => {
+                    for b in (1..blocks).step_by(2).rev() {
+                        step(c, o, b, b - 1, [4, 8, 12]);
+                    }
+                }
+                1 => {
+                    for b in (blocks_per_row..blocks).rev() {
+                        step(c, o, b, b - blocks_per_row, [1, 2, 3]);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    let o = ch * MB_COEFFS;
+    match mode {
+        0 => {
+            for b in (1..16).filter(|b| b % 4 != 0).rev() {
+                step(c, o, b, b - 1, [4, 8, 12]);
+            }
+        }
+        1 => {
+            for b in (4..16).rev() {
+                step(c, o, b, b - 4, [1, 2, 3]);
+            }
+        }
+        _ => {}
+    }
+}
+
 /// The CBP prediction of one channel (T.832 9.3.4; T.835 `_jxr_PredCBP444/422/420`): turns
 /// the decoded difference pattern `diff` into the coded-block pattern, given the prediction
 /// state and the neighbours' patterns inside the tile (`None` outside). Returns the pattern
@@ -256,8 +340,6 @@ pub fn predict_cbp(fmt: ClrFmt, ch: usize, diff: u32, state: u8, left: Option<u3
 /// `predict_cbp` turns into `cbp`, given the same state and neighbours. Every propagation step
 /// of the spatial prediction XORs bits into positions it never reads from, so each is its own
 /// inverse: undo them in reverse order, then the neighbour's bit.
-// The encoder that uses it is being built on top of the entropy coder.
-#[allow(dead_code)]
 pub fn unpredict_cbp(fmt: ClrFmt, ch: usize, cbp: u32, state: u8, left: Option<u32>, top: Option<u32>) -> u32 {
     let chroma_sub = ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
     let (top_bit, left_bit, all) = match (fmt, chroma_sub) {
@@ -328,6 +410,39 @@ mod tests {
         let mut cur = mb(3, |_, _| 0);
         assert_eq!(predict_dclp(ClrFmt::Yuv420, 3, &mut cur, Some(&l), Some(&t), Some(&tl), true, true), 2);
         assert_eq!((cur[0], cur[MB_COEFFS]), (-2, -1));
+    }
+
+    #[test]
+    fn unprediction_inverts_prediction() {
+        let mut next = crate::testing::rng(7);
+        for (fmt, channels) in crate::testing::FORMATS {
+            for case in 0..400 {
+                let mut rand_mb = || -> Vec<i32> {
+                    let v: Vec<i32> = (0..channels * MB_COEFFS).map(|_| (next() % 41) as i32 - 20).collect();
+                    v
+                };
+                let (l, t, tl, cur) = (rand_mb(), rand_mb(), rand_mb(), rand_mb());
+                let left = (case & 1 == 1).then_some(l.as_slice());
+                let top = (case >> 1 & 1 == 1).then_some(t.as_slice());
+                let top_left = (left.is_some() && top.is_some()).then_some(tl.as_slice());
+                let (same_left, same_top) = (case >> 2 & 1 == 1, case >> 3 & 1 == 1);
+                let mut res = cur.clone();
+                let mode = unpredict_dclp(fmt, channels, &mut res, left, top, top_left, same_left, same_top);
+                let mut back = res.clone();
+                let mode2 = predict_dclp(fmt, channels, &mut back, left, top, top_left, same_left, same_top);
+                assert_eq!((mode, &back), (mode2, &cur), "{fmt:?} case {case}");
+                let hp_mode = (case % 3) as u8;
+                let subsampled = matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+                let mut res = cur.clone();
+                for ch in 0..if subsampled { 1 } else { channels } {
+                    unpredict_hp(fmt, &mut res, ch, hp_mode);
+                }
+                for ch in 0..if subsampled { 1 } else { channels } {
+                    predict_hp(fmt, &mut res, ch, hp_mode);
+                }
+                assert_eq!(res, cur, "{fmt:?} HP case {case}");
+            }
+        }
     }
 
     #[test]

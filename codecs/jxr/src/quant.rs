@@ -102,6 +102,42 @@ pub fn dequantize_into(
     dst[hp_end..].copy_from_slice(&src[hp_end..]);
 }
 
+/// The encoder's quantization of one value: sign and magnitude, the magnitude divided by
+/// `step` after adding `offset` (jxrlib `strPredQuantEnc.c: quantizeMacroblock` uses
+/// ⌊step/2⌋ for DC and ⌊(3·step + 1)/8⌋ for LP and HP, a dead zone that favours zero for the
+/// bands where most values are small). The decoder only multiplies back, so the rounding is
+/// the encoder's choice.
+#[inline]
+pub fn quantize_value(v: i32, step: i32, offset: i32) -> i32 {
+    if step <= 1 {
+        return v;
+    }
+    let q = ((i64::from(v).abs() + i64::from(offset)) / i64::from(step)) as i32;
+    if v < 0 {
+        -q
+    } else {
+        q
+    }
+}
+
+/// The rounding offsets [`quantize_value`] uses for the DC and for the LP and HP bands.
+pub fn offsets(dc: i32, lp: i32, hp: i32) -> (i32, i32, i32) {
+    (dc / 2, (3 * lp + 1) / 8, (3 * hp + 1) / 8)
+}
+
+/// The encoder's side of [`dequantize`]: quantizes one channel's coefficients (shape as
+/// there) with the steps `dc`, `lp` and `hp`.
+pub fn quantize(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32, hp: i32) {
+    let (odc, olp, ohp) = offsets(dc, lp, hp);
+    c[mb::DC] = quantize_value(c[mb::DC], dc, odc);
+    for v in &mut c[1..shape.0] {
+        *v = quantize_value(*v, lp, olp);
+    }
+    for v in &mut c[16..16 + 15 * shape.1] {
+        *v = quantize_value(*v, hp, ohp);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,6 +151,19 @@ mod tests {
             let mut got = [0; mb::MB_COEFFS];
             dequantize_into(&src, &mut got, shape, 3, 5, 11);
             assert_eq!(got, want, "{shape:?}");
+        }
+    }
+
+    #[test]
+    fn quantization_is_within_a_step_and_lossless_at_step_one() {
+        for v in -1000..1000 {
+            assert_eq!(quantize_value(v, 1, 0), v);
+            for step in [2, 3, 7, 16, 100] {
+                let (o, _, _) = offsets(step, step, step);
+                let q = quantize_value(v, step, o);
+                assert!((q * step - v).abs() < step, "{v} {step}");
+                assert_eq!(quantize_value(-v, step, o), -q);
+            }
         }
     }
 

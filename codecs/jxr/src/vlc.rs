@@ -162,8 +162,6 @@ const fn codes<const N: usize>(strings: &[&str; N]) -> [Code; N] {
 
 /// Encodes `symbol` with `table` (the inverse of [`decode`] with the matching [`Lut`]).
 #[inline]
-// The encoder that uses it is being built on top of the entropy coder.
-#[allow(dead_code)]
 pub fn encode(w: &mut BitWriter, table: &[Code], symbol: usize) {
     let c = table[symbol];
     w.write(c.bits, c.len);

@@ -1,0 +1,469 @@
+//! The JPEG XR encoder: samples to integers (the inverse of output formatting, T.832 9.10),
+//! the forward colour transform, the forward lapped transform, quantization, prediction and
+//! entropy coding (the decoder's steps of clause 9 run backwards), then the codestream headers
+//! and the file container.
+//!
+//! What it writes so far: one tile in spatial order (no index table), every band, 4:4:4 from
+//! RGB, 48bppRGBHalf or 128bppRGBFloat, overlap 0, 1 or 2, one quantizer set per band and
+//! channel for the whole image, lossless (quantizer 1, unscaled arithmetic, as JxrEncApp does)
+//! or lossy (scaled arithmetic). The quality → quantizer mapping is provisional.
+
+use crate::bits::BitWriter;
+use crate::container::{self, ContainerMeta, PixelFormat, PIXEL_FORMATS};
+use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSource};
+use crate::macroblock::PlaneEncoder;
+use crate::mb::{MbCoeffs, MB_COEFFS};
+use crate::output::{float_to_int, forward_cc, half_bits_to_int};
+use crate::predict;
+use crate::quant;
+use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
+use hdrcodec_core::{Channels, EncodeReport, EncodeSettings, Error, HdrImage, Result, ThreadPool};
+
+/// How the samples are stored in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleFormat {
+    /// 48bppRGBHalf: IEEE half floats (what Windows HDR screenshots use, without alpha).
+    Half,
+    /// 128bppRGBFloat: single floats, coded with [`FLOAT_MANTISSA`] mantissa bits.
+    Float,
+}
+
+/// Mantissa bits of the mini-float that float samples are coded as (LEN_MANTISSA, T.832
+/// 8.3.2.x; JxrEncApp's default).
+pub const FLOAT_MANTISSA: u8 = 13;
+/// Exponent bias of that mini-float (EXP_BIAS; JxrEncApp's default): with 13 mantissa bits,
+/// the smallest non-zero value is 2^−16.
+pub const FLOAT_EXP_BIAS: u8 = 4;
+
+/// Encoder options.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EncodeOptions {
+    /// 0-100; 100 is lossless.
+    pub quality: u8,
+    /// OVERLAP_MODE; `None`: JxrEncApp's choice (1 from quality 50 up, 2 below).
+    pub overlap: Option<OverlapMode>,
+    /// The stored sample format.
+    pub format: SampleFormat,
+    /// Tile width and height in macroblocks (16 pixels); 0: one tile. Tiles are coded
+    /// independently, so that decoders (ours) can decode them in parallel.
+    pub tile_mbs: usize,
+}
+
+impl Default for EncodeOptions {
+    fn default() -> Self {
+        EncodeOptions { quality: 90, overlap: None, format: SampleFormat::Half, tile_mbs: 0 }
+    }
+}
+
+impl EncodeOptions {
+    /// The options of `settings`: its quality, and the codec options `format` (`half` or
+    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100) and `tile` (tile
+    /// size in pixels, a multiple of 16; 0 for one tile).
+    pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
+        settings.check_options("jxr", &["format", "overlap", "lossless", "tile"])?;
+        let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
+        if let Some(f) = settings.option("format") {
+            o.format = match f {
+                "half" => SampleFormat::Half,
+                "float" => SampleFormat::Float,
+                _ => return Err(Error::invalid(format!("jxr: format={f}: expected half or float"))),
+            };
+        }
+        if let Some(v) = settings.option("overlap") {
+            o.overlap = Some(match v {
+                "0" => OverlapMode::None,
+                "1" => OverlapMode::One,
+                "2" => OverlapMode::Two,
+                _ => return Err(Error::invalid(format!("jxr: overlap={v}: expected 0, 1 or 2"))),
+            });
+        }
+        if let Some(t) = settings.option("tile") {
+            let px: usize =
+                t.parse().map_err(|_| Error::invalid(format!("jxr: tile={t}: expected a number of pixels")))?;
+            if px % 16 != 0 {
+                return Err(Error::invalid(format!("jxr: tile={t}: tiles are whole macroblocks (a multiple of 16)")));
+            }
+            o.tile_mbs = px / 16;
+        }
+        match settings.option("lossless") {
+            Some("true") => o.quality = 100,
+            Some("false") | None => {}
+            Some(v) => return Err(Error::invalid(format!("jxr: lossless={v}: expected true or false"))),
+        }
+        Ok(o)
+    }
+
+    fn lossless(&self) -> bool {
+        self.quality >= 100
+    }
+
+    fn overlap(&self) -> OverlapMode {
+        self.overlap.unwrap_or(if self.quality >= 50 { OverlapMode::One } else { OverlapMode::Two })
+    }
+
+    /// QP indices (T.832 9.4.2) of DC, LP and HP. Provisional: one index per band for every
+    /// channel, falling linearly with quality (chroma DC and LP steps are half of luma's in
+    /// scaled arithmetic already).
+    fn qp_indices(&self) -> [u8; 3] {
+        if self.lossless() {
+            return [0; 3];
+        }
+        let hp = 10.0 + f32::from(100 - self.quality.min(99)) * 1.4;
+        [(hp * 0.6) as u8, (hp * 0.8) as u8, hp as u8]
+    }
+}
+
+fn pixel_format(name: &str) -> Result<&'static PixelFormat> {
+    PIXEL_FORMATS.iter().find(|f| f.name == name).ok_or_else(|| Error::invalid(format!("no pixel format {name}")))
+}
+
+/// Encodes `image` (RGB or RGBA; alpha is not written yet) as a JPEG XR file.
+pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
+    let mut report = EncodeReport::new();
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    if width == 0 || height == 0 {
+        return Err(Error::invalid("JPEG XR: an empty image"));
+    }
+    let spp = match image.channels() {
+        Channels::Rgb => 3,
+        Channels::Rgba => {
+            report.note("the alpha channel was not written (JPEG XR alpha planes are not encoded yet)");
+            4
+        }
+        other => return Err(Error::unsupported(format!("JPEG XR encoding of {other:?} images"))),
+    };
+    // scRGB: 1.0 is 80 cd/m² (the family's images say what 1.0 is in `nits_per_unit`).
+    let scale = image.color.nits_per_unit / crate::output::NITS_PER_UNIT;
+    let ptm_color_info = colour_info(image, &mut report)?;
+    let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
+    let lossless = options.lossless();
+    let (format, bitdepth) = match options.format {
+        SampleFormat::Half => (pixel_format("48bppRGBHalf")?, 4u8),
+        SampleFormat::Float => (pixel_format("128bppRGBFloat")?, 7u8),
+    };
+    // jxrlib codes floats in unscaled arithmetic always, and lossless images too.
+    let scaled = !lossless && options.format != SampleFormat::Float;
+    let shift = if scaled { 3 } else { 0 };
+
+    // Samples to integers (T.832 9.10 backwards), then the forward colour transform, into
+    // three planes the size of the macroblock grid; the extension repeats the last column
+    // and row, as jxrlib's encoder pads.
+    let (pw, ph) = (16 * mb_w, 16 * mb_h);
+    let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; 3];
+    let mut clipped = 0usize;
+    let mut nans = 0usize;
+    let mut to_int = |v: f32, clipped: &mut usize| -> i32 {
+        // NaN has no integer coding that survives the transform: 0, counted (as BC6H does).
+        let v = if v.is_nan() {
+            nans += 1;
+            0.0
+        } else {
+            v
+        };
+        match options.format {
+            SampleFormat::Half => {
+                let h = half::f16::from_f32(v);
+                if h.is_infinite() {
+                    *clipped += 1;
+                    let max = half::f16::MAX.to_bits();
+                    half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max })
+                } else {
+                    half_bits_to_int(h.to_bits())
+                }
+            }
+            SampleFormat::Float => {
+                if v.is_infinite() {
+                    *clipped += 1;
+                }
+                float_to_int(v.clamp(f32::MIN, f32::MAX), FLOAT_EXP_BIAS as i8, u32::from(FLOAT_MANTISSA))
+            }
+        }
+    };
+    for y in 0..height {
+        let row = image.row(y as u32);
+        for x in 0..width {
+            let p = &row[x * spp..][..3];
+            let (r, g, b) = (
+                to_int(p[0] * scale, &mut clipped) << shift,
+                to_int(p[1] * scale, &mut clipped) << shift,
+                to_int(p[2] * scale, &mut clipped) << shift,
+            );
+            let (yy, u, v) = forward_cc(r, g, b);
+            let i = y * pw + x;
+            planes[0][i] = yy;
+            planes[1][i] = u;
+            planes[2][i] = v;
+        }
+    }
+    for plane in &mut planes {
+        for y in 0..ph {
+            let src = y.min(height - 1) * pw;
+            let last = plane[src + width - 1];
+            if y >= height {
+                plane.copy_within(src..src + width, y * pw);
+            }
+            plane[y * pw + width..(y + 1) * pw].fill(last);
+        }
+    }
+    if nans > 0 {
+        report.note(format!("{nans} NaN samples were written as 0"));
+    }
+    if clipped > 0 {
+        let what = match options.format {
+            SampleFormat::Half => "infinite or beyond ±65504 (half float) were clipped to ±65504",
+            SampleFormat::Float => "infinite were clipped to the largest float",
+        };
+        report.note(format!("{clipped} samples {what}"));
+    }
+
+    // The forward transform, then quantization.
+    let overlap = options.overlap();
+    let params = TransformParams { overlap, scaled, hard: None, operators: OperatorSet::JpegXr };
+    let [qdc, qlp, qhp] = options.qp_indices();
+    let mut coeffs: Vec<Vec<MbCoeffs>> = Vec::with_capacity(3);
+    for (ch, data) in planes.into_iter().enumerate() {
+        let plane = Plane { width: pw, height: ph, data };
+        let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, &plane)?;
+        let luma = ch == 0;
+        let steps = (quant::step(qdc, scaled, luma), quant::step(qlp, scaled, luma), quant::step(qhp, scaled, true));
+        for mb in &mut c {
+            quant::quantize(mb, (16, 16), steps.0, steps.1, steps.2);
+        }
+        coeffs.push(c);
+    }
+
+    // Prediction and entropy coding, each tile on its own (its own adaptive state, predictions
+    // stopping at its edges), in parallel on the pool.
+    let (fmt, channels) = (ClrFmt::Yuv444, 3);
+    let (tile_widths, tile_heights) = (tile_sizes(mb_w, options.tile_mbs), tile_sizes(mb_h, options.tile_mbs));
+    let rects = tile_rects(&tile_widths, &tile_heights);
+    let packets: Vec<Result<Vec<u8>>> = pool.install(|| {
+        use rayon::prelude::*;
+        rects.par_iter().enumerate().map(|(id, &rect)| encode_tile(&coeffs, mb_w, rect, fmt, channels, id)).collect()
+    });
+    let packets = packets.into_iter().collect::<Result<Vec<_>>>()?;
+    let tiling = packets.len() > 1;
+
+    let qp = |index: u8| {
+        let mut set = QpSet::default();
+        set.index[..channels].fill(index);
+        QpSource::Uniform(set)
+    };
+    let image_header = ImageHeader {
+        tiling,
+        // Required with more than one tile (T.832 8.3.1); lets decoders find each tile.
+        index_table: tiling,
+        overlap: overlap as u8,
+        tile_widths: tile_widths.iter().map(|&w| w as u32).collect(),
+        tile_heights: tile_heights.iter().map(|&h| h as u32).collect(),
+        ..ImageHeader::new(width as u32, height as u32, 7, bitdepth)
+    };
+    let (mantissa, exp_bias) =
+        if options.format == SampleFormat::Float { (FLOAT_MANTISSA, FLOAT_EXP_BIAS) } else { (0, 0) };
+    let plane_header = PlaneHeader {
+        clr_fmt: fmt,
+        scaled,
+        bands: Bands::All,
+        channels,
+        chroma_centering: (0, 0),
+        shift_or_mantissa: mantissa,
+        exp_bias,
+        dc: qp(qdc),
+        lp: qp(qlp),
+        hp: qp(qhp),
+    };
+    let codestream = header::write_codestream(&image_header, &plane_header, None, &packets)?;
+    let meta = ContainerMeta { ptm_color_info, ..ContainerMeta::default() };
+    let file = container::write_container(format, width as u32, height as u32, &codestream, None, &meta)?;
+    Ok((file, report))
+}
+
+/// PTM_COLOR_INFO for the image's primaries (H.273 code points: the primaries, linear
+/// transfer 8, matrix 0 (RGB), full range), or `None` for BT.709, which is what a half or
+/// float file without it means (scRGB). Unspecified primaries are written as none, and said.
+fn colour_info(image: &HdrImage, report: &mut EncodeReport) -> Result<Option<[u8; 4]>> {
+    use hdrcodec_core::ColorPrimaries;
+    match image.color.primaries {
+        ColorPrimaries::Bt709 => Ok(None),
+        ColorPrimaries::Unspecified => {
+            report.note(
+                "the image's primaries are unspecified: the file records none, so readers take them as scRGB (BT.709)",
+            );
+            Ok(None)
+        }
+        ref p => match p.h273() {
+            Some(code) => Ok(Some([code, 8, 0, 1])),
+            None => Err(Error::unsupported(format!(
+                "JPEG XR: primaries {p:?} have no H.273 code for PTM_COLOR_INFO (convert the image first)"
+            ))),
+        },
+    }
+}
+
+/// Tile sizes (in macroblocks) along an axis of `n` macroblocks: `size` each (0: one tile),
+/// the last one taking the remainder. At most 4096 tiles (T.832's limit).
+fn tile_sizes(n: usize, size: usize) -> Vec<usize> {
+    let size = if size == 0 { n } else { size.max(n.div_ceil(4096)) };
+    let mut v = vec![size; n / size];
+    if n % size != 0 {
+        v.push(n % size);
+    }
+    v
+}
+
+/// A tile: first macroblock column and row, width and height in macroblocks.
+#[derive(Clone, Copy, Debug)]
+struct TileRect {
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+}
+
+/// The tiles in raster order (the order of their packets).
+fn tile_rects(widths: &[usize], heights: &[usize]) -> Vec<TileRect> {
+    let mut out = Vec::with_capacity(widths.len() * heights.len());
+    let mut y0 = 0;
+    for &h in heights {
+        let mut x0 = 0;
+        for &w in widths {
+            out.push(TileRect { x0, y0, w, h });
+            x0 += w;
+        }
+        y0 += h;
+    }
+    out
+}
+
+/// The spatial-order packet of one tile (T.832 8.4.x TILE_SPATIAL): the packet header, then
+/// every macroblock of the tile in raster order (prediction, then entropy coding, exactly
+/// undoing `tiles.rs`), byte-aligned. `coeffs` holds each channel's quantized macroblocks of
+/// the whole image, `mb_w` across.
+fn encode_tile(
+    coeffs: &[Vec<MbCoeffs>],
+    mb_w: usize,
+    tile: TileRect,
+    fmt: ClrFmt,
+    channels: usize,
+    id: usize,
+) -> Result<Vec<u8>> {
+    let stride = channels * MB_COEFFS;
+    // Macroblock (mx, my) of the tile, all channels, quantized.
+    let mb_at = |mx: usize, my: usize| -> Vec<i32> {
+        let mut v = Vec::with_capacity(stride);
+        for c in coeffs {
+            v.extend_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
+        }
+        v
+    };
+    let mut w = BitWriter::new();
+    // The packet header (jxrlib `writePacketHeader`): a start code, then the packet type
+    // (0: spatial) and the tile number modulo 32.
+    w.write(1, 24);
+    w.write((id % 32) as u32, 8);
+    let tile_w = tile.w as u32;
+    let mut enc = PlaneEncoder::new(fmt, channels);
+    let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
+    let mut prev_row: Vec<Vec<i32>> = Vec::new();
+    for my in 0..tile.h {
+        let row: Vec<Vec<i32>> = (0..tile.w).map(|mx| mb_at(mx, my)).collect();
+        let [a, b] = &mut cbp_rows;
+        let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
+        for mx in 0..tile.w {
+            let cur = &row[mx];
+            let left = (mx > 0).then(|| row[mx - 1].as_slice());
+            let top = (my > 0).then(|| prev_row[mx].as_slice());
+            let top_left = (mx > 0 && my > 0).then(|| prev_row[mx - 1].as_slice());
+            let mut res = cur.clone();
+            predict::unpredict_dclp(fmt, channels, &mut res, left, top, top_left, true, true);
+            // The decoder chooses the HP prediction from the predicted (final) LP values.
+            let mode = predict::hp_mode(fmt, cur);
+            let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
+            for ch in 0..hp_channels {
+                predict::unpredict_hp(fmt, &mut res, ch, mode);
+            }
+            enc.dc(&mut w, &res, mx as u32, tile_w)?;
+            enc.lp(&mut w, &res, mx as u32, tile_w)?;
+            let (before, rest) = cur_cbp.split_at_mut(mx * channels);
+            let left_cbp = (mx > 0).then(|| &before[(mx - 1) * channels..]);
+            let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
+            enc.cbp_hp(&mut w, &res, left_cbp, top_cbp, &mut rest[..channels], mode, mx as u32, tile_w, true)?;
+        }
+        prev_row = row;
+    }
+    w.align();
+    Ok(w.into_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hdrcodec_core::{ColorInfo, ColorPrimaries};
+
+    fn ramp(width: u32, height: u32, primaries: ColorPrimaries) -> HdrImage {
+        let samples = (0..width * height * 3)
+            .map(|i| {
+                let (p, c) = (i / 3, i % 3);
+                ((p % width) as f32 * 0.37 + (p / width) as f32 * 1.3 + c as f32).sin().abs() * 40.0 + 0.001
+            })
+            .collect();
+        let color = ColorInfo { primaries, nits_per_unit: 80.0, hdr10: None };
+        HdrImage::new(width, height, Channels::Rgb, samples, color).unwrap()
+    }
+
+    #[test]
+    fn tile_grids_cover_the_image() {
+        assert_eq!(tile_sizes(10, 0), vec![10]);
+        assert_eq!(tile_sizes(10, 4), vec![4, 4, 2]);
+        assert_eq!(tile_sizes(8, 4), vec![4, 4]);
+        // At most 4096 tiles along an axis.
+        assert_eq!(tile_sizes(10_000, 1).len(), 3334);
+        let rects = tile_rects(&[4, 2], &[3, 3]);
+        assert_eq!(rects.len(), 4);
+        assert_eq!((rects[3].x0, rects[3].y0, rects[3].w, rects[3].h), (4, 3, 2, 3));
+    }
+
+    #[test]
+    fn lossless_half_and_tiles_round_trip_through_the_decoder() {
+        let image = ramp(45, 37, ColorPrimaries::Bt709);
+        let pool = ThreadPool::new(2).unwrap();
+        for tile_mbs in [0, 1, 2] {
+            let options = EncodeOptions { quality: 100, tile_mbs, ..EncodeOptions::default() };
+            let (file, report) = encode(&image, &options, &pool).unwrap();
+            assert!(report.notes.is_empty(), "{:?}", report.notes);
+            let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            let want: Vec<u8> =
+                image.samples().iter().flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes()).collect();
+            assert!(raw == want, "tiles of {tile_mbs} macroblocks");
+        }
+    }
+
+    #[test]
+    fn primaries_go_into_ptm_color_info_and_nan_is_counted() {
+        let mut image = ramp(20, 9, ColorPrimaries::Bt2020);
+        image.samples_mut()[4] = f32::NAN;
+        image.samples_mut()[7] = f32::INFINITY;
+        let (file, report) = encode(&image, &EncodeOptions::default(), &ThreadPool::single()).unwrap();
+        let container = crate::container::parse_container(&file).unwrap();
+        assert_eq!(container.ptm_color_info, Some([9, 8, 0, 1]));
+        assert!(report.notes.iter().any(|n| n.contains("1 NaN")), "{:?}", report.notes);
+        assert!(report.notes.iter().any(|n| n.contains("1 samples infinite")), "{:?}", report.notes);
+        let bt709 = ramp(20, 9, ColorPrimaries::Bt709);
+        let (file, _) = encode(&bt709, &EncodeOptions::default(), &ThreadPool::single()).unwrap();
+        assert_eq!(crate::container::parse_container(&file).unwrap().ptm_color_info, None);
+    }
+
+    #[test]
+    fn options_come_from_the_settings() {
+        let s = EncodeSettings::default().with_quality(70);
+        assert_eq!(EncodeOptions::from_settings(&s).unwrap().quality, 70);
+        let s = s.with_option("lossless", "true").with_option("format", "float").with_option("tile", "256");
+        let o = EncodeOptions::from_settings(&s).unwrap();
+        assert_eq!((o.quality, o.format, o.tile_mbs), (100, SampleFormat::Float, 16));
+        let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("overlap", "2")).unwrap();
+        assert_eq!(o.overlap, Some(OverlapMode::Two));
+        for (k, v) in [("tile", "100"), ("format", "rgbe"), ("overlap", "3"), ("lossless", "yes"), ("no-such", "1")] {
+            assert!(EncodeOptions::from_settings(&EncodeSettings::default().with_option(k, v)).is_err(), "{k}={v}");
+        }
+    }
+}
