@@ -200,8 +200,18 @@ fn bench_json_on_the_generated_corpus() {
 }
 
 /// The JPEG XR rows' labels: JxrEncApp lossless and at three `-q` settings.
-const JXR_ROWS: [&str; 4] =
-    ["jxr(jxrlib-enc):lossless", "jxr(jxrlib-enc):q0.9", "jxr(jxrlib-enc):q0.6", "jxr(jxrlib-enc):q0.3"];
+const JXR_ROWS: [&str; 8] = [
+    "jxr(jxrlib-enc):lossless",
+    "jxr(jxrlib-enc):q0.9",
+    "jxr(jxrlib-enc):q0.8",
+    "jxr(jxrlib-enc):q0.7",
+    "jxr(jxrlib-enc):q0.6",
+    "jxr(jxrlib-enc):q0.5",
+    "jxr(jxrlib-enc):q0.4",
+    "jxr(jxrlib-enc):q0.3",
+];
+/// Our encoder's JPEG XR rows.
+const JXR_OUR_ROWS: [&str; 5] = ["jxr:q100", "jxr:q90", "jxr:q70", "jxr:q50", "jxr:q30"];
 
 fn labels(rows: &Value) -> Vec<String> {
     let mut v: Vec<String> =
@@ -215,7 +225,7 @@ fn bench_lists_jpeg_xr_rows_as_not_installed_without_jxrlib() {
     // An empty PATH: JxrEncApp cannot be found, and the rows say so instead of vanishing.
     let bench =
         |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args).env("PATH", "").output().unwrap();
-    let v = json(&bench(&["bench", "--quick", "--filter", "jxr", "--json"]));
+    let v = json(&bench(&["bench", "--quick", "--filter", "jxr(jxrlib", "--json"]));
     assert_eq!(labels(&v["rows"]), JXR_ROWS, "{v}");
     for r in v["rows"].as_array().unwrap() {
         assert!(r["error"].as_str().unwrap().starts_with("not installed: JxrEncApp"), "{r}");
@@ -223,7 +233,7 @@ fn bench_lists_jpeg_xr_rows_as_not_installed_without_jxrlib() {
     for s in v["summary"].as_array().unwrap() {
         assert_eq!((s["images"].as_u64(), s["unavailable"].is_string()), (Some(0), true), "{s}");
     }
-    let table = ok(&bench(&["bench", "--quick", "--filter", "jxr"]));
+    let table = ok(&bench(&["bench", "--quick", "--filter", "jxr(jxrlib"]));
     for label in JXR_ROWS {
         let line = table.lines().find(|l| l.starts_with(label)).unwrap_or_else(|| panic!("no {label} in {table}"));
         assert!(line.contains("not installed: JxrEncApp (Debian libjxr-tools) is not on PATH"), "{line}");
@@ -241,8 +251,18 @@ fn bench_has_jpeg_xr_rows_encoded_by_jxrlib_and_decoded_by_us() {
         return;
     }
     let v = json(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"jxr", &"--json"]));
-    assert_eq!(labels(&v["rows"]), JXR_ROWS, "--filter jxr keeps exactly the JPEG XR rows: {v}");
-    for r in v["rows"].as_array().unwrap() {
+    let all: Vec<&str> = JXR_OUR_ROWS.iter().chain(&JXR_ROWS).copied().collect();
+    assert_eq!(labels(&v["rows"]), all, "--filter jxr keeps exactly the JPEG XR rows: {v}");
+    let summary = v["summary"].as_array().unwrap();
+    let s = |label: &str| summary.iter().find(|s| s["config"] == label).unwrap_or_else(|| panic!("{label}: {v}"));
+    let bpp = |l: &str| s(l)["bpp"].as_f64().unwrap();
+    let de = |l: &str| s(l)["de_itp_mean"].as_f64().unwrap();
+    // Ours: lower quality, fewer bits, more loss; lossless as small as jxrlib's.
+    for w in JXR_OUR_ROWS.windows(2) {
+        assert!(bpp(w[1]) < bpp(w[0]) && de(w[1]) >= de(w[0]), "{w:?}: {v}");
+    }
+    assert!(bpp(JXR_OUR_ROWS[0]) <= bpp(JXR_ROWS[0]) * 1.01, "{v}");
+    for r in v["rows"].as_array().unwrap().iter().filter(|r| r["config"].as_str().unwrap().starts_with("jxr(")) {
         assert!(r["error"].is_null(), "{r}");
         assert!(r["bytes"].as_u64().unwrap() > 0 && r["bpp"].as_f64().unwrap() > 0.0, "{r}");
         assert!(r["encoder"].as_str().unwrap().contains("JxrEncApp"), "{r}");
@@ -256,14 +276,10 @@ fn bench_has_jpeg_xr_rows_encoded_by_jxrlib_and_decoded_by_us() {
         // JxrEncApp is an outside program on one thread: no pool figure.
         assert!(r["encode_mps_all"].is_null(), "{r}");
     }
-    let summary = v["summary"].as_array().unwrap();
-    let s = |label: &str| summary.iter().find(|s| s["config"] == label).unwrap_or_else(|| panic!("{label}: {v}"));
     for label in JXR_ROWS {
         assert_eq!((s(label)["failed"].as_u64(), s(label)["peer"]["mismatches"].as_u64()), (Some(0), Some(0)), "{v}");
     }
     // Lower -q writes fewer bits and loses more (JxrEncApp's quality scale).
-    let bpp = |l: &str| s(l)["bpp"].as_f64().unwrap();
-    let de = |l: &str| s(l)["de_itp_mean"].as_f64().unwrap();
     for w in JXR_ROWS.windows(2) {
         assert!(bpp(w[1]) < bpp(w[0]) && de(w[1]) >= de(w[0]), "{w:?}: {v}");
     }
