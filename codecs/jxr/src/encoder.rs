@@ -3,8 +3,9 @@
 //! entropy coding (the decoder's steps of clause 9 run backwards), then the codestream headers
 //! and the file container.
 //!
-//! What it writes so far: one tile in spatial order (no index table), every band, 4:4:4 from
-//! RGB, 48bppRGBHalf or 128bppRGBFloat, overlap 0, 1 or 2, one quantizer set per band and
+//! What it writes so far: tiles in spatial order, every band, 4:4:4 from RGB, 48bppRGBHalf or
+//! 128bppRGBFloat (64bppRGBAHalf or 128bppRGBAFloat with a planar alpha codestream for RGBA
+//! images), overlap 0, 1 or 2, one quantizer set per band and
 //! channel for the whole image, lossless (quantizer 1, unscaled arithmetic, as JxrEncApp does)
 //! or lossy (scaled arithmetic). The quality → quantizer mapping is provisional.
 
@@ -47,20 +48,23 @@ pub struct EncodeOptions {
     /// Tile width and height in macroblocks (16 pixels); 0: one tile. Tiles are coded
     /// independently, so that decoders (ours) can decode them in parallel.
     pub tile_mbs: usize,
+    /// 0-100, the quality of the alpha codestream (RGBA images); 100, lossless, is
+    /// JxrEncApp's default for alpha.
+    pub alpha_quality: u8,
 }
 
 impl Default for EncodeOptions {
     fn default() -> Self {
-        EncodeOptions { quality: 90, overlap: None, format: SampleFormat::Half, tile_mbs: 0 }
+        EncodeOptions { quality: 90, overlap: None, format: SampleFormat::Half, tile_mbs: 0, alpha_quality: 100 }
     }
 }
 
 impl EncodeOptions {
     /// The options of `settings`: its quality, and the codec options `format` (`half` or
-    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100) and `tile` (tile
-    /// size in pixels, a multiple of 16; 0 for one tile).
+    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile
+    /// size in pixels, a multiple of 16; 0 for one tile) and `alpha_quality` (0-100).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
-        settings.check_options("jxr", &["format", "overlap", "lossless", "tile"])?;
+        settings.check_options("jxr", &["format", "overlap", "lossless", "tile", "alpha_quality"])?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
         if let Some(f) = settings.option("format") {
             o.format = match f {
@@ -85,6 +89,13 @@ impl EncodeOptions {
             }
             o.tile_mbs = px / 16;
         }
+        if let Some(q) = settings.option("alpha_quality") {
+            o.alpha_quality = q
+                .parse()
+                .ok()
+                .filter(|&q| q <= 100)
+                .ok_or_else(|| Error::invalid(format!("jxr: alpha_quality={q}: expected 0 to 100")))?;
+        }
         match settings.option("lossless") {
             Some("true") => o.quality = 100,
             Some("false") | None => {}
@@ -95,6 +106,19 @@ impl EncodeOptions {
 
     fn lossless(&self) -> bool {
         self.quality >= 100
+    }
+
+    /// SCALED_FLAG: jxrlib codes floats in unscaled arithmetic always, and lossless images
+    /// too (scaling would lose the low bits).
+    fn scaled(&self) -> bool {
+        !self.lossless() && self.format != SampleFormat::Float
+    }
+
+    /// The options of the planar alpha codestream: its own quality, and the colour's overlap
+    /// (JxrEncApp writes the primary's OVERLAP_MODE into the alpha codestream too, and our
+    /// decoder transforms planar alpha with the primary's).
+    fn for_alpha(&self) -> EncodeOptions {
+        EncodeOptions { quality: self.alpha_quality, overlap: Some(self.overlap()), ..self.clone() }
     }
 
     fn overlap(&self) -> OverlapMode {
@@ -123,7 +147,7 @@ fn pixel_format(name: &str) -> Result<&'static PixelFormat> {
     PIXEL_FORMATS.iter().find(|f| f.name == name).ok_or_else(|| Error::invalid(format!("no pixel format {name}")))
 }
 
-/// Encodes `image` (RGB or RGBA; alpha is not written yet) as a JPEG XR file.
+/// Encodes `image` (RGB, or RGBA with alpha as a planar alpha codestream) as a JPEG XR file.
 pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
     let mut report = EncodeReport::new();
     let (width, height) = (image.width() as usize, image.height() as usize);
@@ -132,30 +156,31 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
     }
     let spp = match image.channels() {
         Channels::Rgb => 3,
-        Channels::Rgba => {
-            report.note("the alpha channel was not written (JPEG XR alpha planes are not encoded yet)");
-            4
-        }
+        Channels::Rgba => 4,
         other => return Err(Error::unsupported(format!("JPEG XR encoding of {other:?} images"))),
     };
+    let alpha = spp == 4;
     // scRGB: 1.0 is 80 cd/m² (the family's images say what 1.0 is in `nits_per_unit`).
     let scale = image.color.nits_per_unit / crate::output::NITS_PER_UNIT;
     let ptm_color_info = colour_info(image, &mut report)?;
     let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
-    let lossless = options.lossless();
-    let (format, bitdepth) = match options.format {
-        SampleFormat::Half => (pixel_format("48bppRGBHalf")?, 4u8),
-        SampleFormat::Float => (pixel_format("128bppRGBFloat")?, 7u8),
-    };
-    // jxrlib codes floats in unscaled arithmetic always, and lossless images too.
-    let scaled = !lossless && options.format != SampleFormat::Float;
-    let shift = if scaled { 3 } else { 0 };
+    // With alpha, the RGBA format of the same sample type (T.832 Table A.6).
+    let format = pixel_format(match (options.format, alpha) {
+        (SampleFormat::Half, false) => "48bppRGBHalf",
+        (SampleFormat::Half, true) => "64bppRGBAHalf",
+        (SampleFormat::Float, false) => "128bppRGBFloat",
+        (SampleFormat::Float, true) => "128bppRGBAFloat",
+    })?;
+    let alpha_options = options.for_alpha();
+    // In scaled arithmetic the integers carry 3 more bits (T.832 9.10's right shift).
+    let shift = if options.scaled() { 3 } else { 0 };
+    let alpha_shift = if alpha_options.scaled() { 3 } else { 0 };
 
     // Samples to integers (T.832 9.10 backwards), then the forward colour transform, into
-    // three planes the size of the macroblock grid; the extension repeats the last column
-    // and row, as jxrlib's encoder pads.
+    // three planes the size of the macroblock grid, and alpha into a fourth; the extension
+    // repeats the last column and row, as jxrlib's encoder pads.
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
-    let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; 3];
+    let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; spp];
     let mut clipped = 0usize;
     let mut nans = 0usize;
     let mut to_int = |v: f32, clipped: &mut usize| -> i32 {
@@ -199,6 +224,12 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
             planes[0][i] = yy;
             planes[1][i] = u;
             planes[2][i] = v;
+            if alpha {
+                // Alpha is coded like a colour sample of the same format (the decoder's
+                // output formatting treats it so, T.832 9.10), but it is not light: no
+                // scRGB scaling and no colour transform.
+                planes[3][i] = to_int(row[x * spp + 3], &mut clipped) << alpha_shift;
+            }
         }
     }
     for plane in &mut planes {
@@ -222,13 +253,55 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
         report.note(format!("{clipped} samples {what}"));
     }
 
+    // Colour as YUV 4:4:4 in an RGB image (OUTPUT_CLR_FMT 7); alpha as a planar alpha
+    // codestream of one YONLY plane (T.832 Table A.4: ALPHA_OFFSET), labelled OUTPUT_CLR_FMT
+    // 0 with the colour's bit depth, as jxrlib writes it, on the same tile grid.
+    let alpha_plane = if alpha { planes.pop() } else { None };
+    let codestream = encode_codestream(planes, (width, height), ClrFmt::Yuv444, 7, options, pool)?;
+    let alpha_codestream = alpha_plane
+        .map(|a| encode_codestream(vec![a], (width, height), ClrFmt::YOnly, 0, &alpha_options, pool))
+        .transpose()?;
+    let meta = ContainerMeta { ptm_color_info, ..ContainerMeta::default() };
+    let file = container::write_container(
+        format,
+        width as u32,
+        height as u32,
+        &codestream,
+        alpha_codestream.as_deref(),
+        &meta,
+    )?;
+    Ok((file, report))
+}
+
+/// One codestream (T.832 8.3) of `planes`, integer samples on the macroblock grid of a
+/// `width` × `height` image (after the colour transform, if any) in internal colour format
+/// `fmt`, labelled OUTPUT_CLR_FMT `output_clr_fmt`: the forward transform, quantization,
+/// tiles coded in parallel on `pool`, and the headers. Used for the colour codestream and
+/// the planar alpha codestream alike.
+fn encode_codestream(
+    planes: Vec<Vec<i32>>,
+    (width, height): (usize, usize),
+    fmt: ClrFmt,
+    output_clr_fmt: u8,
+    options: &EncodeOptions,
+    pool: &ThreadPool,
+) -> Result<Vec<u8>> {
+    let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
+    let (pw, ph) = (16 * mb_w, 16 * mb_h);
+    let scaled = options.scaled();
+    let channels = planes.len();
+    let bitdepth = match options.format {
+        SampleFormat::Half => 4u8,
+        SampleFormat::Float => 7u8,
+    };
+
     // The forward transform, then quantization.
     let overlap = options.overlap();
     let params = TransformParams { overlap, scaled, hard: None, operators: OperatorSet::JpegXr };
     let [qdc, qlp, qhp] = options.qp_indices();
     // Channel 0 is luma, the others chroma.
     let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
-    let mut coeffs: Vec<Vec<MbCoeffs>> = Vec::with_capacity(3);
+    let mut coeffs: Vec<Vec<MbCoeffs>> = Vec::with_capacity(channels);
     for (ch, data) in planes.into_iter().enumerate() {
         let plane = Plane { width: pw, height: ph, data };
         let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, &plane)?;
@@ -246,7 +319,6 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
 
     // Prediction and entropy coding, each tile on its own (its own adaptive state, predictions
     // stopping at its edges), in parallel on the pool.
-    let (fmt, channels) = (ClrFmt::Yuv444, 3);
     let (tile_widths, tile_heights) = (tile_sizes(mb_w, options.tile_mbs), tile_sizes(mb_h, options.tile_mbs));
     let rects = tile_rects(&tile_widths, &tile_heights);
     let packets: Vec<Result<Vec<u8>>> = pool.install(|| {
@@ -256,9 +328,10 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
     let packets = packets.into_iter().collect::<Result<Vec<_>>>()?;
     let tiling = packets.len() > 1;
 
-    // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma).
+    // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
+    // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
     let qp = |q: [u8; 2]| {
-        let mut set = QpSet { mode: u8::from(q[0] != q[1]), ..QpSet::default() };
+        let mut set = QpSet { mode: u8::from(channels > 1 && q[0] != q[1]), ..QpSet::default() };
         for ch in 0..channels {
             set.index[ch] = pick(q, ch);
         }
@@ -271,7 +344,7 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
         overlap: overlap as u8,
         tile_widths: tile_widths.iter().map(|&w| w as u32).collect(),
         tile_heights: tile_heights.iter().map(|&h| h as u32).collect(),
-        ..ImageHeader::new(width as u32, height as u32, 7, bitdepth)
+        ..ImageHeader::new(width as u32, height as u32, output_clr_fmt, bitdepth)
     };
     let (mantissa, exp_bias) =
         if options.format == SampleFormat::Float { (FLOAT_MANTISSA, FLOAT_EXP_BIAS) } else { (0, 0) };
@@ -287,10 +360,7 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
         lp: qp(qlp),
         hp: qp(qhp),
     };
-    let codestream = header::write_codestream(&image_header, &plane_header, None, &packets)?;
-    let meta = ContainerMeta { ptm_color_info, ..ContainerMeta::default() };
-    let file = container::write_container(format, width as u32, height as u32, &codestream, None, &meta)?;
-    Ok((file, report))
+    header::write_codestream(&image_header, &plane_header, None, &packets)
 }
 
 /// PTM_COLOR_INFO for the image's primaries (H.273 code points: the primaries, linear
@@ -453,6 +523,86 @@ mod tests {
         }
     }
 
+    /// `image` with an alpha channel: a ramp from 0 to 1 with some steps, as masks have.
+    fn with_alpha(image: &HdrImage) -> HdrImage {
+        let (w, h) = (image.width(), image.height());
+        let samples = image
+            .samples()
+            .chunks(3)
+            .enumerate()
+            .flat_map(|(i, p)| {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                let a = if x < w / 3 { 1.0 } else { (x + 2 * y) as f32 / (w + 2 * h) as f32 };
+                [p[0], p[1], p[2], a]
+            })
+            .collect();
+        HdrImage::new(w, h, Channels::Rgba, samples, image.color.clone()).unwrap()
+    }
+
+    #[test]
+    fn rgba_round_trips_through_the_decoder_with_planar_alpha() {
+        let image = with_alpha(&ramp(45, 37, ColorPrimaries::Bt709));
+        let pool = ThreadPool::new(2).unwrap();
+        let half_bits =
+            |v: &[f32]| -> Vec<u8> { v.iter().flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes()).collect() };
+        for tile_mbs in [0, 2] {
+            // Lossless half: every channel's half bits come back, alpha from its own codestream.
+            let options = EncodeOptions { quality: 100, tile_mbs, ..EncodeOptions::default() };
+            let (file, report) = encode(&image, &options, &pool).unwrap();
+            assert!(report.notes.is_empty(), "{:?}", report.notes);
+            let c = crate::container::parse_container(&file).unwrap();
+            assert_eq!(c.pixel_format.name, "64bppRGBAHalf");
+            let cs = header::parse(c.alpha.expect("a planar alpha codestream")).unwrap();
+            assert_eq!((cs.primary.clr_fmt, cs.primary.channels, cs.image.output_clr_fmt), (ClrFmt::YOnly, 1, 0));
+            assert!(cs.alpha.is_none() && !header::parse(c.image).unwrap().image.alpha_plane);
+            let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            assert!(raw == half_bits(image.samples()), "tiles of {tile_mbs} macroblocks");
+
+            // Lossy colour keeps lossless alpha (the default); lossy alpha is close.
+            for alpha_quality in [100, 60] {
+                let options = EncodeOptions { quality: 60, tile_mbs, alpha_quality, ..EncodeOptions::default() };
+                let (file, _) = encode(&image, &options, &pool).unwrap();
+                let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+                let want = half_bits(image.samples());
+                for (i, (got, want)) in raw.chunks(2).zip(want.chunks(2)).enumerate().skip(3).step_by(4) {
+                    let (got, want) = (u16::from_le_bytes([got[0], got[1]]), u16::from_le_bytes([want[0], want[1]]));
+                    if alpha_quality == 100 {
+                        assert_eq!(got, want, "alpha of pixel {}", i / 4);
+                    } else {
+                        let (g, w) = (half::f16::from_bits(got).to_f32(), half::f16::from_bits(want).to_f32());
+                        assert!((g - w).abs() < 0.05, "alpha of pixel {}: {g} for {w}", i / 4);
+                    }
+                }
+            }
+        }
+
+        // Float: 128bppRGBAFloat, alpha in the colour's mini-float (13 mantissa bits).
+        let options = EncodeOptions { quality: 100, format: SampleFormat::Float, ..EncodeOptions::default() };
+        let (file, _) = encode(&image, &options, &pool).unwrap();
+        assert_eq!(crate::container::parse_container(&file).unwrap().pixel_format.name, "128bppRGBAFloat");
+        let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+        let got: Vec<f32> = raw.chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        assert_eq!(got.len(), image.samples().len());
+        for (g, w) in got.iter().zip(image.samples()) {
+            assert!((g - w).abs() <= w.abs() / 8192.0 + 1e-4, "{g} for {w}");
+        }
+    }
+
+    #[test]
+    fn nan_and_infinite_alpha_are_counted_like_colour() {
+        let mut image = with_alpha(&ramp(20, 9, ColorPrimaries::Bt709));
+        image.samples_mut()[3] = f32::NAN;
+        image.samples_mut()[7] = f32::INFINITY;
+        image.samples_mut()[11] = f32::NEG_INFINITY;
+        let (file, report) = encode(&image, &EncodeOptions::default(), &ThreadPool::single()).unwrap();
+        assert!(report.notes.iter().any(|n| n.contains("1 NaN")), "{:?}", report.notes);
+        assert!(report.notes.iter().any(|n| n.contains("2 samples infinite")), "{:?}", report.notes);
+        // Lossless alpha: NaN as 0, infinities as ±65504.
+        let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+        let alpha = |p: usize| half::f16::from_bits(u16::from_le_bytes([raw[8 * p + 6], raw[8 * p + 7]])).to_f32();
+        assert_eq!([alpha(0), alpha(1), alpha(2)], [0.0, 65504.0, -65504.0]);
+    }
+
     #[test]
     fn primaries_go_into_ptm_color_info_and_nan_is_counted() {
         let mut image = ramp(20, 9, ColorPrimaries::Bt2020);
@@ -474,10 +624,20 @@ mod tests {
         assert_eq!(EncodeOptions::from_settings(&s).unwrap().quality, 70);
         let s = s.with_option("lossless", "true").with_option("format", "float").with_option("tile", "256");
         let o = EncodeOptions::from_settings(&s).unwrap();
-        assert_eq!((o.quality, o.format, o.tile_mbs), (100, SampleFormat::Float, 16));
+        assert_eq!((o.quality, o.format, o.tile_mbs, o.alpha_quality), (100, SampleFormat::Float, 16, 100));
+        let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("alpha_quality", "40")).unwrap();
+        assert_eq!(o.alpha_quality, 40);
         let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("overlap", "2")).unwrap();
         assert_eq!(o.overlap, Some(OverlapMode::Two));
-        for (k, v) in [("tile", "100"), ("format", "rgbe"), ("overlap", "3"), ("lossless", "yes"), ("no-such", "1")] {
+        for (k, v) in [
+            ("tile", "100"),
+            ("format", "rgbe"),
+            ("overlap", "3"),
+            ("lossless", "yes"),
+            ("alpha_quality", "101"),
+            ("alpha_quality", "x"),
+            ("no-such", "1"),
+        ] {
             assert!(EncodeOptions::from_settings(&EncodeSettings::default().with_option(k, v)).is_err(), "{k}={v}");
         }
     }
