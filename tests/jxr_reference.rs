@@ -303,7 +303,9 @@ def tiff_samples(path):
 "#;
 
 /// Compares our raw samples of each file with jxrlib's, in one Python run: returns the lines
-/// it prints, one per file ("path differing-samples").
+/// it prints, one per file ("path differing-samples"). Modes: "ic" (imagecodecs), "bgr"
+/// (imagecodecs, B and R swapped), "tif" (JxrDecApp's TIFF); with "+alpha" appended jxrlib's
+/// samples must have four channels (else "no alpha" is printed).
 fn jxrlib_raw_diffs(py: &Path, dec: &Path, pairs: &[(PathBuf, PathBuf, &str)]) -> Vec<String> {
     let script = &(r#"
 import imagecodecs, numpy as np, struct, subprocess, sys
@@ -314,15 +316,21 @@ dec, args = sys.argv[1], sys.argv[2:]
         + r#"
 for jxr, raw, mode in zip(args[::3], args[1::3], args[2::3]):
     ours = open(raw, 'rb').read()
+    # A '+alpha' mode: jxrlib must give four channels, so that alpha is compared too.
+    mode, _, need_alpha = mode.partition('+')
     if mode == 'tif':
         subprocess.run([dec, '-i', jxr, '-o', raw + '.tif'], check=True, capture_output=True)
         w, h, spp, ref = tiff_samples(raw + '.tif')
+        if need_alpha and spp != 4:
+            print(jxr, 'no alpha'); continue
         if len(ours) != len(ref) and len(ours) * spp == len(ref) * (spp + 1):
             k = len(ours) // (w * h * (spp + 1))
             ours = b''.join(ours[i:i + k * spp] for i in range(0, len(ours), k * (spp + 1)))
         print(jxr, 'size' if len(ours) != len(ref) else sum(x != y for x, y in zip(ours, ref)))
         continue
     ref = imagecodecs.jpegxr_decode(open(jxr, 'rb').read())
+    if need_alpha and (ref.ndim != 3 or ref.shape[2] != 4):
+        print(jxr, 'no alpha'); continue
     if len(ref.tobytes()) != len(ours):
         print(jxr, 'size'); continue
     a = np.frombuffer(ours, dtype=ref.dtype).reshape(ref.shape)
@@ -796,7 +804,8 @@ fn encoder_test_image(width: u32, height: u32, seed: u64) -> hdrcodec_core::HdrI
 
 /// Files our encoder writes (half and float, lossless and lossy, the three overlap modes,
 /// sizes that are and are not whole macroblocks) decode in jxrlib to exactly the samples our
-/// decoder gives; lossless half files give back the input's half bit patterns.
+/// decoder gives; lossless half files give back the input's half bit patterns. RGBA images
+/// (planar alpha, lossless or lossy) too, alpha included.
 #[test]
 fn jxrlib_decodes_our_encoded_files_as_we_do() {
     use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
@@ -813,7 +822,7 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
                 for overlap in [None, Some(OverlapMode::None), Some(OverlapMode::Two)] {
                     // Tiles of 32 pixels on the wider images.
                     let tile_mbs = if w > 64 { 2 } else { 0 };
-                    let opts = EncodeOptions { quality, overlap, format, tile_mbs };
+                    let opts = EncodeOptions { quality, overlap, format, tile_mbs, alpha_quality: 100 };
                     let (file, _) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                     let name = format!("{w}x{h}_{format:?}_q{quality}_{overlap:?}");
                     let raw = decode_raw(&file, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -836,5 +845,56 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
             }
         }
     }
+    // RGBA: alpha as a planar alpha codestream; lossless alpha (the default) under lossless
+    // and lossy colour, and lossy alpha; with tiles on the wider image.
+    for (w, h) in [(37u32, 23u32), (161, 50)] {
+        let image = with_test_alpha(&encoder_test_image(w, h, u64::from(w * h) + 1));
+        for format in [SampleFormat::Half, SampleFormat::Float] {
+            for (quality, alpha_quality) in [(100u8, 100u8), (60, 100), (90, 60), (20, 20)] {
+                let tile_mbs = if w > 64 { 2 } else { 0 };
+                let opts = EncodeOptions { quality, overlap: None, format, tile_mbs, alpha_quality };
+                let (file, report) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
+                assert!(report.notes.is_empty(), "{:?}", report.notes);
+                let name = format!("{w}x{h}_{format:?}_rgba_q{quality}_a{alpha_quality}");
+                let raw = decode_raw(&file, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+                let bytes = if format == SampleFormat::Half { 2 } else { 4 };
+                assert_eq!(raw.len(), (w * h) as usize * 4 * bytes, "{name}: four channels");
+                if quality == 100 && format == SampleFormat::Half {
+                    let want: Vec<u8> =
+                        image.samples().iter().flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes()).collect();
+                    assert!(raw == want, "{name}: a lossless half RGBA file does not give the input back");
+                }
+                let path = dir.join(format!("{name}.jxr"));
+                std::fs::write(&path, &file).unwrap();
+                let raw_path = dir.join(format!("{name}.ours.raw"));
+                std::fs::write(&raw_path, raw).unwrap();
+                let mode = if format == SampleFormat::Float { "tif+alpha" } else { "ic+alpha" };
+                pairs.push((path, raw_path, mode));
+            }
+        }
+    }
     check.assert_same(&pairs, "our encoded files");
+}
+
+/// `image` with an alpha channel: opaque on the left third, a ramp from 0 to 1 with a
+/// transparent hole and noise elsewhere (edges, flat areas and texture for the quantizers).
+fn with_test_alpha(image: &hdrcodec_core::HdrImage) -> hdrcodec_core::HdrImage {
+    let (w, h) = (image.width(), image.height());
+    let samples = image
+        .samples()
+        .chunks(3)
+        .enumerate()
+        .flat_map(|(i, p)| {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let a = if x < w / 3 {
+                1.0
+            } else if (x / 8 + y / 8) % 5 == 0 {
+                0.0
+            } else {
+                ((x + 2 * y) as f32 / (w + 2 * h) as f32 + ((x * 7919 + y * 104_729) % 97) as f32 / 970.0).min(1.0)
+            };
+            [p[0], p[1], p[2], a]
+        })
+        .collect();
+    hdrcodec_core::HdrImage::new(w, h, hdrcodec_core::Channels::Rgba, samples, image.color.clone()).unwrap()
 }
