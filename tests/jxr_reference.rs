@@ -813,7 +813,8 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
                 for overlap in [None, Some(OverlapMode::None), Some(OverlapMode::Two)] {
                     // Tiles of 32 pixels on the wider images.
                     let tile_mbs = if w > 64 { 2 } else { 0 };
-                    let opts = EncodeOptions { quality, overlap, format, tile_mbs };
+                    // Luminance-adaptive HP quantizers (several sets per tile), except at 60.
+                    let opts = EncodeOptions { quality, overlap, format, tile_mbs, adaptive: quality != 60 };
                     let (file, _) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                     let name = format!("{w}x{h}_{format:?}_q{quality}_{overlap:?}");
                     let raw = decode_raw(&file, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
