@@ -48,6 +48,9 @@ pub struct EncodeOptions {
     /// Tile width and height in macroblocks (16 pixels); 0: one tile. Tiles are coded
     /// independently, so that decoders (ours) can decode them in parallel.
     pub tile_mbs: usize,
+    /// Lossy only: choose each macroblock's HP quantizer from its luminance (see
+    /// [`HP_SET_OFFSETS`]).
+    pub adaptive: bool,
     /// 0-100, the quality of the alpha codestream (RGBA images); 100, lossless, is
     /// JxrEncApp's default for alpha.
     pub alpha_quality: u8,
@@ -55,16 +58,24 @@ pub struct EncodeOptions {
 
 impl Default for EncodeOptions {
     fn default() -> Self {
-        EncodeOptions { quality: 90, overlap: None, format: SampleFormat::Half, tile_mbs: 0, alpha_quality: 100 }
+        EncodeOptions {
+            quality: 90,
+            overlap: None,
+            format: SampleFormat::Half,
+            tile_mbs: 0,
+            adaptive: true,
+            alpha_quality: 100,
+        }
     }
 }
 
 impl EncodeOptions {
     /// The options of `settings`: its quality, and the codec options `format` (`half` or
-    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile
-    /// size in pixels, a multiple of 16; 0 for one tile) and `alpha_quality` (0-100).
+    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile size
+    /// in pixels, a multiple of 16; 0 for one tile), `adaptive` (`false`: one HP quantizer
+    /// for every macroblock) and `alpha_quality` (0-100).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
-        settings.check_options("jxr", &["format", "overlap", "lossless", "tile", "alpha_quality"])?;
+        settings.check_options("jxr", &["format", "overlap", "lossless", "tile", "adaptive", "alpha_quality"])?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
         if let Some(f) = settings.option("format") {
             o.format = match f {
@@ -96,6 +107,12 @@ impl EncodeOptions {
                 .filter(|&q| q <= 100)
                 .ok_or_else(|| Error::invalid(format!("jxr: alpha_quality={q}: expected 0 to 100")))?;
         }
+        match settings.option("adaptive") {
+            Some("true") => o.adaptive = true,
+            Some("false") => o.adaptive = false,
+            None => {}
+            Some(v) => return Err(Error::invalid(format!("jxr: adaptive={v}: expected true or false"))),
+        }
         match settings.option("lossless") {
             Some("true") => o.quality = 100,
             Some("false") | None => {}
@@ -117,8 +134,20 @@ impl EncodeOptions {
     /// The options of the planar alpha codestream: its own quality, and the colour's overlap
     /// (JxrEncApp writes the primary's OVERLAP_MODE into the alpha codestream too, and our
     /// decoder transforms planar alpha with the primary's).
+    ///
+    /// No luminance-adaptive HP quantizers: alpha is not light.
     fn for_alpha(&self) -> EncodeOptions {
-        EncodeOptions { quality: self.alpha_quality, overlap: Some(self.overlap()), ..self.clone() }
+        EncodeOptions { quality: self.alpha_quality, overlap: Some(self.overlap()), adaptive: false, ..self.clone() }
+    }
+
+    /// How many HP quantizer sets the codestream lists (one, or [`HP_SET_OFFSETS`]' when
+    /// adaptive and lossy).
+    fn hp_sets(&self) -> usize {
+        if self.adaptive && !self.lossless() {
+            HP_SET_OFFSETS.len()
+        } else {
+            1
+        }
     }
 
     fn overlap(&self) -> OverlapMode {
@@ -256,10 +285,15 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
     // Colour as YUV 4:4:4 in an RGB image (OUTPUT_CLR_FMT 7); alpha as a planar alpha
     // codestream of one YONLY plane (T.832 Table A.4: ALPHA_OFFSET), labelled OUTPUT_CLR_FMT
     // 0 with the colour's bit depth, as jxrlib writes it, on the same tile grid.
+    // Each colour macroblock's HP quantizer set, from its luminance; alpha uses one set.
+    let mb_set = macroblock_hp_sets(image, scale, mb_w, mb_h, options.hp_sets());
     let alpha_plane = if alpha { planes.pop() } else { None };
-    let codestream = encode_codestream(planes, (width, height), ClrFmt::Yuv444, 7, options, pool)?;
+    let codestream = encode_codestream(planes, (width, height), ClrFmt::Yuv444, 7, &mb_set, options, pool)?;
     let alpha_codestream = alpha_plane
-        .map(|a| encode_codestream(vec![a], (width, height), ClrFmt::YOnly, 0, &alpha_options, pool))
+        .map(|a| {
+            let mb_set = vec![0; mb_w * mb_h];
+            encode_codestream(vec![a], (width, height), ClrFmt::YOnly, 0, &mb_set, &alpha_options, pool)
+        })
         .transpose()?;
     let meta = ContainerMeta { ptm_color_info, ..ContainerMeta::default() };
     let file = container::write_container(
@@ -276,13 +310,16 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
 /// One codestream (T.832 8.3) of `planes`, integer samples on the macroblock grid of a
 /// `width` × `height` image (after the colour transform, if any) in internal colour format
 /// `fmt`, labelled OUTPUT_CLR_FMT `output_clr_fmt`: the forward transform, quantization,
-/// tiles coded in parallel on `pool`, and the headers. Used for the colour codestream and
-/// the planar alpha codestream alike.
+/// tiles coded in parallel on `pool`, and the headers; `mb_set` is each macroblock's HP
+/// quantizer set (raster order, below `options.hp_sets()`). Used for the colour codestream
+/// and the planar alpha codestream alike.
+#[allow(clippy::too_many_arguments)]
 fn encode_codestream(
     planes: Vec<Vec<i32>>,
     (width, height): (usize, usize),
     fmt: ClrFmt,
     output_clr_fmt: u8,
+    mb_set: &[u8],
     options: &EncodeOptions,
     pool: &ThreadPool,
 ) -> Result<Vec<u8>> {
@@ -290,6 +327,7 @@ fn encode_codestream(
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
     let scaled = options.scaled();
     let channels = planes.len();
+    let hp_sets = options.hp_sets();
     let bitdepth = match options.format {
         SampleFormat::Half => 4u8,
         SampleFormat::Float => 7u8,
@@ -306,16 +344,24 @@ fn encode_codestream(
         let plane = Plane { width: pw, height: ph, data };
         let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, &plane)?;
         let luma = ch == 0;
-        let steps = (
-            quant::step(pick(qdc, ch), scaled, luma),
-            quant::step(pick(qlp, ch), scaled, luma),
-            quant::step(pick(qhp, ch), scaled, true),
-        );
-        for mb in &mut c {
-            quant::quantize(mb, (16, 16), steps.0, steps.1, steps.2);
+        let (dc, lp) = (quant::step(pick(qdc, ch), scaled, luma), quant::step(pick(qlp, ch), scaled, luma));
+        let hp: Vec<i32> = (0..hp_sets).map(|k| quant::step(hp_index(pick(qhp, ch), k), scaled, true)).collect();
+        for (mb, &set) in c.iter_mut().zip(mb_set) {
+            quant::quantize(mb, (16, 16), dc, lp, hp[usize::from(set)]);
         }
         coeffs.push(c);
     }
+
+    // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
+    // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
+    let qp_set = |q: [u8; 2]| {
+        let mut set = QpSet { mode: u8::from(channels > 1 && q[0] != q[1]), ..QpSet::default() };
+        for ch in 0..channels {
+            set.index[ch] = pick(q, ch);
+        }
+        set
+    };
+    let hp_qp_sets: Vec<QpSet> = (0..hp_sets).map(|k| qp_set([hp_index(qhp[0], k), hp_index(qhp[1], k)])).collect();
 
     // Prediction and entropy coding, each tile on its own (its own adaptive state, predictions
     // stopping at its edges), in parallel on the pool.
@@ -323,20 +369,15 @@ fn encode_codestream(
     let rects = tile_rects(&tile_widths, &tile_heights);
     let packets: Vec<Result<Vec<u8>>> = pool.install(|| {
         use rayon::prelude::*;
-        rects.par_iter().enumerate().map(|(id, &rect)| encode_tile(&coeffs, mb_w, rect, fmt, channels, id)).collect()
+        rects
+            .par_iter()
+            .enumerate()
+            .map(|(id, &rect)| encode_tile(&coeffs, mb_set, &hp_qp_sets, mb_w, rect, fmt, channels, id))
+            .collect()
     });
     let packets = packets.into_iter().collect::<Result<Vec<_>>>()?;
     let tiling = packets.len() > 1;
 
-    // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
-    // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
-    let qp = |q: [u8; 2]| {
-        let mut set = QpSet { mode: u8::from(channels > 1 && q[0] != q[1]), ..QpSet::default() };
-        for ch in 0..channels {
-            set.index[ch] = pick(q, ch);
-        }
-        QpSource::Uniform(set)
-    };
     let image_header = ImageHeader {
         tiling,
         // Required with more than one tile (T.832 8.3.1); lets decoders find each tile.
@@ -356,11 +397,75 @@ fn encode_codestream(
         chroma_centering: (0, 0),
         shift_or_mantissa: mantissa,
         exp_bias,
-        dc: qp(qdc),
-        lp: qp(qlp),
-        hp: qp(qhp),
+        dc: QpSource::Uniform(qp_set(qdc)),
+        lp: QpSource::Uniform(qp_set(qlp)),
+        // Several sets: each tile header lists them, each macroblock picks one.
+        hp: if hp_sets > 1 { QpSource::PerTile } else { QpSource::Uniform(qp_set(qhp)) },
     };
     header::write_codestream(&image_header, &plane_header, None, &packets)
+}
+
+/// The HP quantizer sets of adaptive quantization: QP index offsets from the base (16 double
+/// the step). A macroblock takes the set whose step is nearest to the base step divided by
+/// its luminance's PU21 sensitivity relative to the most sensitive luminance: PU21 (Mantiuk
+/// et al. 2021, perceptually uniform luminance) values an error of a given ratio less in the
+/// dark, and the samples' integer codes (half floats, mini-floats) are logarithmic, so one
+/// step is one ratio. Coarser steps where the eye sees less spend the bits where it sees more.
+pub const HP_SET_OFFSETS: [u8; 7] = [0, 8, 16, 24, 32, 40, 48];
+
+/// The HP QP index of set `k` for a base index.
+fn hp_index(base: u8, k: usize) -> u8 {
+    base.saturating_add(HP_SET_OFFSETS[k])
+}
+
+/// The HP quantizer set (an index into the first `sets` of [`HP_SET_OFFSETS`]) of every
+/// macroblock, raster order, from the mean luminance of its pixels (in cd/m²: scRGB samples
+/// times 80, BT.709 luminance weights; the extension past the image repeats its edge).
+fn macroblock_hp_sets(image: &HdrImage, scale: f32, mb_w: usize, mb_h: usize, sets: usize) -> Vec<u8> {
+    if sets <= 1 {
+        return vec![0; mb_w * mb_h];
+    }
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    let spp = image.channels().count();
+    let mut sum = vec![0f64; mb_w * mb_h];
+    let mut count = vec![0u32; mb_w * mb_h];
+    for y in 0..height {
+        let row = image.row(y as u32);
+        for x in 0..width {
+            let p = &row[x * spp..][..3];
+            let lum = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            let lum = f64::from(lum * scale) * f64::from(crate::output::NITS_PER_UNIT);
+            let m = (y / 16) * mb_w + x / 16;
+            if lum.is_finite() {
+                sum[m] += lum.max(0.0);
+            }
+            count[m] += 1;
+        }
+    }
+    // PU21's slope per unit of log luminance; above a few thousand cd/m² it is taken as
+    // constant (the metric stops at 10 000, the eye does not).
+    let slope = |l: f64| {
+        let l = l.clamp(0.005, 4000.0);
+        (hdrcodec_core::metrics::pu21_encode(l * 1.05) - hdrcodec_core::metrics::pu21_encode(l / 1.05))
+            / (2.0 * 1.05f64.ln())
+    };
+    let peak = (0..=70).map(|i| slope(0.005 * 10f64.powf(f64::from(i) / 10.0))).fold(0.0, f64::max);
+    let mut sets_of = vec![0u8; mb_w * mb_h];
+    for my in 0..mb_h {
+        for mx in 0..mb_w {
+            // Macroblocks past the image repeat its last row or column of macroblocks.
+            let m = my.min((height - 1) / 16) * mb_w + mx.min((width - 1) / 16);
+            let mean = sum[m] / f64::from(count[m].max(1));
+            let offset = 16.0 * (peak / slope(mean).max(1e-9)).log2();
+            let k = HP_SET_OFFSETS[..sets]
+                .iter()
+                .enumerate()
+                .min_by(|a, b| (f64::from(*a.1) - offset).abs().total_cmp(&(f64::from(*b.1) - offset).abs()))
+                .map_or(0, |(k, _)| k);
+            sets_of[my * mb_w + mx] = k as u8;
+        }
+    }
+    sets_of
 }
 
 /// PTM_COLOR_INFO for the image's primaries (H.273 code points: the primaries, linear
@@ -424,8 +529,11 @@ fn tile_rects(widths: &[usize], heights: &[usize]) -> Vec<TileRect> {
 /// every macroblock of the tile in raster order (prediction, then entropy coding, exactly
 /// undoing `tiles.rs`), byte-aligned. `coeffs` holds each channel's quantized macroblocks of
 /// the whole image, `mb_w` across.
+#[allow(clippy::too_many_arguments)]
 fn encode_tile(
     coeffs: &[Vec<MbCoeffs>],
+    mb_set: &[u8],
+    hp_qp_sets: &[QpSet],
     mb_w: usize,
     tile: TileRect,
     fmt: ClrFmt,
@@ -446,6 +554,15 @@ fn encode_tile(
     // (0: spatial) and the tile number modulo 32.
     w.write(1, 24);
     w.write((id % 32) as u32, 8);
+    // TILE_HEADER_HIGHPASS (T.832 8.4.x) when the plane header left HP quantizers to the
+    // tiles: USE_LP_QP 0, the number of sets, the sets.
+    if hp_qp_sets.len() > 1 {
+        w.bit(false);
+        w.write(hp_qp_sets.len() as u32 - 1, 4);
+        for set in hp_qp_sets {
+            header::write_qp_set(&mut w, set, channels)?;
+        }
+    }
     let tile_w = tile.w as u32;
     let mut enc = PlaneEncoder::new(fmt, channels);
     let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
@@ -466,6 +583,9 @@ fn encode_tile(
             let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
             for ch in 0..hp_channels {
                 predict::unpredict_hp(fmt, &mut res, ch, mode);
+            }
+            if hp_qp_sets.len() > 1 {
+                quant::write_qp_index(&mut w, mb_set[(tile.y0 + my) * mb_w + tile.x0 + mx], hp_qp_sets.len());
             }
             enc.dc(&mut w, &res, mx as u32, tile_w)?;
             enc.lp(&mut w, &res, mx as u32, tile_w)?;
@@ -619,6 +739,25 @@ mod tests {
     }
 
     #[test]
+    fn dark_macroblocks_get_coarser_hp_quantizers() {
+        // Left half at 0.01 cd/m², right half at 300 cd/m² (scRGB units of 80 cd/m²).
+        let (w, h) = (64u32, 32u32);
+        let samples = (0..w * h * 3).map(|i| if (i / 3) % w < w / 2 { 0.01 / 80.0 } else { 300.0 / 80.0 }).collect();
+        let color = ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 80.0, hdr10: None };
+        let image = HdrImage::new(w, h, Channels::Rgb, samples, color).unwrap();
+        let sets = macroblock_hp_sets(&image, 1.0, 4, 2, HP_SET_OFFSETS.len());
+        assert!(sets[0] > sets[3] && sets[4] > sets[7], "{sets:?}");
+        let (file, _) = encode(&image, &EncodeOptions::default(), &ThreadPool::single()).unwrap();
+        let cs = crate::header::parse(crate::container::parse_container(&file).unwrap().image).unwrap();
+        assert_eq!(cs.primary.hp, QpSource::PerTile);
+        let plain = EncodeOptions { adaptive: false, ..EncodeOptions::default() };
+        let (file, _) = encode(&image, &plain, &ThreadPool::single()).unwrap();
+        let cs = crate::header::parse(crate::container::parse_container(&file).unwrap().image).unwrap();
+        assert!(matches!(cs.primary.hp, QpSource::Uniform(_)));
+        assert!(crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).is_ok());
+    }
+
+    #[test]
     fn options_come_from_the_settings() {
         let s = EncodeSettings::default().with_quality(70);
         assert_eq!(EncodeOptions::from_settings(&s).unwrap().quality, 70);
@@ -629,11 +768,14 @@ mod tests {
         assert_eq!(o.alpha_quality, 40);
         let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("overlap", "2")).unwrap();
         assert_eq!(o.overlap, Some(OverlapMode::Two));
+        let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("adaptive", "false")).unwrap();
+        assert!(!o.adaptive);
         for (k, v) in [
             ("tile", "100"),
             ("format", "rgbe"),
             ("overlap", "3"),
             ("lossless", "yes"),
+            ("adaptive", "1"),
             ("alpha_quality", "101"),
             ("alpha_quality", "x"),
             ("no-such", "1"),

@@ -32,18 +32,29 @@ pub fn step(index: u8, scaled: bool, luma_like: bool) -> i32 {
     man << exp
 }
 
+/// Bits of a macroblock's QP index after its first bit, by the number of sets (T.832 8.6.x:
+/// enough for `count − 2`).
+const QP_INDEX_BITS: [u32; 17] = [0, 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4];
+
 /// DECODE_QP_INDEX (T.832 8.6.x): which of a tile's `count` (> 1) LP or HP quantizer sets a
 /// macroblock uses. An index past the last set is an error.
 pub fn read_qp_index(r: &mut BitReader, count: usize) -> Result<u8> {
-    const BITS: [u32; 17] = [0, 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4];
     if !r.bit() {
         return Ok(0);
     }
-    let index = r.read(BITS[count.min(16)]) as usize + 1;
+    let index = r.read(QP_INDEX_BITS[count.min(16)]) as usize + 1;
     if index >= count {
         return Err(Error::invalid(format!("JPEG XR: macroblock QP index {index} of {count} quantizer sets")));
     }
     Ok(index as u8)
+}
+
+/// The encoder's side of [`read_qp_index`]: set `index` of `count` (> 1).
+pub fn write_qp_index(w: &mut crate::bits::BitWriter, index: u8, count: usize) {
+    w.bit(index != 0);
+    if index != 0 {
+        w.write(u32::from(index) - 1, QP_INDEX_BITS[count.min(16)]);
+    }
 }
 
 /// The quantizers of one tile and plane: the DC set, the LP sets and the HP sets.
@@ -181,6 +192,21 @@ mod tests {
         assert_eq!(c, vec![1, 15, 16, 31 << 14]);
         // Unscaled does not depend on the channel.
         assert_eq!(step(100, false, false), step(100, false, true));
+    }
+
+    #[test]
+    fn qp_indices_written_read_back() {
+        for count in 2..=16usize {
+            let mut w = crate::bits::BitWriter::new();
+            for i in 0..count {
+                write_qp_index(&mut w, i as u8, count);
+            }
+            let bytes = w.into_bytes();
+            let mut r = BitReader::new(&bytes);
+            for i in 0..count {
+                assert_eq!(read_qp_index(&mut r, count).unwrap(), i as u8, "{i} of {count}");
+            }
+        }
     }
 
     #[test]
