@@ -824,7 +824,15 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
                     let tile_mbs = if w > 64 { 2 } else { 0 };
                     // Luminance-adaptive HP quantizers (several sets per tile), except at 60.
                     let adaptive = quality != 60;
-                    let opts = EncodeOptions { quality, overlap, format, tile_mbs, adaptive, alpha_quality: 100 };
+                    let opts = EncodeOptions {
+                        quality,
+                        overlap,
+                        format,
+                        tile_mbs,
+                        adaptive,
+                        alpha_quality: 100,
+                        target_bpp: None,
+                    };
                     let (file, _) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                     let name = format!("{w}x{h}_{format:?}_q{quality}_{overlap:?}");
                     let raw = decode_raw(&file, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -855,7 +863,15 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
             for (quality, alpha_quality) in [(100u8, 100u8), (60, 100), (90, 60), (20, 20)] {
                 let tile_mbs = if w > 64 { 2 } else { 0 };
                 // Adaptive colour HP quantizers (the default); alpha always has one set.
-                let opts = EncodeOptions { quality, overlap: None, format, tile_mbs, adaptive: true, alpha_quality };
+                let opts = EncodeOptions {
+                    quality,
+                    overlap: None,
+                    format,
+                    tile_mbs,
+                    adaptive: true,
+                    alpha_quality,
+                    target_bpp: None,
+                };
                 let (file, report) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                 assert!(report.notes.is_empty(), "{:?}", report.notes);
                 let name = format!("{w}x{h}_{format:?}_rgba_q{quality}_a{alpha_quality}");

@@ -37,7 +37,7 @@ pub const FLOAT_MANTISSA: u8 = 13;
 pub const FLOAT_EXP_BIAS: u8 = 4;
 
 /// Encoder options.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct EncodeOptions {
     /// 0-100; 100 is lossless.
     pub quality: u8,
@@ -51,6 +51,9 @@ pub struct EncodeOptions {
     /// Lossy only: choose each macroblock's HP quantizer from its luminance (see
     /// [`HP_SET_OFFSETS`]).
     pub adaptive: bool,
+    /// Rate control: the highest quality whose file has at most this many bits per pixel
+    /// (`quality` is then ignored); `None`: `quality` as given.
+    pub target_bpp: Option<f64>,
     /// 0-100, the quality of the alpha codestream (RGBA images); 100, lossless, is
     /// JxrEncApp's default for alpha.
     pub alpha_quality: u8,
@@ -65,6 +68,7 @@ impl Default for EncodeOptions {
             tile_mbs: 0,
             adaptive: true,
             alpha_quality: 100,
+            target_bpp: None,
         }
     }
 }
@@ -73,9 +77,13 @@ impl EncodeOptions {
     /// The options of `settings`: its quality, and the codec options `format` (`half` or
     /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile size
     /// in pixels, a multiple of 16; 0 for one tile), `adaptive` (`false`: one HP quantizer
-    /// for every macroblock) and `alpha_quality` (0-100).
+    /// for every macroblock), `target_bpp` (rate control: bits per pixel) and
+    /// `alpha_quality` (0-100).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
-        settings.check_options("jxr", &["format", "overlap", "lossless", "tile", "adaptive", "alpha_quality"])?;
+        settings.check_options(
+            "jxr",
+            &["format", "overlap", "lossless", "tile", "adaptive", "target_bpp", "alpha_quality"],
+        )?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
         if let Some(f) = settings.option("format") {
             o.format = match f {
@@ -107,6 +115,13 @@ impl EncodeOptions {
                 .filter(|&q| q <= 100)
                 .ok_or_else(|| Error::invalid(format!("jxr: alpha_quality={q}: expected 0 to 100")))?;
         }
+        if let Some(t) = settings.option("target_bpp") {
+            let bpp: f64 = t.parse().map_err(|_| Error::invalid(format!("jxr: target_bpp={t}: expected a number")))?;
+            if !(bpp > 0.0 && bpp.is_finite()) {
+                return Err(Error::invalid(format!("jxr: target_bpp={t}: expected a positive number")));
+            }
+            o.target_bpp = Some(bpp);
+        }
         match settings.option("adaptive") {
             Some("true") => o.adaptive = true,
             Some("false") => o.adaptive = false,
@@ -117,6 +132,9 @@ impl EncodeOptions {
             Some("true") => o.quality = 100,
             Some("false") | None => {}
             Some(v) => return Err(Error::invalid(format!("jxr: lossless={v}: expected true or false"))),
+        }
+        if o.target_bpp.is_some() && o.quality >= 100 && settings.option("lossless") == Some("true") {
+            return Err(Error::invalid("jxr: lossless=true and target_bpp contradict each other"));
         }
         Ok(o)
     }
@@ -178,6 +196,34 @@ fn pixel_format(name: &str) -> Result<&'static PixelFormat> {
 
 /// Encodes `image` (RGB, or RGBA with alpha as a planar alpha codestream) as a JPEG XR file.
 pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
+    let Some(target) = options.target_bpp else { return encode_at(image, options, pool) };
+    // Rate control: file size falls with quality, so bisect for the highest quality (0-99,
+    // lossy) whose file fits, in at most 7 encodes.
+    let pixels = f64::from(image.width()) * f64::from(image.height());
+    let at = |quality: u8| encode_at(image, &EncodeOptions { quality, target_bpp: None, ..options.clone() }, pool);
+    let bpp = |file: &[u8]| file.len() as f64 * 8.0 / pixels.max(1.0);
+    let (mut lo, mut hi) = (0u8, 99u8);
+    let mut best = at(lo)?;
+    if bpp(&best.0) > target {
+        best.1.note(format!("target {target} bits per pixel not reached: quality 0 gives {:.3}", bpp(&best.0)));
+        return Ok(best);
+    }
+    let mut best_q = lo;
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        let attempt = at(mid)?;
+        if bpp(&attempt.0) <= target {
+            (lo, best, best_q) = (mid, attempt, mid);
+        } else {
+            hi = mid - 1;
+        }
+    }
+    best.1.note(format!("quality {best_q} for at most {target} bits per pixel: {:.3}", bpp(&best.0)));
+    Ok(best)
+}
+
+/// [`encode`] at `options.quality`.
+fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
     let mut report = EncodeReport::new();
     let (width, height) = (image.width() as usize, image.height() as usize);
     if width == 0 || height == 0 {
@@ -758,6 +804,25 @@ mod tests {
     }
 
     #[test]
+    fn rate_control_finds_the_highest_quality_under_the_target() {
+        let image = ramp(64, 48, ColorPrimaries::Bt709);
+        let pixels = 64.0 * 48.0;
+        let size = |q: u8| {
+            let o = EncodeOptions { quality: q, ..EncodeOptions::default() };
+            encode(&image, &o, &ThreadPool::single()).unwrap().0.len() as f64 * 8.0 / pixels
+        };
+        let target = (size(40) + size(41)) / 2.0;
+        let o = EncodeOptions { target_bpp: Some(target), ..EncodeOptions::default() };
+        let (file, report) = encode(&image, &o, &ThreadPool::single()).unwrap();
+        let bpp = file.len() as f64 * 8.0 / pixels;
+        assert!(bpp <= target, "{bpp} > {target}");
+        assert!(report.notes.iter().any(|n| n.starts_with("quality ")), "{:?}", report.notes);
+        let tiny = EncodeOptions { target_bpp: Some(0.001), ..EncodeOptions::default() };
+        let (_, report) = encode(&image, &tiny, &ThreadPool::single()).unwrap();
+        assert!(report.notes.iter().any(|n| n.contains("not reached")), "{:?}", report.notes);
+    }
+
+    #[test]
     fn options_come_from_the_settings() {
         let s = EncodeSettings::default().with_quality(70);
         assert_eq!(EncodeOptions::from_settings(&s).unwrap().quality, 70);
@@ -770,6 +835,11 @@ mod tests {
         assert_eq!(o.overlap, Some(OverlapMode::Two));
         let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("adaptive", "false")).unwrap();
         assert!(!o.adaptive);
+        let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("target_bpp", "2.5")).unwrap();
+        assert_eq!(o.target_bpp, Some(2.5));
+        assert!(EncodeOptions::from_settings(&EncodeSettings::default().with_option("target_bpp", "-1")).is_err());
+        let both = EncodeSettings::default().with_option("target_bpp", "2").with_option("lossless", "true");
+        assert!(EncodeOptions::from_settings(&both).is_err());
         for (k, v) in [
             ("tile", "100"),
             ("format", "rgbe"),
