@@ -2,10 +2,10 @@
 //
 // - The `intel_tex_2` peer (a dev-dependency of the BC6H tests and benches) links Intel's ISPC
 //   kernels, which need the C++ runtime on Linux.
-// - jxrlib, the JPEG XR peer of benches/jxr_decode.rs, is called in-process through a small C
-//   shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers and `pkg-config libjxr`;
-//   scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
-//   bench says jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
+// - jxrlib, the JPEG XR peer of benches/jxr_decode.rs and benches/jxr_encode.rs, is called
+//   in-process through a small C shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers
+//   and `pkg-config libjxr`; scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
+//   benches say jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
 //
 // `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
 // binaries never link, so they get the link flags themselves.
@@ -43,7 +43,7 @@ fn jxrlib_cflags() -> Option<Vec<String>> {
 fn jxrlib_shim() {
     println!("cargo::rerun-if-changed=peers/jxrlib_shim.c");
     let Some(cflags) = jxrlib_cflags() else {
-        println!("cargo::warning=jxrlib (Debian libjxr-dev) not found: benches/jxr_decode.rs runs without its peer");
+        println!("cargo::warning=jxrlib (Debian libjxr-dev) not found: benches/jxr_decode.rs and jxr_encode.rs run without their peer");
         return;
     };
     let mut build = cc::Build::new();
