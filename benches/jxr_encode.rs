@@ -229,6 +229,7 @@ fn bench(c: &mut Criterion) {
                 format: SampleFormat::Half,
                 tile_mbs: 0,
                 adaptive: false,
+                ..EncodeOptions::default()
             };
             let tiled = EncodeOptions { tile_mbs: input.tile_mbs, ..opts.clone() };
             // Checked before timing, since criterion's --list runs no iterations.
