@@ -385,18 +385,23 @@ fn encode_codestream(
     let [qdc, qlp, qhp] = options.qp_indices();
     // Channel 0 is luma, the others chroma.
     let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
-    let mut coeffs: Vec<Vec<MbCoeffs>> = Vec::with_capacity(channels);
-    for (ch, data) in planes.into_iter().enumerate() {
+    // Channels are independent here: one per thread of the pool.
+    let transform_channel = |(ch, data): (usize, Vec<i32>)| -> Result<Vec<MbCoeffs>> {
         let plane = Plane { width: pw, height: ph, data };
-        let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, &plane)?;
+        let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, plane)?;
         let luma = ch == 0;
         let (dc, lp) = (quant::step(pick(qdc, ch), scaled, luma), quant::step(pick(qlp, ch), scaled, luma));
         let hp: Vec<i32> = (0..hp_sets).map(|k| quant::step(hp_index(pick(qhp, ch), k), scaled, true)).collect();
         for (mb, &set) in c.iter_mut().zip(mb_set) {
             quant::quantize(mb, (16, 16), dc, lp, hp[usize::from(set)]);
         }
-        coeffs.push(c);
-    }
+        Ok(c)
+    };
+    let coeffs: Vec<Result<Vec<MbCoeffs>>> = pool.install(|| {
+        use rayon::prelude::*;
+        planes.into_par_iter().enumerate().map(transform_channel).collect()
+    });
+    let coeffs = coeffs.into_iter().collect::<Result<Vec<_>>>()?;
 
     // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
     // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
@@ -587,13 +592,14 @@ fn encode_tile(
     id: usize,
 ) -> Result<Vec<u8>> {
     let stride = channels * MB_COEFFS;
-    // Macroblock (mx, my) of the tile, all channels, quantized.
-    let mb_at = |mx: usize, my: usize| -> Vec<i32> {
-        let mut v = Vec::with_capacity(stride);
-        for c in coeffs {
-            v.extend_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
+    // Row `my` of the tile into `row`: each macroblock's channels together (`stride` values),
+    // as the decoder holds them.
+    let fill_row = |my: usize, row: &mut [i32]| {
+        for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
+            for (c, dst) in coeffs.iter().zip(mb.chunks_exact_mut(MB_COEFFS)) {
+                dst.copy_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
+            }
         }
-        v
     };
     let mut w = BitWriter::new();
     // The packet header (jxrlib `writePacketHeader`): a start code, then the packet type
@@ -612,17 +618,21 @@ fn encode_tile(
     let tile_w = tile.w as u32;
     let mut enc = PlaneEncoder::new(fmt, channels);
     let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
-    let mut prev_row: Vec<Vec<i32>> = Vec::new();
+    let mut rows = [vec![0i32; tile.w * stride], vec![0i32; tile.w * stride]];
+    let mut res = vec![0i32; stride];
     for my in 0..tile.h {
-        let row: Vec<Vec<i32>> = (0..tile.w).map(|mx| mb_at(mx, my)).collect();
+        let [r0, r1] = &mut rows;
+        let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
+        fill_row(my, row);
+        let row = &*row;
         let [a, b] = &mut cbp_rows;
         let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
         for mx in 0..tile.w {
-            let cur = &row[mx];
-            let left = (mx > 0).then(|| row[mx - 1].as_slice());
-            let top = (my > 0).then(|| prev_row[mx].as_slice());
-            let top_left = (mx > 0 && my > 0).then(|| prev_row[mx - 1].as_slice());
-            let mut res = cur.clone();
+            let cur = &row[mx * stride..(mx + 1) * stride];
+            let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);
+            let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
+            let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
+            res.copy_from_slice(cur);
             predict::unpredict_dclp(fmt, channels, &mut res, left, top, top_left, true, true);
             // The decoder chooses the HP prediction from the predicted (final) LP values.
             let mode = predict::hp_mode(fmt, cur);
@@ -640,7 +650,6 @@ fn encode_tile(
             let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
             enc.cbp_hp(&mut w, &res, left_cbp, top_cbp, &mut rest[..channels], mode, mx as u32, tile_w, true)?;
         }
-        prev_row = row;
     }
     w.align();
     Ok(w.into_bytes())

@@ -1464,7 +1464,7 @@ pub fn forward_plane(
     channel: usize,
     mb_w: usize,
     mb_h: usize,
-    plane: &Plane,
+    plane: Plane,
 ) -> Result<Vec<MbCoeffs>> {
     if params.operators != OperatorSet::JpegXr {
         return Err(Error::unsupported("the forward transform with HD Photo operators"));
@@ -1475,7 +1475,8 @@ pub fn forward_plane(
         return Err(Error::invalid("plane size does not match the macroblock grid"));
     }
     let double = params.scaled && channel > 0;
-    let mut data = plane.data.clone();
+    // The plane is the encoder's to overwrite.
+    let mut data = plane.data;
     let mut cm = Vec::new();
     if params.overlap != OverlapMode::None {
         let mut p = Rows { data: &mut data, stride: width, y_base: 0 };
@@ -1657,11 +1658,11 @@ mod tests {
                                 operators: OperatorSet::JpegXr,
                             };
                             let plane = random_plane(&mut r, kind, mb_w, mb_h, bits);
-                            let coeffs = forward_plane(&params, kind, 1, mb_w, mb_h, &plane).unwrap();
+                            let coeffs = forward_plane(&params, kind, 1, mb_w, mb_h, plane.clone()).unwrap();
                             let back = inverse_plane(&params, kind, 1, mb_w, mb_h, &coeffs).unwrap();
                             assert_eq!(back, plane, "{kind:?} {overlap:?} {hard:?} {mb_w}x{mb_h}");
                             // And the coefficients survive the other way round.
-                            let again = forward_plane(&params, kind, 1, mb_w, mb_h, &back).unwrap();
+                            let again = forward_plane(&params, kind, 1, mb_w, mb_h, back.clone()).unwrap();
                             assert_eq!(again, coeffs);
                         }
                     }
@@ -1703,7 +1704,7 @@ mod tests {
         };
         let soft = TransformParams { hard: None, ..hard.clone() };
         for params in [&hard, &soft] {
-            let mut c = forward_plane(params, PlaneKind::Full, 0, 4, 2, &plane).unwrap();
+            let mut c = forward_plane(params, PlaneKind::Full, 0, 4, 2, plane.clone()).unwrap();
             let before = inverse_plane(params, PlaneKind::Full, 0, 4, 2, &c).unwrap();
             c[1][0] += 1000; // DC of MB (1, 0), left of the edge
             let after = inverse_plane(params, PlaneKind::Full, 0, 4, 2, &c).unwrap();
@@ -1734,7 +1735,7 @@ mod tests {
         assert!(inverse_plane(&p, PlaneKind::Full, 0, 2, 2, &[[0; MB_COEFFS]; 3]).is_err());
         assert!(inverse_plane(&p, PlaneKind::Full, 0, 0, 2, &[]).is_err());
         let plane = Plane { width: 16, height: 16, data: vec![0; 256] };
-        assert!(forward_plane(&p, PlaneKind::Full, 0, 2, 1, &plane).is_err());
+        assert!(forward_plane(&p, PlaneKind::Full, 0, 2, 1, plane.clone()).is_err());
         // Extreme coefficients wrap rather than panic.
         let mut c = [i32::MAX; MB_COEFFS];
         c[5] = i32::MIN;
