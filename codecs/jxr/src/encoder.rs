@@ -256,57 +256,64 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     // repeats the last column and row, as jxrlib's encoder pads.
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
     let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; spp];
-    let mut clipped = 0usize;
-    let mut nans = 0usize;
-    let mut to_int = |v: f32, clipped: &mut usize| -> i32 {
-        // NaN has no integer coding that survives the transform: 0, counted (as BC6H does).
-        let v = if v.is_nan() {
-            nans += 1;
-            0.0
-        } else {
-            v
-        };
+    // One sample to its integer code: (code, was NaN, was clipped). NaN has no integer
+    // coding that survives the transform: 0, counted (as BC6H does).
+    let to_int = |v: f32| -> (i32, bool, bool) {
+        if v.is_nan() {
+            return (0, true, false);
+        }
         match options.format {
             SampleFormat::Half => {
                 let h = half::f16::from_f32(v);
                 if h.is_infinite() {
-                    *clipped += 1;
                     let max = half::f16::MAX.to_bits();
-                    half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max })
+                    (half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max }), false, true)
                 } else {
-                    half_bits_to_int(h.to_bits())
+                    (half_bits_to_int(h.to_bits()), false, false)
                 }
             }
-            SampleFormat::Float => {
-                if v.is_infinite() {
-                    *clipped += 1;
-                }
-                float_to_int(v.clamp(f32::MIN, f32::MAX), FLOAT_EXP_BIAS as i8, u32::from(FLOAT_MANTISSA))
-            }
+            SampleFormat::Float => (
+                float_to_int(v.clamp(f32::MIN, f32::MAX), FLOAT_EXP_BIAS as i8, u32::from(FLOAT_MANTISSA)),
+                false,
+                v.is_infinite(),
+            ),
         }
     };
-    for y in 0..height {
+    // Rows in parallel on the pool; each returns its NaN and clipped counts.
+    let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> (usize, usize) {
+        let (mut nans, mut clipped) = (0, 0);
+        let mut code = |v: f32, shift: u32| {
+            let (c, nan, clip) = to_int(v);
+            nans += usize::from(nan);
+            clipped += usize::from(clip);
+            c << shift
+        };
         let row = image.row(y as u32);
         for x in 0..width {
-            let p = &row[x * spp..][..3];
-            let (r, g, b) = (
-                to_int(p[0] * scale, &mut clipped) << shift,
-                to_int(p[1] * scale, &mut clipped) << shift,
-                to_int(p[2] * scale, &mut clipped) << shift,
-            );
+            let p = &row[x * spp..][..spp];
+            let (r, g, b) = (code(p[0] * scale, shift), code(p[1] * scale, shift), code(p[2] * scale, shift));
             let (yy, u, v) = forward_cc(r, g, b);
-            let i = y * pw + x;
-            planes[0][i] = yy;
-            planes[1][i] = u;
-            planes[2][i] = v;
+            out[0][x] = yy;
+            out[1][x] = u;
+            out[2][x] = v;
             if alpha {
                 // Alpha is coded like a colour sample of the same format (the decoder's
                 // output formatting treats it so, T.832 9.10), but it is not light: no
                 // scRGB scaling and no colour transform.
-                planes[3][i] = to_int(row[x * spp + 3], &mut clipped) << alpha_shift;
+                out[3][x] = code(p[3], alpha_shift);
             }
         }
-    }
+        (nans, clipped)
+    };
+    let (nans, clipped) = {
+        let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(pw)).collect();
+        let rows: Vec<Vec<&mut [i32]>> =
+            (0..height).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
+        pool.install(|| {
+            use rayon::prelude::*;
+            rows.into_par_iter().enumerate().map(convert_row).reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+        })
+    };
     for plane in &mut planes {
         for y in 0..ph {
             let src = y.min(height - 1) * pw;
