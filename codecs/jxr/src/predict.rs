@@ -291,93 +291,89 @@ pub fn unpredict_hp(fmt: ClrFmt, c: &mut [i32], ch: usize, mode: u8) {
     }
 }
 
+/// How the coded-block pattern of a channel is laid out for its prediction (T.832 9.3.4;
+/// T.835 `_jxr_PredCBP444/422/420`).
+struct CbpLayout {
+    /// The bit of the top neighbour's pattern that predicts block 0, and the left one's.
+    top_bit: u32,
+    left_bit: u32,
+    /// Every block's bit.
+    all: u32,
+    /// Blocks counted for the model are scaled to 16 blocks.
+    scale: i32,
+    /// The spatial prediction's propagation from block to block, in order: each step is
+    /// `cbp ^= (cbp << shift) & mask`. A step writes only bits it does not read, so it is its
+    /// own inverse.
+    steps: &'static [(u32, u32)],
+}
+
+fn cbp_layout(fmt: ClrFmt, ch: usize) -> CbpLayout {
+    match (fmt, ch > 0) {
+        (ClrFmt::Yuv420, true) => {
+            CbpLayout { top_bit: 2, left_bit: 1, all: 0xF, scale: 4, steps: &[(1, 0x02), (2, 0x0C)] }
+        }
+        (ClrFmt::Yuv422, true) => CbpLayout {
+            top_bit: 6,
+            left_bit: 1,
+            all: 0xFF,
+            scale: 2,
+            steps: &[(1, 0x02), (2, 0x0C), (2, 0x30), (2, 0xC0)],
+        },
+        _ => CbpLayout {
+            top_bit: 10,
+            left_bit: 5,
+            all: 0xFFFF,
+            scale: 1,
+            steps: &[(1, 0x02), (3, 0x10), (1, 0x20), (2, 0xCC), (6, 0x3300), (2, 0xCC00)],
+        },
+    }
+}
+
+impl CbpLayout {
+    /// The bit that predicts block 0: the neighbour's nearest block, or 1 at the tile corner.
+    fn neighbour_bit(&self, left: Option<u32>, top: Option<u32>) -> u32 {
+        match (left, top) {
+            (Some(l), _) => (l >> self.left_bit) & 1,
+            (None, Some(t)) => (t >> self.top_bit) & 1,
+            (None, None) => 1,
+        }
+    }
+}
+
 /// The CBP prediction of one channel (T.832 9.3.4; T.835 `_jxr_PredCBP444/422/420`): turns
 /// the decoded difference pattern `diff` into the coded-block pattern, given the prediction
 /// state and the neighbours' patterns inside the tile (`None` outside). Returns the pattern
 /// and the number of coded blocks scaled to 16 (what the model is updated with).
 pub fn predict_cbp(fmt: ClrFmt, ch: usize, diff: u32, state: u8, left: Option<u32>, top: Option<u32>) -> (u32, i32) {
+    let layout = cbp_layout(fmt, ch);
     let mut cbp = diff;
-    let chroma_sub = ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
-    let (top_bit, left_bit, all, scale) = match (fmt, chroma_sub) {
-        (ClrFmt::Yuv420, true) => (2, 1, 0xF, 4),
-        (ClrFmt::Yuv422, true) => (6, 1, 0xFF, 2),
-        _ => (10, 5, 0xFFFF, 1),
-    };
     if state == 0 {
-        cbp ^= match (left, top) {
-            (Some(l), _) => (l >> left_bit) & 1,
-            (None, Some(t)) => (t >> top_bit) & 1,
-            (None, None) => 1,
-        };
-        match (fmt, chroma_sub) {
-            (ClrFmt::Yuv420, true) => {
-                cbp ^= 0x02 & (cbp << 1);
-                cbp ^= 0x0C & (cbp << 2);
-            }
-            (ClrFmt::Yuv422, true) => {
-                cbp ^= 0x02 & (cbp << 1);
-                cbp ^= 0x0C & (cbp << 2);
-                cbp ^= 0x30 & (cbp << 2);
-                cbp ^= 0xC0 & (cbp << 2);
-            }
-            _ => {
-                cbp ^= 0x02 & (cbp << 1);
-                cbp ^= 0x10 & (cbp << 3);
-                cbp ^= 0x20 & (cbp << 1);
-                cbp ^= (cbp & 0x33) << 2;
-                cbp ^= (cbp & 0xCC) << 6;
-                cbp ^= (cbp & 0x3300) << 2;
-            }
+        cbp ^= layout.neighbour_bit(left, top);
+        for &(shift, mask) in layout.steps {
+            cbp ^= (cbp << shift) & mask;
         }
     } else if state == 2 {
-        cbp ^= all;
+        cbp ^= layout.all;
     }
-    cbp &= all;
-    (cbp, cbp.count_ones() as i32 * scale)
+    cbp &= layout.all;
+    (cbp, cbp.count_ones() as i32 * layout.scale)
 }
 
 /// The inverse of [`predict_cbp`] (what an encoder codes): the difference pattern that
-/// `predict_cbp` turns into `cbp`, given the same state and neighbours. Every propagation step
-/// of the spatial prediction XORs bits into positions it never reads from, so each is its own
-/// inverse: undo them in reverse order, then the neighbour's bit.
+/// `predict_cbp` turns into `cbp`, given the same state and neighbours: the propagation steps
+/// undone in reverse order, then the neighbour's bit.
 pub fn unpredict_cbp(fmt: ClrFmt, ch: usize, cbp: u32, state: u8, left: Option<u32>, top: Option<u32>) -> u32 {
-    let chroma_sub = ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
-    let (top_bit, left_bit, all) = match (fmt, chroma_sub) {
-        (ClrFmt::Yuv420, true) => (2, 1, 0xF),
-        (ClrFmt::Yuv422, true) => (6, 1, 0xFF),
-        _ => (10, 5, 0xFFFF),
-    };
-    let mut d = cbp & all;
+    let layout = cbp_layout(fmt, ch);
+    let mut d = cbp & layout.all;
     if state == 0 {
-        match (fmt, chroma_sub) {
-            (ClrFmt::Yuv420, true) => {
-                d ^= 0x0C & (d << 2);
-                d ^= 0x02 & (d << 1);
-            }
-            (ClrFmt::Yuv422, true) => {
-                d ^= 0xC0 & (d << 2);
-                d ^= 0x30 & (d << 2);
-                d ^= 0x0C & (d << 2);
-                d ^= 0x02 & (d << 1);
-            }
-            _ => {
-                d ^= (d & 0x3300) << 2;
-                d ^= (d & 0xCC) << 6;
-                d ^= (d & 0x33) << 2;
-                d ^= 0x20 & (d << 1);
-                d ^= 0x10 & (d << 3);
-                d ^= 0x02 & (d << 1);
-            }
+        for &(shift, mask) in layout.steps.iter().rev() {
+            d ^= (d << shift) & mask;
         }
-        d ^= match (left, top) {
-            (Some(l), _) => (l >> left_bit) & 1,
-            (None, Some(t)) => (t >> top_bit) & 1,
-            (None, None) => 1,
-        };
+        d ^= layout.neighbour_bit(left, top);
     } else if state == 2 {
-        d ^= all;
+        d ^= layout.all;
     }
-    d & all
+    d & layout.all
 }
 
 #[cfg(test)]
