@@ -232,6 +232,21 @@ pub struct Row {
     pub error: Option<String>,
 }
 
+impl Row {
+    /// The file's size and its quality against the input.
+    fn set_size_and_quality(&mut self, bytes: usize, pixels: usize, cmp: &metrics::Comparison) {
+        self.bytes = bytes;
+        self.bpp = bytes as f64 * 8.0 / pixels as f64;
+        // A file in other units than the input (JPEG XR's scRGB: 80 nits per unit) that
+        // decodes to the same light (every sample equal once in the input's units: zero
+        // squared error) is lossless too.
+        self.identical = cmp.identical || cmp.psnr.is_infinite();
+        self.pu21_psnr = cmp.pu21_psnr;
+        self.de_itp_mean = cmp.de_itp_mean;
+        self.log_rmse = cmp.log_rmse;
+    }
+}
+
 /// A peer decoding the same file as our decoder.
 #[derive(Clone, Debug, Serialize)]
 pub struct PeerDecode {
@@ -397,14 +412,7 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
         let (dec_all_t, _) = timed(runs, || codec.decode_with(&bytes, &dec_all))?;
         // Lossy codecs may drop alpha: quality is always measured on RGB.
         let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
-        row.bytes = bytes.len();
-        row.bpp = bytes.len() as f64 * 8.0 / pixels as f64;
-        // A file in other units than the input (JPEG XR's scRGB: 80 nits per unit) that
-        // decodes to the same light is lossless too.
-        row.identical = cmp.identical || cmp.psnr.is_infinite();
-        row.pu21_psnr = cmp.pu21_psnr;
-        row.de_itp_mean = cmp.de_itp_mean;
-        row.log_rmse = cmp.log_rmse;
+        row.set_size_and_quality(bytes.len(), pixels, &cmp);
         row.encode_mps = mps(pixels, enc_t);
         row.decode_mps = mps(pixels, dec_t);
         row.encode_mps_all = mps(pixels, enc_all_t);
@@ -501,14 +509,7 @@ fn measure_jxrlib(
             Err(e) => notes.push(format!("{} on {}: no peer decode: {e}", config.label, input.name)),
         },
     }
-    row.bytes = bytes.len();
-    row.bpp = bytes.len() as f64 * 8.0 / pixels as f64;
-    // The file is in scRGB's units (80 nits per unit), the input usually not: identical means
-    // the same light, every sample equal once in the input's units (zero squared error).
-    row.identical = cmp.identical || cmp.psnr.is_infinite();
-    row.pu21_psnr = cmp.pu21_psnr;
-    row.de_itp_mean = cmp.de_itp_mean;
-    row.log_rmse = cmp.log_rmse;
+    row.set_size_and_quality(bytes.len(), pixels, &cmp);
     row.encode_mps = mps(pixels, enc_t);
     row.decode_mps = mps(pixels, dec_t);
     // JxrEncApp runs on one thread: there is no pool figure.
