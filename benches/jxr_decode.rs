@@ -21,17 +21,12 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Samplin
 use hdrcodec_cli::jxrlib::float_rgb_tiff;
 use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
 use hdrcodec_jxr::{decode_raw, decode_raw_into, raw_layout, JxrCodec};
+#[path = "jxr_common.rs"]
+mod jxr_common;
+use jxr_common::{corpus_dir, missing, tool};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-/// In CI a missing peer or corpus is a failure; elsewhere the bench says what it skips.
-fn missing(what: &str) {
-    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
-        panic!("{what} is missing; CI must have it (run scripts/setup-reference-tools.sh)");
-    }
-    eprintln!("jxr_decode bench: {what} is missing (run scripts/setup-reference-tools.sh); skipped");
-}
 
 /// jxrlib through tests/peers/jxrlib_shim.c.
 #[cfg(jxrlib)]
@@ -85,15 +80,6 @@ mod jxrlib {
     }
 }
 
-/// The shared corpus, found as tests/common does: `$HDRCODEC_CORPUS`, else `../shared/corpus`
-/// beside the workspace.
-fn corpus_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("HDRCODEC_CORPUS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
-    dir.join("MANIFEST.tsv").is_file().then_some(dir)
-}
-
 struct File {
     name: String,
     data: Vec<u8>,
@@ -101,7 +87,7 @@ struct File {
 
 fn corpus_files() -> Vec<File> {
     let Some(dir) = corpus_dir() else {
-        missing("the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
+        missing("jxr_decode", "the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
         return Vec::new();
     };
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir.join("jxr"))
@@ -118,37 +104,17 @@ fn corpus_files() -> Vec<File> {
         .collect()
 }
 
-fn tool(name: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
-}
-
 /// The larger files (see the top of this file), if JxrEncApp is there.
 fn large_files(corpus: &[File]) -> Vec<File> {
     let Some(enc) = tool("JxrEncApp") else {
-        missing("JxrEncApp (Debian libjxr-tools), which makes the 13 MP files");
+        missing("jxr_decode", "JxrEncApp (Debian libjxr-tools), which makes the 13 MP files");
         return Vec::new();
     };
     let Some(src) = corpus.iter().find(|f| f.name.starts_with("GoldenGate_48bppRGBHalf")) else {
         return Vec::new();
     };
-    let info = JxrCodec.probe(&src.data, &Limits::default()).expect("probe GoldenGate");
-    let (w, h) = (info.width as usize, info.height as usize);
-    let raw = decode_raw(&src.data, &DecodeOptions::new(Limits::default())).expect("decode GoldenGate");
-    assert_eq!(raw.len(), w * h * 6, "GoldenGate decodes to 48bppRGBHalf");
-    let (tx, ty) = (4, 3);
-    let (big_w, big_h) = (w * tx, h * ty);
-    let mut half = vec![0u8; big_w * big_h * 6];
-    for y in 0..big_h {
-        let (ty_i, yy) = (y / h, y % h);
-        let sy = if ty_i % 2 == 1 { h - 1 - yy } else { yy };
-        for x in 0..big_w {
-            let (tx_i, xx) = (x / w, x % w);
-            let sx = if tx_i % 2 == 1 { w - 1 - xx } else { xx };
-            let (s, d) = ((sy * w + sx) * 6, (y * big_w + x) * 6);
-            half[d..d + 6].copy_from_slice(&raw[s..s + 6]);
-        }
-    }
+    let (w, h, raw) = jxr_common::golden_gate_half(&src.data);
+    let (big_w, big_h, half) = jxr_common::mosaic(&raw, w, h);
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_decode_bench");
     std::fs::create_dir_all(&dir).expect("create the bench's temp dir");
     let matrix = std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1");
@@ -207,7 +173,7 @@ fn bench(c: &mut Criterion) {
         files.extend(large);
     }
     #[cfg(not(jxrlib))]
-    missing("jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
+    missing("jxr_decode", "jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
 
     let single = DecodeOptions::new(Limits::default());
     let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));

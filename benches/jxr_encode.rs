@@ -29,20 +29,16 @@
 //! 5x3 tiles, on the mosaic; one tile, so no parallel entropy coding, on the small image).
 //! Criterion's throughput is in pixels (elements), so Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, HdrImage, ImageCodec, Limits, ThreadPool};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, HdrImage, Limits, ThreadPool};
+use hdrcodec_jxr::decode_raw;
 use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
 use hdrcodec_jxr::transform::OverlapMode;
-use hdrcodec_jxr::{decode_raw, JxrCodec};
+#[path = "jxr_common.rs"]
+mod jxr_common;
+#[cfg(jxrlib)]
+use jxr_common::tool;
+use jxr_common::{corpus_dir, missing};
 use std::hint::black_box;
-use std::path::PathBuf;
-
-/// In CI a missing peer or corpus is a failure; elsewhere the bench says what it skips.
-fn missing(what: &str) {
-    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
-        panic!("{what} is missing; CI must have it (run scripts/setup-reference-tools.sh)");
-    }
-    eprintln!("jxr_encode bench: {what} is missing (run scripts/setup-reference-tools.sh); skipped");
-}
 
 /// The qualities: name, jxrlib's `-q` (1.0 = lossless), ours, the overlap jxrlib uses.
 const QUALITIES: [(&str, f32, u8, OverlapMode); 4] = [
@@ -105,15 +101,6 @@ mod jxrlib {
     }
 }
 
-/// The shared corpus, found as tests/common does: `$HDRCODEC_CORPUS`, else `../shared/corpus`
-/// beside the workspace.
-fn corpus_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("HDRCODEC_CORPUS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
-    dir.join("MANIFEST.tsv").is_file().then_some(dir)
-}
-
 /// An input: half-float pixels (rows packed, what jxrlib is given), the same as an f32 image
 /// (what we are given), and the tile size of our two-thread encode.
 struct Input {
@@ -142,29 +129,14 @@ impl Input {
 
 fn inputs() -> Vec<Input> {
     let Some(dir) = corpus_dir() else {
-        missing("the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
+        missing("jxr_encode", "the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
         return Vec::new();
     };
     let data = std::fs::read(dir.join("jxr/GoldenGate_48bppRGBHalf_lossless.jxr")).expect("read GoldenGate");
-    let info = JxrCodec.probe(&data, &Limits::default()).expect("probe GoldenGate");
-    let (w, h) = (info.width as usize, info.height as usize);
-    let raw = decode_raw(&data, &DecodeOptions::new(Limits::default())).expect("decode GoldenGate");
-    assert_eq!(raw.len(), w * h * 6, "GoldenGate decodes to 48bppRGBHalf");
+    let (w, h, raw) = jxr_common::golden_gate_half(&data);
     let mut inputs = Vec::new();
     if std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1") {
-        let (tx, ty) = (4, 3);
-        let (big_w, big_h) = (w * tx, h * ty);
-        let mut half = vec![0u8; big_w * big_h * 6];
-        for y in 0..big_h {
-            let (ty_i, yy) = (y / h, y % h);
-            let sy = if ty_i % 2 == 1 { h - 1 - yy } else { yy };
-            for x in 0..big_w {
-                let (tx_i, xx) = (x / w, x % w);
-                let sx = if tx_i % 2 == 1 { w - 1 - xx } else { xx };
-                let (s, d) = ((sy * w + sx) * 6, (y * big_w + x) * 6);
-                half[d..d + 6].copy_from_slice(&raw[s..s + 6]);
-            }
-        }
+        let (big_w, big_h, half) = jxr_common::mosaic(&raw, w, h);
         let name = format!("GoldenGate_mosaic_{big_w}x{big_h}");
         // 316x162 macroblocks in tiles of 64: 5x3 tiles.
         inputs.insert(0, Input::new(name, big_w as u32, big_h as u32, half, 64));
@@ -173,19 +145,13 @@ fn inputs() -> Vec<Input> {
     inputs
 }
 
-#[cfg(jxrlib)]
-fn tool(name: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
-}
-
 /// JxrEncApp's file for `input` at `-q quality` (from a TIFF of its half floats), or `None`
 /// without JxrEncApp.
 #[cfg(jxrlib)]
 fn jxrencapp(input: &Input, quality: f32) -> Option<Vec<u8>> {
     use std::process::Command;
     let enc = tool("JxrEncApp")?;
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_encode_bench");
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_encode_bench");
     std::fs::create_dir_all(&dir).expect("create the bench's temp dir");
     let tif = dir.join(format!("{}.tif", input.name));
     if !tif.is_file() {
@@ -208,10 +174,13 @@ fn jxrencapp(input: &Input, quality: f32) -> Option<Vec<u8>> {
 fn bench(c: &mut Criterion) {
     let inputs = inputs();
     #[cfg(not(jxrlib))]
-    missing("jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
+    missing("jxr_encode", "jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
     #[cfg(jxrlib)]
     if tool("JxrEncApp").is_none() {
-        missing("JxrEncApp (Debian libjxr-tools), against whose file sizes the in-process encoder is checked");
+        missing(
+            "jxr_encode",
+            "JxrEncApp (Debian libjxr-tools), against whose file sizes the in-process encoder is checked",
+        );
     }
 
     let single = ThreadPool::single();
