@@ -122,19 +122,14 @@ impl EncodeOptions {
             }
             o.target_bpp = Some(bpp);
         }
-        match settings.option("adaptive") {
-            Some("true") => o.adaptive = true,
-            Some("false") => o.adaptive = false,
-            None => {}
-            Some(v) => return Err(Error::invalid(format!("jxr: adaptive={v}: expected true or false"))),
+        if let Some(adaptive) = settings.bool_option("adaptive")? {
+            o.adaptive = adaptive;
         }
-        match settings.option("lossless") {
-            Some("true") => o.quality = 100,
-            Some("false") | None => {}
-            Some(v) => return Err(Error::invalid(format!("jxr: lossless={v}: expected true or false"))),
-        }
-        if o.target_bpp.is_some() && o.quality >= 100 && settings.option("lossless") == Some("true") {
-            return Err(Error::invalid("jxr: lossless=true and target_bpp contradict each other"));
+        if settings.bool_option("lossless")? == Some(true) {
+            if o.target_bpp.is_some() {
+                return Err(Error::invalid("jxr: lossless=true and target_bpp contradict each other"));
+            }
+            o.quality = 100;
         }
         Ok(o)
     }
@@ -860,8 +855,8 @@ mod tests {
             ("tile", "100"),
             ("format", "rgbe"),
             ("overlap", "3"),
-            ("lossless", "yes"),
-            ("adaptive", "1"),
+            ("lossless", "perhaps"),
+            ("adaptive", "maybe"),
             ("alpha_quality", "101"),
             ("alpha_quality", "x"),
             ("no-such", "1"),
