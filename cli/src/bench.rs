@@ -109,7 +109,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer
     // (see `Encoder::Jxrlib`).
     if let Ok(codec) = registry.by_name("jxr") {
-        for q in [100, 90, 70, 50, 30] {
+        for q in [100, 90, 70, 50, 30, 10] {
             let (label, settings) = (format!("jxr:q{q}"), EncodeSettings::default().with_quality(q));
             out.push(Config { label, codec: codec.clone(), settings, encoder: Encoder::Hdrcodec, lossless: q == 100 });
         }

@@ -211,7 +211,7 @@ const JXR_ROWS: [&str; 8] = [
     "jxr(jxrlib-enc):q0.3",
 ];
 /// Our encoder's JPEG XR rows.
-const JXR_OUR_ROWS: [&str; 5] = ["jxr:q100", "jxr:q90", "jxr:q70", "jxr:q50", "jxr:q30"];
+const JXR_OUR_ROWS: [&str; 6] = ["jxr:q100", "jxr:q90", "jxr:q70", "jxr:q50", "jxr:q30", "jxr:q10"];
 
 fn labels(rows: &Value) -> Vec<String> {
     let mut v: Vec<String> =
