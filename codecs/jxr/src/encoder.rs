@@ -3,7 +3,8 @@
 //! entropy coding (the decoder's steps of clause 9 run backwards), then the codestream headers
 //! and the file container.
 //!
-//! What it writes so far: tiles in spatial order, every band, 4:4:4 from RGB, 48bppRGBHalf or
+//! What it writes so far: tiles in spatial or frequency order, every band or fewer (trimmed
+//! flexbits too), 4:4:4, 4:2:2 or 4:2:0 from RGB, 48bppRGBHalf or
 //! 128bppRGBFloat (64bppRGBAHalf or 128bppRGBAFloat with a planar alpha codestream for RGBA
 //! images), overlap 0, 1 or 2, one quantizer set per band and
 //! channel for the whole image, lossless (quantizer 1, unscaled arithmetic, as JxrEncApp does)
