@@ -17,6 +17,7 @@
 //! `JxrDecApp` decoding the same file is the peer's decode speed and the check that our samples
 //! equal jxrlib's. Without `JxrEncApp` on PATH those rows say "not installed".
 
+use crate::equal_quality;
 use crate::jxrlib;
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
@@ -37,6 +38,9 @@ pub struct Config {
     pub settings: EncodeSettings,
     /// Who writes the files the rows decode.
     pub encoder: Encoder,
+    /// The settings ask for lossless coding: its rows are not points of a rate-quality curve
+    /// (even where the file differs from the input, e.g. by the rounding to half floats).
+    pub lossless: bool,
 }
 
 /// Who writes the files a configuration's rows decode.
@@ -45,7 +49,7 @@ pub enum Encoder {
     /// The codec's own encoder: encode, then decode, both timed on one thread and on the pool.
     Hdrcodec,
     /// jxrlib's `JxrEncApp` (Debian `libjxr-tools`), an outside program, with these options
-    /// after `-i IN.tif -o OUT.jxr -c 12`: the input goes in as scRGB half floats
+    /// after `-i IN.tif -o OUT.jxr -c 12` (`-c 25` with alpha): the input goes in as scRGB half floats
     /// ([`jxrlib::scrgb_half_tiff`]). The encode speed is the wall time of the process (one
     /// thread; process start and TIFF reading included; no pool figure); the configuration's
     /// codec decodes the file; `JxrDecApp` decoding it is the peer.
@@ -80,7 +84,8 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     let mut out = Vec::new();
     let mut add = |codec: &str, label: String, settings: EncodeSettings| {
         if let Ok(codec) = registry.by_name(codec) {
-            out.push(Config { label, codec, settings, encoder: Encoder::Hdrcodec });
+            let lossless = false;
+            out.push(Config { label, codec, settings, encoder: Encoder::Hdrcodec, lossless });
         }
     };
     let opts = |kv: &[(&str, &str)]| kv.iter().fold(EncodeSettings::default(), |s, (k, v)| s.with_option(*k, *v));
@@ -103,13 +108,15 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
     // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer
     // (see `Encoder::Jxrlib`).
-    for q in [100, 90, 70, 50, 30] {
-        add("jxr", format!("jxr:q{q}"), EncodeSettings::default().with_quality(q));
-    }
     if let Ok(codec) = registry.by_name("jxr") {
+        for q in [100, 90, 70, 50, 30] {
+            let (label, settings) = (format!("jxr:q{q}"), EncodeSettings::default().with_quality(q));
+            out.push(Config { label, codec: codec.clone(), settings, encoder: Encoder::Hdrcodec, lossless: q == 100 });
+        }
         for (variant, args) in JXRLIB_SETTINGS {
             let (label, settings) = (format!("jxr(jxrlib-enc):{variant}"), EncodeSettings::default());
-            out.push(Config { label, codec: codec.clone(), settings, encoder: Encoder::Jxrlib(args) });
+            let (encoder, lossless) = (Encoder::Jxrlib(args), args.is_empty());
+            out.push(Config { label, codec: codec.clone(), settings, encoder, lossless });
         }
     }
     out
@@ -138,35 +145,53 @@ pub struct Skipped {
     pub reason: String,
 }
 
-/// Every file under `dir` (and its subdirectories, a few levels deep) that some codec of
-/// `registry` decodes, sorted by path; files without a known extension or magic number are
-/// ignored, and files that fail to decode are listed as skipped. Names are relative to `dir`.
-pub fn dir_inputs(
-    dir: &Path,
+/// The images of `paths`: each a file, or a directory whose files (and its subdirectories', a
+/// few levels deep) are taken in path order. Every file that some codec of `registry` decodes
+/// is an input; files in a directory without a known extension or magic number are ignored,
+/// a file named on its own that no codec knows, and files that fail to decode, are listed as
+/// skipped. Names are relative to their directory (a file named on its own: its file name).
+pub fn path_inputs(
+    paths: &[std::path::PathBuf],
     registry: &Registry,
     limits: &Limits,
 ) -> hdrcodec::core::Result<(Vec<Input>, Vec<Skipped>)> {
-    let mut paths = Vec::new();
-    collect_files(dir, 4, &mut paths)
-        .map_err(|e| hdrcodec::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
-    paths.sort();
     let (mut inputs, mut skipped) = (Vec::new(), Vec::new());
-    for p in paths {
-        let file = p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().into_owned();
-        let data = match hdrcodec::read_file(&p) {
-            Ok(d) => d,
-            Err(e) => {
-                skipped.push(Skipped { file, reason: e.to_string() });
-                continue;
-            }
+    for path in paths {
+        let io_error = |e: std::io::Error| {
+            hdrcodec::core::Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())))
         };
-        match registry.for_input(&p, &data) {
-            // Not an image format we know (MANIFEST, README, ...): not worth a mention.
-            Err(_) => continue,
-            Ok(codec) => match codec.decode(&data, limits) {
-                Ok(image) => inputs.push(Input { name: file, image }),
-                Err(e) => skipped.push(Skipped { file, reason: e.to_string() }),
-            },
+        let (files, named) = if path.is_dir() {
+            let mut files = Vec::new();
+            collect_files(path, 4, &mut files).map_err(io_error)?;
+            files.sort();
+            (files, false)
+        } else {
+            std::fs::metadata(path).map_err(io_error)?;
+            (vec![path.clone()], true)
+        };
+        for p in files {
+            let file = if named {
+                p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+            } else {
+                p.strip_prefix(path).unwrap_or(&p).to_string_lossy().into_owned()
+            };
+            let data = match hdrcodec::read_file(&p) {
+                Ok(d) => d,
+                Err(e) => {
+                    skipped.push(Skipped { file, reason: e.to_string() });
+                    continue;
+                }
+            };
+            match registry.for_input(&p, &data) {
+                // In a directory, not an image format we know (MANIFEST, README, ...): not
+                // worth a mention; named on its own, it is.
+                Err(e) if named => skipped.push(Skipped { file, reason: e.to_string() }),
+                Err(_) => continue,
+                Ok(codec) => match codec.decode(&data, limits) {
+                    Ok(image) => inputs.push(Input { name: file, image }),
+                    Err(e) => skipped.push(Skipped { file, reason: e.to_string() }),
+                },
+            }
         }
     }
     Ok((inputs, skipped))
@@ -202,6 +227,8 @@ pub struct Row {
     pub bpp: f64,
     /// True if the decoded RGB equals the input exactly.
     pub identical: bool,
+    /// The configuration asks for lossless coding ([`Config::lossless`]).
+    pub lossless: bool,
     /// PU21-PSNR of the luminance, dB (infinite, `null` in JSON, when identical).
     pub pu21_psnr: f64,
     /// Mean ΔE ITP (BT.2124).
@@ -233,6 +260,30 @@ pub struct Row {
 }
 
 impl Row {
+    /// A row of `config` on `image` with nothing measured yet (zeros, no notes, no error).
+    pub(crate) fn blank(config: String, image: String, pixels: usize, lossless: bool) -> Row {
+        Row {
+            config,
+            image,
+            pixels,
+            bytes: 0,
+            bpp: 0.0,
+            identical: false,
+            lossless,
+            pu21_psnr: 0.0,
+            de_itp_mean: 0.0,
+            log_rmse: 0.0,
+            encode_mps: 0.0,
+            decode_mps: 0.0,
+            encode_mps_all: 0.0,
+            decode_mps_all: 0.0,
+            encoder: None,
+            peer: None,
+            notes: Vec::new(),
+            error: None,
+        }
+    }
+
     /// The file's size and its quality against the input.
     fn set_size_and_quality(&mut self, bytes: usize, pixels: usize, cmp: &metrics::Comparison) {
         self.bytes = bytes;
@@ -324,6 +375,9 @@ pub struct Report {
     pub summary: Vec<Summary>,
     /// Directory files that were not used.
     pub skipped: Vec<Skipped>,
+    /// Bytes at equal PU21-PSNR between families of configurations
+    /// ([`equal_quality::COMPARISONS`] whose two sides ran).
+    pub equal_quality: Vec<equal_quality::Comparison>,
 }
 
 /// Once the runs of one measurement have taken this long, no further run is started: slow
@@ -356,25 +410,8 @@ fn mps(pixels: usize, t: Duration) -> f64 {
 /// Runs one configuration on one image, timing it on one thread and on `pool`.
 fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Row {
     let pixels = input.image.pixel_count();
-    let mut row = Row {
-        config: config.label.clone(),
-        image: input.name.clone(),
-        pixels,
-        bytes: 0,
-        bpp: 0.0,
-        identical: false,
-        pu21_psnr: 0.0,
-        de_itp_mean: 0.0,
-        log_rmse: 0.0,
-        encode_mps: 0.0,
-        decode_mps: 0.0,
-        encode_mps_all: 0.0,
-        decode_mps_all: 0.0,
-        encoder: config.encoder.describe(),
-        peer: None,
-        notes: Vec::new(),
-        error: None,
-    };
+    let mut row = Row::blank(config.label.clone(), input.name.clone(), pixels, config.lossless);
+    row.encoder = config.encoder.describe();
     if let Encoder::Jxrlib(args) = config.encoder {
         match jxrlib::tool(jxrlib::ENCODER) {
             None => {
@@ -478,7 +515,10 @@ fn measure_jxrlib(
         ));
     }
     let mut enc_args: Vec<&OsStr> = ["-i".as_ref(), tif.as_os_str(), "-o".as_ref(), jxr.as_os_str()].into();
-    enc_args.extend(["-c", "12"].iter().chain(args).map(OsStr::new));
+    // 48bppRGBHalf, or 64bppRGBAHalf with planar alpha (lossless by default, as ours).
+    let format = if input.image.channels() == Channels::Rgba { "25" } else { "12" };
+    let format_args = ["-c", format];
+    enc_args.extend(format_args.iter().chain(args).map(OsStr::new));
     let (enc_t, _) = timed(runs, || jxrlib::run(enc, &enc_args, &jxr))?;
     let bytes = std::fs::read(&jxr)?;
     let codec = config.codec.as_ref();
@@ -594,7 +634,8 @@ pub fn run(
         .iter()
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
         .collect();
-    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped }
+    let equal_quality = equal_quality::comparisons(&rows);
+    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped, equal_quality }
 }
 
 fn fmt_db(v: f64) -> String {
@@ -694,7 +735,7 @@ pub fn table(report: &Report) -> String {
     ));
     if report.rows.iter().any(|r| r.encoder.is_some()) {
         s.push_str(&format!(
-            "jxr(jxrlib-enc) rows: jxrlib's {enc} writes the file (the input as scRGB half floats, -c 12, -q as \
+            "jxr(jxrlib-enc) rows: jxrlib's {enc} writes the file (the input as scRGB half floats, -c 12, or -c 25 with alpha, -q as \
              labelled);\n  enc 1T is the wall time of that process (start and TIFF reading included), enc {n}T '-';\n  \
              bytes, quality and dec are our decoder on jxrlib's file; peer dec is jxrlib's {dec} on the same file,\n  \
              out of process (start and TIFF writing included: meaningful on large images only); its samples must equal ours\n",
@@ -706,5 +747,6 @@ pub fn table(report: &Report) -> String {
     for k in &report.skipped {
         s.push_str(&format!("skipped {}: {}\n", k.file, k.reason));
     }
+    s.push_str(&equal_quality::table(&report.equal_quality));
     s
 }

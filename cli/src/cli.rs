@@ -307,7 +307,8 @@ pub fn compare(reference: &Path, test: &Path, json: bool) -> Result<()> {
 
 /// What `hdrcodec bench` was asked to do.
 pub struct BenchOptions {
-    pub dir: Option<PathBuf>,
+    /// Image files and directories (none: the generated corpus).
+    pub paths: Vec<PathBuf>,
     pub json: bool,
     pub plot: Option<PathBuf>,
     /// Threads of the pool behind the all-thread speed columns (0: one per core).
@@ -329,17 +330,16 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
     if let Some(f) = &o.filter {
-        configs.retain(|c| c.label.contains(f.as_str()));
+        configs.retain(|c| f.split(',').any(|part| c.label.contains(part)));
         if configs.is_empty() {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
     }
-    let (mut inputs, skipped, source) = match &o.dir {
-        None => (bench::generated_inputs(), Vec::new(), "generated corpus".to_string()),
-        Some(d) => {
-            let (i, s) = bench::dir_inputs(d, &reg, &Limits::default())?;
-            (i, s, d.display().to_string())
-        }
+    let (mut inputs, skipped, source) = if o.paths.is_empty() {
+        (bench::generated_inputs(), Vec::new(), "generated corpus".to_string())
+    } else {
+        let (i, s) = bench::path_inputs(&o.paths, &reg, &Limits::default())?;
+        (i, s, o.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" "))
     };
     if o.quick {
         inputs.retain(|i| i.image.pixel_count() <= QUICK_MAX_PIXELS);

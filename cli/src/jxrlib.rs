@@ -73,19 +73,30 @@ impl Drop for TempDir {
 /// JxrEncApp reads as 48bppRGBHalf with `-c 12`, or as 96bppRGBFloat). `samples` are the
 /// interleaved little-endian samples, rows packed.
 pub fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Result<Vec<u8>> {
+    float_tiff(width, height, 3, bits, samples)
+}
+
+/// [`float_rgb_tiff`] with `channels` samples per pixel: 3 (RGB) or 4 (RGB and unassociated
+/// alpha, what JxrEncApp reads as 64bppRGBAHalf with `-c 25`).
+pub fn float_tiff(width: u32, height: u32, channels: u16, bits: u16, samples: &[u8]) -> Result<Vec<u8>> {
     if bits != 16 && bits != 32 {
         return Err(Error::invalid(format!("a float TIFF has 16- or 32-bit samples, not {bits}")));
     }
-    let expected = width as u64 * height as u64 * 3 * u64::from(bits / 8);
+    if channels != 3 && channels != 4 {
+        return Err(Error::invalid(format!("a float TIFF of RGB or RGBA, not {channels} channels")));
+    }
+    let expected = width as u64 * height as u64 * u64::from(channels) * u64::from(bits / 8);
     if samples.len() as u64 != expected {
         return Err(Error::invalid(format!(
-            "{} sample bytes for a {width}x{height} RGB image of {bits}-bit floats ({expected} expected)",
+            "{} sample bytes for a {width}x{height} image of {channels} {bits}-bit floats ({expected} expected)",
             samples.len()
         )));
     }
-    const ENTRIES: u32 = 11;
-    let ifd_end = 8 + 2 + ENTRIES * 12 + 4;
-    let (bits_at, format_at, data_at) = (ifd_end, ifd_end + 6, ifd_end + 12);
+    let alpha = channels == 4;
+    let entries = 11 + u32::from(alpha);
+    let ifd_end = 8 + 2 + entries * 12 + 4;
+    let per_sample = 2 * u32::from(channels);
+    let (bits_at, format_at, data_at) = (ifd_end, ifd_end + per_sample, ifd_end + 2 * per_sample);
     let len = u32::try_from(samples.len())
         .ok()
         .filter(|n| n.checked_add(data_at).is_some())
@@ -93,24 +104,29 @@ pub fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Res
     let mut t = Vec::with_capacity(data_at as usize + samples.len());
     t.extend_from_slice(b"II*\0");
     t.extend_from_slice(&8u32.to_le_bytes());
-    t.extend_from_slice(&(ENTRIES as u16).to_le_bytes());
+    t.extend_from_slice(&(entries as u16).to_le_bytes());
     // (tag, type: 3 SHORT / 4 LONG, count, value or offset), in tag order: width, height,
-    // bits per sample, compression none, RGB, strip offset, 3 samples per pixel, rows per
-    // strip, strip bytes, chunky, sample format IEEE float.
-    let entries: [(u16, u16, u32, u32); ENTRIES as usize] = [
+    // bits per sample, compression none, RGB, strip offset, samples per pixel, rows per
+    // strip, strip bytes, chunky, (extra samples: unassociated alpha,) sample format IEEE
+    // float.
+    let c = u32::from(channels);
+    let mut fields: Vec<(u16, u16, u32, u32)> = vec![
         (256, 4, 1, width),
         (257, 4, 1, height),
-        (258, 3, 3, bits_at),
+        (258, 3, c, bits_at),
         (259, 3, 1, 1),
         (262, 3, 1, 2),
         (273, 4, 1, data_at),
-        (277, 3, 1, 3),
+        (277, 3, 1, c),
         (278, 4, 1, height),
         (279, 4, 1, len),
         (284, 3, 1, 1),
-        (339, 3, 3, format_at),
     ];
-    for (tag, ty, count, value) in entries {
+    if alpha {
+        fields.push((338, 3, 1, 2));
+    }
+    fields.push((339, 3, c, format_at));
+    for (tag, ty, count, value) in fields {
         t.extend_from_slice(&tag.to_le_bytes());
         t.extend_from_slice(&ty.to_le_bytes());
         t.extend_from_slice(&count.to_le_bytes());
@@ -122,7 +138,7 @@ pub fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Res
         }
     }
     t.extend_from_slice(&0u32.to_le_bytes());
-    for v in [bits, bits, bits, 3, 3, 3] {
+    for v in std::iter::repeat_n(bits, channels.into()).chain(std::iter::repeat_n(3, channels.into())) {
         t.extend_from_slice(&v.to_le_bytes());
     }
     t.extend_from_slice(samples);
@@ -130,9 +146,11 @@ pub fn float_rgb_tiff(width: u32, height: u32, bits: u16, samples: &[u8]) -> Res
 }
 
 /// What JxrEncApp is given for `image`: its RGB as scRGB half floats (BT.709 primaries, 1.0 =
-/// [`SCRGB_NITS_PER_UNIT`] cd/m², the convention our decoder reads such a file back in), as a
-/// TIFF, and the number of samples clipped to half's ±65504 (NaN is written as 0 and counted).
-/// Primaries are converted only when the image has primaries other than BT.709.
+/// [`SCRGB_NITS_PER_UNIT`] cd/m², the convention our decoder reads such a file back in), and
+/// its alpha if it has one (not scaled: alpha is not light), as a TIFF, and the number of
+/// samples clipped to half's ±65504 (NaN is written as 0 and counted). Primaries are converted
+/// only when the image has primaries other than BT.709. The TIFF has as many channels as the
+/// image: JxrEncApp's `-c 12` for three, `-c 25` for four.
 pub fn scrgb_half_tiff(image: &HdrImage) -> Result<(Vec<u8>, usize)> {
     let converted;
     let image = match image.color.primaries {
@@ -143,10 +161,11 @@ pub fn scrgb_half_tiff(image: &HdrImage) -> Result<(Vec<u8>, usize)> {
         _ => image,
     };
     let scale = image.color.nits_per_unit / SCRGB_NITS_PER_UNIT;
+    let channels = image.channels().count();
     let mut clipped = 0;
-    let mut samples = Vec::with_capacity(image.pixel_count() * 6);
-    for v in image.rgb().flatten() {
-        let v = v * scale;
+    let mut samples = Vec::with_capacity(image.pixel_count() * 2 * channels);
+    for (i, &v) in image.samples().iter().enumerate() {
+        let v = if i % channels < 3 { v * scale } else { v };
         let h = if v.is_nan() || v.abs() > HALF_MAX {
             clipped += 1;
             if v.is_nan() {
@@ -159,7 +178,7 @@ pub fn scrgb_half_tiff(image: &HdrImage) -> Result<(Vec<u8>, usize)> {
         };
         samples.extend_from_slice(&f16::from_f32(h).to_le_bytes());
     }
-    Ok((float_rgb_tiff(image.width(), image.height(), 16, &samples)?, clipped))
+    Ok((float_tiff(image.width(), image.height(), channels as u16, 16, &samples)?, clipped))
 }
 
 /// Runs `program` with `args` and returns its wall time (process start included). A failure,
@@ -235,12 +254,18 @@ mod tests {
     fn half_input_is_scrgb_and_clips_what_half_cannot_hold() {
         // 100 nits per unit: a sample 0.8 is 80 nits, scRGB 1.0; 1e6 is beyond half's 65504.
         let color = ColorInfo { nits_per_unit: 100.0, ..ColorInfo::default() };
-        let img = HdrImage::new(2, 1, Channels::Rgb, vec![0.8, 0.0, -0.8, 1e6, f32::NAN, 0.5], color).unwrap();
+        let img = HdrImage::new(2, 1, Channels::Rgb, vec![0.8, 0.0, -0.8, 1e6, f32::NAN, 0.5], color.clone()).unwrap();
         let (tif, clipped) = scrgb_half_tiff(&img).unwrap();
         let halves: Vec<f32> =
             tiff_samples(&tif).unwrap().chunks_exact(2).map(|b| f16::from_le_bytes([b[0], b[1]]).to_f32()).collect();
         assert_eq!(halves, [1.0, 0.0, -1.0, 65504.0, 0.0, 0.625]);
         assert_eq!(clipped, 2);
+        // Alpha goes in as it is, not scaled.
+        let img = HdrImage::new(1, 1, Channels::Rgba, vec![0.8, 0.4, 0.0, 0.5], color).unwrap();
+        let (tif, clipped) = scrgb_half_tiff(&img).unwrap();
+        let halves: Vec<f32> =
+            tiff_samples(&tif).unwrap().chunks_exact(2).map(|b| f16::from_le_bytes([b[0], b[1]]).to_f32()).collect();
+        assert_eq!((halves, clipped), (vec![1.0, 0.5, 0.0, 0.5], 0));
     }
 
     #[test]

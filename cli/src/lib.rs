@@ -6,5 +6,6 @@
 
 pub mod bench;
 pub mod corpus;
+pub mod equal_quality;
 pub mod jxrlib;
 pub mod plot;

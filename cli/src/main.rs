@@ -96,8 +96,8 @@ struct ConvertArgs {
 
 #[derive(Args, Debug)]
 struct BenchArgs {
-    /// Directory of images (default: the generated corpus).
-    dir: Option<PathBuf>,
+    /// Image files and directories of images (default: the generated corpus).
+    paths: Vec<PathBuf>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -111,7 +111,8 @@ struct BenchArgs {
     /// Also print one line per configuration and image.
     #[arg(long)]
     per_image: bool,
-    /// Only configurations whose label contains this text.
+    /// Only configurations whose label contains this text, or one of several separated by
+    /// commas (`jxr,bc6h:effort2`).
     #[arg(long)]
     filter: Option<String>,
     /// Timed runs per measurement (the median is reported).
@@ -160,7 +161,7 @@ fn run() -> ExitCode {
         Command::Info { file, json } => cli::info(&file, json),
         Command::Compare { reference, test, json } => cli::compare(&reference, &test, json),
         Command::Bench(a) => cli::bench(&cli::BenchOptions {
-            dir: a.dir,
+            paths: a.paths,
             json: a.json,
             plot: a.plot,
             threads: a.threads,

@@ -244,15 +244,15 @@ impl EncodeOptions {
         !self.lossless() && self.format != SampleFormat::Float
     }
 
-    /// The options of the planar alpha codestream: its own quality, and the colour's overlap
-    /// (JxrEncApp writes the primary's OVERLAP_MODE into the alpha codestream too, and our
-    /// decoder transforms planar alpha with the primary's).
+    /// The options of the planar alpha codestream: its own quality, and the overlap asked
+    /// for, or else the one its own quality calls for (the alpha codestream has its own
+    /// OVERLAP_MODE: JxrEncApp below quality 0.5 writes colour with two stages and lossless
+    /// alpha with one).
     ///
     /// No luminance-adaptive HP quantizers: alpha is not light.
     fn for_alpha(&self) -> EncodeOptions {
         EncodeOptions {
             quality: self.alpha_quality,
-            overlap: Some(self.overlap()),
             adaptive: false,
             // The colour's order; every band of alpha (lossless by default).
             bands: Bands::All,

@@ -160,6 +160,9 @@ struct Setup<'a> {
     with_alpha: bool,
     overlap: OverlapMode,
     hard: Option<HardEdges>,
+    /// Planar alpha's own (interleaved alpha: the primary's).
+    alpha_overlap: OverlapMode,
+    alpha_hard: Option<HardEdges>,
 }
 
 impl<'a> Setup<'a> {
@@ -221,12 +224,9 @@ impl<'a> Setup<'a> {
         out.transfer = colour.transfer;
         let mut info = ImageInfo::new(img.width, img.height, channels, colour.color).with_format(format.name);
         info.metadata = colour.metadata;
-        let overlap = [OverlapMode::None, OverlapMode::One, OverlapMode::Two][usize::from(img.overlap.min(2))];
-        let hard = img.hard_tiling.then(|| {
-            let cols: Vec<usize> = img.tile_x0().iter().map(|&v| v as usize).collect();
-            let rows: Vec<usize> = img.tile_y0().iter().map(|&v| v as usize).collect();
-            HardEdges::from_tiles(&cols[..cols.len() - 1], &rows[..rows.len() - 1], true)
-        });
+        let (overlap, hard) = transform::image_geometry(img);
+        let (alpha_overlap, alpha_hard) =
+            planar_cs.as_ref().map_or((overlap, hard.clone()), |p| transform::image_geometry(&p.image));
         let with_alpha = format.alpha && (cs.alpha.is_some() || planar_cs.is_some());
         Ok(Setup {
             data: container.image,
@@ -242,11 +242,17 @@ impl<'a> Setup<'a> {
             with_alpha,
             overlap,
             hard,
+            alpha_overlap,
+            alpha_hard,
         })
     }
 
     fn params(&self, scaled: bool) -> TransformParams {
         TransformParams { overlap: self.overlap, scaled, hard: self.hard.clone(), operators: OperatorSet::JpegXr }
+    }
+
+    fn alpha_params(&self, scaled: bool) -> TransformParams {
+        TransformParams { overlap: self.alpha_overlap, hard: self.alpha_hard.clone(), ..self.params(scaled) }
     }
 }
 
@@ -364,7 +370,7 @@ fn setup_parts<'s, 'a>(s: &'s Setup<'a>) -> SetupParts<'s, 'a> {
         channels: s.channels,
         alpha_fmt: s.alpha_fmt,
         prim_params: s.params(s.cs.primary.scaled),
-        alpha_params: s.params(s.alpha_scaled),
+        alpha_params: s.alpha_params(s.alpha_scaled),
         with_alpha: s.with_alpha,
     }
 }
@@ -443,6 +449,8 @@ impl RowsHandle<'_> {
 /// The constants of jxrlib's reduced-resolution output (see the module documentation).
 struct Scaling {
     mul: i32,
+    /// Alpha's: planar alpha has its own overlap.
+    mul_alpha: i32,
     shift_y: u32,
     shift_uv: u32,
     shift_alpha: u32,
@@ -478,14 +486,14 @@ fn decode_reduced(
     if matches!(out.color, C::Cmyk | C::CmykDirect | C::Yuv420 | C::Yuv422) {
         return Err(Error::unsupported(format!("JPEG XR: reduced-resolution output of {}", setup.format.name)));
     }
-    let ol = setup.overlap;
-    let mul = match (quarter, ol) {
+    let mul_of = |ol: OverlapMode| match (quarter, ol) {
         (true, OverlapMode::None) => 64,
         (true, _) => 93,
         (false, OverlapMode::None) => 16,
         (false, OverlapMode::One) => 23,
         (false, OverlapMode::Two) => 34,
     };
+    let (mul, mul_alpha) = (mul_of(setup.overlap), mul_of(setup.alpha_overlap));
     let shift_y = 8 + if primary.scaled { 3 } else { 0 };
     let sub = matches!(primary.clr_fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
     let shift_uv = shift_y
@@ -505,7 +513,7 @@ fn decode_reduced(
         (None, Some(p)) => p.primary.scaled,
         _ => false,
     };
-    let sc = Scaling { mul, shift_y, shift_uv, shift_alpha: 8 + if alpha_scaled { 3 } else { 0 } };
+    let sc = Scaling { mul, mul_alpha, shift_y, shift_uv, shift_alpha: 8 + if alpha_scaled { 3 } else { 0 } };
 
     // Frequency order: the DC (1:16) or DC and LP (1:4) packets only.
     let max_bands = if quarter { 2 } else { 1 };
@@ -518,7 +526,7 @@ fn decode_reduced(
     let _charge = options.limits.charge(bytes, "the JPEG XR reduced-resolution rows")?;
 
     let prim_params = setup.params(primary.scaled);
-    let alpha_params = setup.params(setup.alpha_scaled);
+    let alpha_params = setup.alpha_params(setup.alpha_scaled);
     let ow = region.width as usize;
     let row_len = ow * setup.channels.count();
     let mut raw = vec![0u8; out.row_bytes(ow)];
@@ -585,15 +593,14 @@ fn decode_reduced(
                     planes_out[0][j] = at(0, x);
                 } else {
                     for (ch, p) in planes_out.iter_mut().enumerate().take(n_prim) {
-                        let t = at(ch, x).wrapping_add(biases.nchannel_offset(&sc, sc.shift_y)).wrapping_mul(sc.mul)
+                        let t = at(ch, x).wrapping_add(biases.nchannel_offset(sc.mul, sc.shift_y)).wrapping_mul(sc.mul)
                             >> sc.shift_y;
                         p[j] = t.wrapping_sub(biases.format);
                     }
                 }
                 if setup.with_alpha {
-                    let t =
-                        at(n_prim, x).wrapping_add(biases.nchannel_offset(&sc, sc.shift_alpha)).wrapping_mul(sc.mul)
-                            >> sc.shift_alpha;
+                    let offset = biases.nchannel_offset(sc.mul_alpha, sc.shift_alpha);
+                    let t = at(n_prim, x).wrapping_add(offset).wrapping_mul(sc.mul_alpha) >> sc.shift_alpha;
                     alpha_out[j] = t.wrapping_sub(biases.alpha);
                 }
             }
@@ -713,8 +720,8 @@ impl Biases {
         (self.rgb << sc.shift_y) / sc.mul
     }
 
-    fn nchannel_offset(&self, sc: &Scaling, shift: u32) -> i32 {
-        (self.nchannel << shift) / sc.mul
+    fn nchannel_offset(&self, mul: i32, shift: u32) -> i32 {
+        (self.nchannel << shift) / mul
     }
 }
 

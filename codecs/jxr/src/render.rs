@@ -196,15 +196,15 @@ fn decode_impl(
     info.metadata = colour.metadata;
     let (width, height) = (img.width as usize, img.height as usize);
     let (mb_w, mb_h) = (img.mb_width as usize, img.mb_height as usize);
-    let overlap = [OverlapMode::None, OverlapMode::One, OverlapMode::Two][usize::from(img.overlap.min(2))];
-    let hard = img.hard_tiling.then(|| {
-        let cols: Vec<usize> = img.tile_x0().iter().map(|&v| v as usize).collect();
-        let rows: Vec<usize> = img.tile_y0().iter().map(|&v| v as usize).collect();
-        HardEdges::from_tiles(&cols[..cols.len() - 1], &rows[..rows.len() - 1], true)
-    });
+    // Planar alpha is transformed as its own codestream says; interleaved alpha as the
+    // primary.
+    let (overlap, hard) = transform::image_geometry(img);
+    let (alpha_overlap, alpha_hard) =
+        planar_cs.as_ref().map_or((overlap, hard.clone()), |p| transform::image_geometry(&p.image));
     // The operators follow each codestream's sub-version (HD Photo 1.0: the legacy set).
-    let params =
-        |scaled: bool, operators: OperatorSet| TransformParams { overlap, scaled, hard: hard.clone(), operators };
+    let params = |scaled: bool, operators: OperatorSet, (overlap, hard): (OverlapMode, &Option<HardEdges>)| {
+        TransformParams { overlap, scaled, hard: hard.clone(), operators }
+    };
     // The decoders: the primary's (which also gives an interleaved alpha plane), the planar
     // alpha codestream's; and the windows of coefficients each channel's transform reads.
     let mut prim_dec = RowDecoder::new(&cs, container.image, options)?;
@@ -218,13 +218,14 @@ fn decode_impl(
         _ => None,
     };
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
-    let prim_params = params(primary.scaled, OperatorSet::for_plane(&cs, container.image, 0, options)?);
+    let prim_params =
+        params(primary.scaled, OperatorSet::for_plane(&cs, container.image, 0, options)?, (overlap, &hard));
     let alpha_ops = match (&cs.alpha, &planar_cs, container.alpha) {
         (Some(_), _, _) if with_alpha => OperatorSet::for_plane(&cs, container.image, 1, options)?,
         (None, Some(p), Some(bytes)) if with_alpha => OperatorSet::for_plane(p, bytes, 0, options)?,
         _ => OperatorSet::JpegXr,
     };
-    let alpha_params = params(alpha_scaled, alpha_ops);
+    let alpha_params = params(alpha_scaled, alpha_ops, (alpha_overlap, &alpha_hard));
     // Working memory: the window (band + halo of coefficient rows), the next band's rows
     // being decoded meanwhile, the samples of two bands (one being transformed, the one
     // before it being formatted) and a band of formatted rows.

@@ -231,6 +231,21 @@ impl HardEdges {
     }
 }
 
+/// What a codestream's image header says about its transform: OVERLAP_MODE, and the tile
+/// edges treated as image edges when HARD_TILING_FLAG is set. Each codestream has its own: a
+/// planar alpha codestream can have another overlap than the colour's (JxrEncApp below
+/// quality 0.5 writes the colour with two overlap stages and lossless alpha with one), and
+/// jxrlib transforms each with its own.
+pub fn image_geometry(img: &crate::header::ImageHeader) -> (OverlapMode, Option<HardEdges>) {
+    let overlap = [OverlapMode::None, OverlapMode::One, OverlapMode::Two][usize::from(img.overlap.min(2))];
+    let hard = img.hard_tiling.then(|| {
+        let cols: Vec<usize> = img.tile_x0().iter().map(|&v| v as usize).collect();
+        let rows: Vec<usize> = img.tile_y0().iter().map(|&v| v as usize).collect();
+        HardEdges::from_tiles(&cols[..cols.len() - 1], &rows[..rows.len() - 1], true)
+    });
+    (overlap, hard)
+}
+
 /// Checks that the transform implements the operator set of a codestream's sub-version (the
 /// 4 bits jxrlib reads as HARD_TILING_FLAG and RESERVED_C, JXR-NOTES §2 and §6): 1 (soft
 /// tiles) and 9 (hard tiles) use the JPEG XR operators; 0 (HD Photo 1.0, `.wdp`/`.hdp` files
