@@ -852,6 +852,7 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
                         adaptive,
                         alpha_quality: 100,
                         target_bpp: None,
+                        ..EncodeOptions::default()
                     };
                     let (file, _) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                     let name = format!("{w}x{h}_{format:?}_q{quality}_{overlap:?}");
@@ -891,6 +892,7 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
                     adaptive: true,
                     alpha_quality,
                     target_bpp: None,
+                    ..EncodeOptions::default()
                 };
                 let (file, report) = encode(&image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                 assert!(report.notes.is_empty(), "{:?}", report.notes);
@@ -913,6 +915,108 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
         }
     }
     check.assert_same(&pairs, "our encoded files");
+}
+
+/// The encoder's chroma subsampling, bitstream order, band and flexbit-trimming options, with
+/// tiles and each overlap mode: jxrlib decodes every file to exactly our decoder's samples.
+/// A small matrix of small images (each option at least twice, in both orders where it
+/// matters); lossless frequency-order files give back the input.
+#[test]
+fn jxrlib_decodes_our_encoder_options_as_we_do() {
+    use hdrcodec_jxr::encoder::{encode, BitstreamOrder, EncodeOptions, SampleFormat, Subsampling};
+    use hdrcodec_jxr::header::{Bands, ClrFmt};
+    use hdrcodec_jxr::transform::OverlapMode;
+    use BitstreamOrder::{Frequency, Spatial};
+    let Some(check) = JxrlibCheck::new() else { return };
+    let dir = check.dir.join("encoded_options");
+    std::fs::create_dir_all(&dir).unwrap();
+    let options = DecodeOptions::new(Limits::default());
+    let (s444, s422, s420) = (Subsampling::Yuv444, Subsampling::Yuv422, Subsampling::Yuv420);
+    let (ol0, ol1, ol2) = (Some(OverlapMode::None), Some(OverlapMode::One), Some(OverlapMode::Two));
+    // (size, subsampling, order, bands, trim, quality, overlap, tile in macroblocks, float, alpha)
+    #[allow(clippy::type_complexity)]
+    let cases: &[(
+        (u32, u32),
+        Subsampling,
+        BitstreamOrder,
+        Bands,
+        u8,
+        u8,
+        Option<OverlapMode>,
+        usize,
+        bool,
+        bool,
+    )] = &[
+        ((37, 23), s420, Spatial, Bands::All, 0, 60, ol1, 0, false, false),
+        ((96, 64), s420, Spatial, Bands::All, 0, 20, ol2, 2, false, false),
+        ((161, 50), s420, Frequency, Bands::All, 0, 40, ol2, 3, false, false),
+        ((37, 23), s422, Spatial, Bands::All, 0, 90, ol0, 0, false, false),
+        ((96, 64), s422, Frequency, Bands::All, 0, 30, ol2, 2, true, false),
+        ((161, 50), s422, Spatial, Bands::All, 0, 70, ol1, 3, false, false),
+        ((96, 64), s444, Frequency, Bands::All, 0, 100, ol1, 2, false, false),
+        ((37, 23), s444, Frequency, Bands::All, 0, 90, ol0, 0, true, false),
+        ((161, 50), s444, Frequency, Bands::All, 0, 60, ol2, 2, false, true),
+        ((96, 64), s444, Spatial, Bands::NoFlexbits, 0, 90, ol1, 2, false, false),
+        ((96, 64), s420, Frequency, Bands::NoFlexbits, 0, 60, ol2, 0, false, false),
+        ((161, 50), s444, Frequency, Bands::NoHighpass, 0, 80, ol1, 3, false, false),
+        ((37, 23), s422, Spatial, Bands::NoHighpass, 0, 50, ol2, 0, false, false),
+        ((96, 64), s444, Spatial, Bands::DcOnly, 0, 90, ol0, 2, true, false),
+        ((161, 50), s420, Frequency, Bands::DcOnly, 0, 60, ol2, 2, false, false),
+        ((96, 64), s444, Spatial, Bands::All, 3, 95, ol1, 2, false, false),
+        ((161, 50), s420, Frequency, Bands::All, 2, 90, ol2, 3, false, false),
+    ];
+    let mut pairs = Vec::new();
+    for (i, &((w, h), subsampling, order, bands, trim, quality, overlap, tile_mbs, float, alpha)) in
+        cases.iter().enumerate()
+    {
+        let mut image = encoder_test_image(w, h, u64::from(w * h) + i as u64);
+        if alpha {
+            image = with_test_alpha(&image);
+        }
+        let format = if float { SampleFormat::Float } else { SampleFormat::Half };
+        let opts = EncodeOptions {
+            quality,
+            overlap,
+            format,
+            tile_mbs,
+            subsampling,
+            order,
+            bands,
+            trim_flexbits: trim,
+            alpha_quality: 70,
+            ..EncodeOptions::default()
+        };
+        let (file, _) = encode(&image, &opts, &hdrcodec_core::ThreadPool::new(2).unwrap()).unwrap();
+        let name = format!("{i:02}_{w}x{h}_{subsampling:?}_{order:?}_{bands:?}_t{trim}_q{quality}_{format:?}");
+        let container = hdrcodec_jxr::container::parse_container(&file).unwrap();
+        let cs = hdrcodec_jxr::header::parse(container.image).unwrap();
+        let fmt = match subsampling {
+            Subsampling::Yuv444 => ClrFmt::Yuv444,
+            Subsampling::Yuv422 => ClrFmt::Yuv422,
+            Subsampling::Yuv420 => ClrFmt::Yuv420,
+        };
+        assert_eq!((cs.primary.clr_fmt, cs.primary.bands), (fmt, bands), "{name}");
+        assert_eq!(cs.image.frequency_mode, order == Frequency, "{name}");
+        assert_eq!(cs.image.trim_flexbits, trim > 0, "{name}");
+        let raw = decode_raw(&file, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        if quality == 100 && !float && !alpha {
+            let want: Vec<u8> =
+                image.samples().iter().flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes()).collect();
+            assert!(raw == want, "{name}: a lossless half file does not give the input back");
+        }
+        let path = dir.join(format!("{name}.jxr"));
+        std::fs::write(&path, &file).unwrap();
+        let raw_path = dir.join(format!("{name}.ours.raw"));
+        std::fs::write(&raw_path, raw).unwrap();
+        let mode = match (float, alpha) {
+            (false, false) => "ic",
+            (true, false) => "tif",
+            (false, true) => "ic+alpha",
+            (true, true) => "tif+alpha",
+        };
+        pairs.push((path, raw_path, mode));
+    }
+    check.assert_same(&pairs, "our files with encoder options");
 }
 
 /// `image` with an alpha channel: opaque on the left third, a ramp from 0 to 1 with a

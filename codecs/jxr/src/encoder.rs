@@ -3,7 +3,8 @@
 //! entropy coding (the decoder's steps of clause 9 run backwards), then the codestream headers
 //! and the file container.
 //!
-//! What it writes so far: tiles in spatial order, every band, 4:4:4 from RGB, 48bppRGBHalf or
+//! What it writes so far: tiles in spatial or frequency order, every band or fewer (trimmed
+//! flexbits too), 4:4:4, 4:2:2 or 4:2:0 from RGB, 48bppRGBHalf or
 //! 128bppRGBFloat (64bppRGBAHalf or 128bppRGBAFloat with a planar alpha codestream for RGBA
 //! images), overlap 0, 1 or 2, one quantizer set per band and
 //! channel for the whole image, lossless (quantizer 1, unscaled arithmetic, as JxrEncApp does)
@@ -12,7 +13,7 @@
 use crate::bits::BitWriter;
 use crate::container::{self, ContainerMeta, PixelFormat, PIXEL_FORMATS};
 use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSource};
-use crate::macroblock::PlaneEncoder;
+use crate::macroblock::{flex_mb_encode, PlaneEncoder};
 use crate::mb::{MbCoeffs, MB_COEFFS};
 use crate::output::{float_to_int, forward_cc, half_bits_to_int};
 use crate::predict;
@@ -36,6 +37,27 @@ pub const FLOAT_MANTISSA: u8 = 13;
 /// the smallest non-zero value is 2^−16.
 pub const FLOAT_EXP_BIAS: u8 = 4;
 
+/// Chroma sampling of the colour codestream (INTERNAL_CLR_FMT, T.832 8.3.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Subsampling {
+    /// YUV444: chroma at full resolution.
+    Yuv444,
+    /// YUV422: chroma halved horizontally.
+    Yuv422,
+    /// YUV420: chroma halved both ways.
+    Yuv420,
+}
+
+/// The order of a tile's data (FREQUENCY_MODE_CODESTREAM_FLAG, T.832 8.3.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BitstreamOrder {
+    /// One packet per tile, each macroblock's bands together (T.832 8.4.1).
+    Spatial,
+    /// Up to four packets per tile, DC, LP, HP and FLEXBITS (T.832 8.4.2): a decoder can stop
+    /// after the bands it needs.
+    Frequency,
+}
+
 /// Encoder options.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodeOptions {
@@ -57,6 +79,17 @@ pub struct EncodeOptions {
     /// 0-100, the quality of the alpha codestream (RGBA images); 100, lossless, is
     /// JxrEncApp's default for alpha.
     pub alpha_quality: u8,
+    /// Chroma sampling of the colour; 4:2:2 and 4:2:0 are lossy (a contradiction with
+    /// lossless).
+    pub subsampling: Subsampling,
+    /// Bitstream order.
+    pub order: BitstreamOrder,
+    /// BANDS_PRESENT of the colour codestream: the bands left out are not coded (and the
+    /// decoder takes them as zero). Anything but [`Bands::All`] is lossy.
+    pub bands: Bands,
+    /// TRIM_FLEXBITS, 0-15: the lowest bits of the HP refinement ("flex") bits that are not
+    /// coded. Lossy when above 0; no effect without flexbits.
+    pub trim_flexbits: u8,
 }
 
 impl Default for EncodeOptions {
@@ -69,6 +102,10 @@ impl Default for EncodeOptions {
             adaptive: true,
             alpha_quality: 100,
             target_bpp: None,
+            subsampling: Subsampling::Yuv444,
+            order: BitstreamOrder::Spatial,
+            bands: Bands::All,
+            trim_flexbits: 0,
         }
     }
 }
@@ -77,12 +114,25 @@ impl EncodeOptions {
     /// The options of `settings`: its quality, and the codec options `format` (`half` or
     /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile size
     /// in pixels, a multiple of 16; 0 for one tile), `adaptive` (`false`: one HP quantizer
-    /// for every macroblock), `target_bpp` (rate control: bits per pixel) and
-    /// `alpha_quality` (0-100).
+    /// for every macroblock), `target_bpp` (rate control: bits per pixel), `alpha_quality`
+    /// (0-100), `subsampling` (`444`, `422` or `420`), `order` (`spatial` or `frequency`),
+    /// `bands` (`all`, `noflex`, `nohp` or `dc`) and `trim_flexbits` (0-15).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
         settings.check_options(
             "jxr",
-            &["format", "overlap", "lossless", "tile", "adaptive", "target_bpp", "alpha_quality"],
+            &[
+                "format",
+                "overlap",
+                "lossless",
+                "tile",
+                "adaptive",
+                "target_bpp",
+                "alpha_quality",
+                "subsampling",
+                "order",
+                "bands",
+                "trim_flexbits",
+            ],
         )?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
         if let Some(f) = settings.option("format") {
@@ -122,6 +172,37 @@ impl EncodeOptions {
             }
             o.target_bpp = Some(bpp);
         }
+        if let Some(v) = settings.option("subsampling") {
+            o.subsampling = match v {
+                "444" => Subsampling::Yuv444,
+                "422" => Subsampling::Yuv422,
+                "420" => Subsampling::Yuv420,
+                _ => return Err(Error::invalid(format!("jxr: subsampling={v}: expected 444, 422 or 420"))),
+            };
+        }
+        if let Some(v) = settings.option("order") {
+            o.order = match v {
+                "spatial" => BitstreamOrder::Spatial,
+                "frequency" => BitstreamOrder::Frequency,
+                _ => return Err(Error::invalid(format!("jxr: order={v}: expected spatial or frequency"))),
+            };
+        }
+        if let Some(v) = settings.option("bands") {
+            o.bands = match v {
+                "all" => Bands::All,
+                "noflex" => Bands::NoFlexbits,
+                "nohp" => Bands::NoHighpass,
+                "dc" => Bands::DcOnly,
+                _ => return Err(Error::invalid(format!("jxr: bands={v}: expected all, noflex, nohp or dc"))),
+            };
+        }
+        if let Some(v) = settings.option("trim_flexbits") {
+            o.trim_flexbits = v
+                .parse()
+                .ok()
+                .filter(|&t| t <= 15)
+                .ok_or_else(|| Error::invalid(format!("jxr: trim_flexbits={v}: expected 0 to 15")))?;
+        }
         if let Some(adaptive) = settings.bool_option("adaptive")? {
             o.adaptive = adaptive;
         }
@@ -131,7 +212,26 @@ impl EncodeOptions {
             }
             o.quality = 100;
         }
+        o.check_lossless()?;
         Ok(o)
+    }
+
+    /// Lossless coding keeps every sample: chroma subsampling, bands left out and trimmed
+    /// flexbits all lose some, so they contradict it.
+    fn check_lossless(&self) -> Result<()> {
+        if !self.lossless() {
+            return Ok(());
+        }
+        let what = if self.subsampling != Subsampling::Yuv444 {
+            "chroma subsampling"
+        } else if self.bands != Bands::All {
+            "leaving bands out"
+        } else if self.trim_flexbits > 0 {
+            "trimming flexbits"
+        } else {
+            return Ok(());
+        };
+        Err(Error::invalid(format!("jxr: lossless (quality 100) and {what} contradict each other")))
     }
 
     fn lossless(&self) -> bool {
@@ -151,13 +251,20 @@ impl EncodeOptions {
     ///
     /// No luminance-adaptive HP quantizers: alpha is not light.
     fn for_alpha(&self) -> EncodeOptions {
-        EncodeOptions { quality: self.alpha_quality, adaptive: false, ..self.clone() }
+        EncodeOptions {
+            quality: self.alpha_quality,
+            adaptive: false,
+            // The colour's order; every band of alpha (lossless by default).
+            bands: Bands::All,
+            trim_flexbits: 0,
+            ..self.clone()
+        }
     }
 
     /// How many HP quantizer sets the codestream lists (one, or [`HP_SET_OFFSETS`]' when
-    /// adaptive and lossy).
+    /// adaptive and lossy with an HP band).
     fn hp_sets(&self) -> usize {
-        if self.adaptive && !self.lossless() {
+        if self.adaptive && !self.lossless() && self.bands.has_hp() {
             HP_SET_OFFSETS.len()
         } else {
             1
@@ -220,6 +327,7 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
 
 /// [`encode`] at `options.quality`.
 fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
+    options.check_lossless()?;
     let mut report = EncodeReport::new();
     let (width, height) = (image.width() as usize, image.height() as usize);
     if width == 0 || height == 0 {
@@ -337,7 +445,18 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     // Each colour macroblock's HP quantizer set, from its luminance; alpha uses one set.
     let mb_set = macroblock_hp_sets(image, scale, mb_w, mb_h, options.hp_sets());
     let alpha_plane = if alpha { planes.pop() } else { None };
-    let codestream = encode_codestream(planes, (width, height), ClrFmt::Yuv444, 7, &mb_set, options, pool)?;
+    let fmt = match options.subsampling {
+        Subsampling::Yuv444 => ClrFmt::Yuv444,
+        Subsampling::Yuv422 => ClrFmt::Yuv422,
+        Subsampling::Yuv420 => ClrFmt::Yuv420,
+    };
+    if fmt != ClrFmt::Yuv444 {
+        pool.install(|| {
+            use rayon::prelude::*;
+            planes[1..3].par_iter_mut().for_each(|p| *p = downsample(p, pw, ph, fmt == ClrFmt::Yuv420));
+        });
+    }
+    let codestream = encode_codestream(planes, (width, height), fmt, 7, &mb_set, options, pool)?;
     let alpha_codestream = alpha_plane
         .map(|a| {
             let mb_set = vec![0; mb_w * mb_h];
@@ -354,6 +473,54 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         &meta,
     )?;
     Ok((file, report))
+}
+
+/// Chroma downsampling of a `pw` × `ph` plane (after the colour transform) to half its width
+/// (4:2:2), and its height too (`vertical`, 4:2:0): the binomial low-pass [1 4 6 4 1]/16
+/// each way, centred on the even samples, mirrored at the edges (whole-sample symmetric), as
+/// jxrlib's encoder filters (`strenc.c: downsampleUV`). The decoders put chroma sample `i` at
+/// luma sample `2i` (CHROMA_CENTERING 0, T.832 8.3.2: co-sited; jxrlib's and T.835's
+/// upsampling copy it there and average between), which is where this filter centres it.
+/// The sums are exact (64-bit) and rounded once (jxrlib rounds after each direction).
+fn downsample(plane: &[i32], pw: usize, ph: usize, vertical: bool) -> Vec<i32> {
+    const TAPS: [i64; 5] = [1, 4, 6, 4, 1];
+    // Sample `i` of a line of `n` mirrored about its ends (−1 → 1, n → n − 2).
+    let at = |i: isize, n: usize| -> usize {
+        let n = n as isize;
+        let i = if i < 0 { -i } else { i };
+        (if i >= n { 2 * (n - 1) - i } else { i }).clamp(0, n - 1) as usize
+    };
+    let hw = pw / 2;
+    let mut rows = vec![0i64; hw * ph];
+    for y in 0..ph {
+        let src = &plane[y * pw..(y + 1) * pw];
+        for x in 0..hw {
+            let c = 2 * x as isize;
+            rows[y * hw + x] = (0..5).map(|k| TAPS[k] * i64::from(src[at(c + k as isize - 2, pw)])).sum();
+        }
+    }
+    if !vertical {
+        return rows.iter().map(|&v| ((v + 8) >> 4) as i32).collect();
+    }
+    let hh = ph / 2;
+    let mut out = vec![0i32; hw * hh];
+    for y in 0..hh {
+        let c = 2 * y as isize;
+        for x in 0..hw {
+            let v: i64 = (0..5).map(|k| TAPS[k] * rows[at(c + k as isize - 2, ph) * hw + x]).sum();
+            out[y * hw + x] = ((v + 128) >> 8) as i32;
+        }
+    }
+    out
+}
+
+/// The plane kind of channel `ch` in internal colour format `fmt`.
+fn plane_kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
+    match (fmt, ch) {
+        (ClrFmt::Yuv420, 1..) => PlaneKind::Chroma420,
+        (ClrFmt::Yuv422, 1..) => PlaneKind::Chroma422,
+        _ => PlaneKind::Full,
+    }
 }
 
 /// One codestream (T.832 8.3) of `planes`, integer samples on the macroblock grid of a
@@ -373,10 +540,10 @@ fn encode_codestream(
     pool: &ThreadPool,
 ) -> Result<Vec<u8>> {
     let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
-    let (pw, ph) = (16 * mb_w, 16 * mb_h);
     let scaled = options.scaled();
     let channels = planes.len();
     let hp_sets = options.hp_sets();
+    let bands = options.bands;
     let bitdepth = match options.format {
         SampleFormat::Half => 4u8,
         SampleFormat::Float => 7u8,
@@ -390,13 +557,24 @@ fn encode_codestream(
     let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
     // Channels are independent here: one per thread of the pool.
     let transform_channel = |(ch, data): (usize, Vec<i32>)| -> Result<Vec<MbCoeffs>> {
-        let plane = Plane { width: pw, height: ph, data };
-        let mut c = forward_plane(&params, PlaneKind::Full, ch, mb_w, mb_h, plane)?;
+        // 4:2:0 and 4:2:2 chroma planes are half as wide (and 4:2:0 half as high).
+        let kind = plane_kind(fmt, ch);
+        let (bx, by) = kind.blocks();
+        let plane = Plane { width: 4 * bx * mb_w, height: 4 * by * mb_h, data };
+        let mut c = forward_plane(&params, kind, ch, mb_w, mb_h, plane)?;
         let luma = ch == 0;
         let (dc, lp) = (quant::step(pick(qdc, ch), scaled, luma), quant::step(pick(qlp, ch), scaled, luma));
         let hp: Vec<i32> = (0..hp_sets).map(|k| quant::step(hp_index(pick(qhp, ch), k), scaled, true)).collect();
+        let shape = quant::channel_shape(fmt, ch);
         for (mb, &set) in c.iter_mut().zip(mb_set) {
-            quant::quantize(mb, (16, 16), dc, lp, hp[usize::from(set)]);
+            quant::quantize(mb, shape, dc, lp, hp[usize::from(set)]);
+            // The bands left out are zero for the decoder.
+            if !bands.has_lp() {
+                mb[1..16].fill(0);
+            }
+            if !bands.has_hp() {
+                mb[16..].fill(0);
+            }
         }
         Ok(c)
     };
@@ -421,40 +599,67 @@ fn encode_codestream(
     // stopping at its edges), in parallel on the pool.
     let (tile_widths, tile_heights) = (tile_sizes(mb_w, options.tile_mbs), tile_sizes(mb_h, options.tile_mbs));
     let rects = tile_rects(&tile_widths, &tile_heights);
-    let packets: Vec<Result<Vec<u8>>> = pool.install(|| {
+    let frequency = options.order == BitstreamOrder::Frequency;
+    // TRIM_FLEXBITS matters only where flexbits are coded.
+    let trim = if bands.has_flex() { u32::from(options.trim_flexbits.min(15)) } else { 0 };
+    let coding = TileCoding {
+        coeffs: &coeffs,
+        mb_set,
+        hp_qp_sets: &hp_qp_sets,
+        mb_w,
+        fmt,
+        channels,
+        bands,
+        frequency,
+        trim: (trim > 0).then_some(trim),
+    };
+    let tiles: Vec<Result<Vec<Vec<u8>>>> = pool.install(|| {
         use rayon::prelude::*;
-        rects
-            .par_iter()
-            .enumerate()
-            .map(|(id, &rect)| encode_tile(&coeffs, mb_set, &hp_qp_sets, mb_w, rect, fmt, channels, id))
-            .collect()
+        rects.par_iter().enumerate().map(|(id, &rect)| coding.encode_tile(rect, id)).collect()
     });
-    let packets = packets.into_iter().collect::<Result<Vec<_>>>()?;
-    let tiling = packets.len() > 1;
+    // The index table lists the packets tile by tile, each tile's bands in order (T.832
+    // 8.3.3); they are stored in that order too (JxrEncApp's `-p`).
+    let packets: Vec<Vec<u8>> = tiles.into_iter().collect::<Result<Vec<_>>>()?.into_iter().flatten().collect();
+    let tiling = rects.len() > 1;
 
     let image_header = ImageHeader {
         tiling,
-        // Required with more than one tile (T.832 8.3.1); lets decoders find each tile.
-        index_table: tiling,
+        frequency_mode: frequency,
+        // Required with more than one tile and in frequency order (T.832 8.3.1); lets
+        // decoders find each tile and band.
+        index_table: tiling || frequency,
         overlap: overlap as u8,
+        trim_flexbits: trim > 0,
         tile_widths: tile_widths.iter().map(|&w| w as u32).collect(),
         tile_heights: tile_heights.iter().map(|&h| h as u32).collect(),
         ..ImageHeader::new(width as u32, height as u32, output_clr_fmt, bitdepth)
     };
     let (mantissa, exp_bias) =
         if options.format == SampleFormat::Float { (FLOAT_MANTISSA, FLOAT_EXP_BIAS) } else { (0, 0) };
+    // A band left out takes the quantizers of the band below (RESERVED_I / RESERVED_J 0: the
+    // plane header codes none for it).
+    let dc = QpSource::Uniform(qp_set(qdc));
+    let lp = if bands.has_lp() { QpSource::Uniform(qp_set(qlp)) } else { dc };
+    let hp = if !bands.has_hp() {
+        lp
+    } else if hp_sets > 1 {
+        // Several sets: each tile header lists them, each macroblock picks one.
+        QpSource::PerTile
+    } else {
+        QpSource::Uniform(qp_set(qhp))
+    };
     let plane_header = PlaneHeader {
         clr_fmt: fmt,
         scaled,
-        bands: Bands::All,
+        bands,
         channels,
+        // Chroma sample i sits on luma sample 2i (see `downsample`).
         chroma_centering: (0, 0),
         shift_or_mantissa: mantissa,
         exp_bias,
-        dc: QpSource::Uniform(qp_set(qdc)),
-        lp: QpSource::Uniform(qp_set(qlp)),
-        // Several sets: each tile header lists them, each macroblock picks one.
-        hp: if hp_sets > 1 { QpSource::PerTile } else { QpSource::Uniform(qp_set(qhp)) },
+        dc,
+        lp,
+        hp,
     };
     header::write_codestream(&image_header, &plane_header, None, &packets)
 }
@@ -579,83 +784,161 @@ fn tile_rects(widths: &[usize], heights: &[usize]) -> Vec<TileRect> {
     out
 }
 
-/// The spatial-order packet of one tile (T.832 8.4.x TILE_SPATIAL): the packet header, then
-/// every macroblock of the tile in raster order (prediction, then entropy coding, exactly
-/// undoing `tiles.rs`), byte-aligned. `coeffs` holds each channel's quantized macroblocks of
-/// the whole image, `mb_w` across.
-#[allow(clippy::too_many_arguments)]
-fn encode_tile(
-    coeffs: &[Vec<MbCoeffs>],
-    mb_set: &[u8],
-    hp_qp_sets: &[QpSet],
+/// What the tiles of one codestream share: the quantized coefficients and quantizers, and how
+/// they are coded.
+struct TileCoding<'a> {
+    /// Each channel's quantized macroblocks of the whole image, `mb_w` across.
+    coeffs: &'a [Vec<MbCoeffs>],
+    /// Each macroblock's HP quantizer set.
+    mb_set: &'a [u8],
+    hp_qp_sets: &'a [QpSet],
     mb_w: usize,
-    tile: TileRect,
     fmt: ClrFmt,
     channels: usize,
-    id: usize,
-) -> Result<Vec<u8>> {
-    let stride = channels * MB_COEFFS;
-    // Row `my` of the tile into `row`: each macroblock's channels together (`stride` values),
-    // as the decoder holds them.
-    let fill_row = |my: usize, row: &mut [i32]| {
-        for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
-            for (c, dst) in coeffs.iter().zip(mb.chunks_exact_mut(MB_COEFFS)) {
-                dst.copy_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
+    bands: Bands,
+    frequency: bool,
+    /// TRIM_FLEXBITS, when the image header flags it.
+    trim: Option<u32>,
+}
+
+/// Packet types (jxrlib `writePacketHeader`): spatial, DC, LP, HP, FLEXBITS.
+const PACKET_SPATIAL: u32 = 0;
+
+impl TileCoding<'_> {
+    /// The packets of one tile: in spatial order one (T.832 8.4.1, TILE_SPATIAL), in
+    /// frequency order one per band present (8.4.2: TILE_DC, TILE_LOWPASS, TILE_HIGHPASS,
+    /// TILE_FLEXBITS); each a packet header, the tile headers of its band, then the band of
+    /// every macroblock of the tile in raster order (prediction, then entropy coding, exactly
+    /// undoing `tiles.rs`), byte-aligned.
+    fn encode_tile(&self, tile: TileRect, id: usize) -> Result<Vec<Vec<u8>>> {
+        let (fmt, channels, bands) = (self.fmt, self.channels, self.bands);
+        let (mb_w, hp_qp_sets) = (self.mb_w, self.hp_qp_sets);
+        let stride = channels * MB_COEFFS;
+        // Row `my` of the tile into `row`: each macroblock's channels together (`stride`
+        // values), as the decoder holds them.
+        let fill_row = |my: usize, row: &mut [i32]| {
+            for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
+                for (c, dst) in self.coeffs.iter().zip(mb.chunks_exact_mut(MB_COEFFS)) {
+                    dst.copy_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
+                }
+            }
+        };
+        // Spatial: everything in writer 0. Frequency: DC, LP, HP, FLEXBITS in 0..=3.
+        let count = if self.frequency { bands.count() } else { 1 };
+        let mut ws: Vec<BitWriter> = (0..count).map(|_| BitWriter::new()).collect();
+        let band_writer = |band: usize| if self.frequency { band } else { 0 };
+        let (dc_w, lp_w, hp_w, flex_w) = (band_writer(0), band_writer(1), band_writer(2), band_writer(3));
+        // The packet header: a start code, then the tile number modulo 32 and the packet
+        // type.
+        for (band, w) in ws.iter_mut().enumerate() {
+            let kind = if self.frequency { band as u32 + 1 } else { PACKET_SPATIAL };
+            w.write(1, 24);
+            w.write(((id % 32) as u32) << 3 | kind, 8);
+        }
+        // Spatial: TRIM_FLEXBITS first, then the tile headers; frequency: TRIM_FLEXBITS in
+        // the FLEXBITS packet. The DC and LP quantizers are the image's (no DC or LP tile
+        // header); TILE_HEADER_HIGHPASS when the plane header left HP quantizers to the
+        // tiles: USE_LP_QP 0, the number of sets, the sets.
+        if let Some(trim) = self.trim {
+            ws[flex_w].write(trim, 4);
+        }
+        if bands.has_hp() && hp_qp_sets.len() > 1 {
+            let w = &mut ws[hp_w];
+            w.bit(false);
+            w.write(hp_qp_sets.len() as u32 - 1, 4);
+            for set in hp_qp_sets {
+                header::write_qp_set(w, set, channels)?;
             }
         }
-    };
-    let mut w = BitWriter::new();
-    // The packet header (jxrlib `writePacketHeader`): a start code, then the packet type
-    // (0: spatial) and the tile number modulo 32.
-    w.write(1, 24);
-    w.write((id % 32) as u32, 8);
-    // TILE_HEADER_HIGHPASS (T.832 8.4.x) when the plane header left HP quantizers to the
-    // tiles: USE_LP_QP 0, the number of sets, the sets.
-    if hp_qp_sets.len() > 1 {
-        w.bit(false);
-        w.write(hp_qp_sets.len() as u32 - 1, 4);
-        for set in hp_qp_sets {
-            header::write_qp_set(&mut w, set, channels)?;
+        let trim = self.trim.unwrap_or(0);
+        let tile_w = tile.w as u32;
+        let mut enc = PlaneEncoder::new(fmt, channels);
+        enc.trim = trim;
+        let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
+        let mut rows = [vec![0i32; tile.w * stride], vec![0i32; tile.w * stride]];
+        let mut res = vec![0i32; stride];
+        for my in 0..tile.h {
+            let [r0, r1] = &mut rows;
+            let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
+            fill_row(my, row);
+            let row = &*row;
+            let [a, b] = &mut cbp_rows;
+            let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
+            for mx in 0..tile.w {
+                let cur = &row[mx * stride..(mx + 1) * stride];
+                let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);
+                let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
+                let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
+                res.copy_from_slice(cur);
+                if bands.has_hp() {
+                    // The HP bits the decoder will not read (all flexbits, or the trimmed
+                    // ones) are rounded away first: multiples of 2^d stay multiples of 2^d
+                    // through HP prediction, so the residuals lose nothing more.
+                    let bits = enc.hp_model_bits();
+                    for (ch, c) in res.chunks_exact_mut(MB_COEFFS).enumerate() {
+                        let m = bits[usize::from(ch > 0)];
+                        round_hp(c, if bands.has_flex() { trim.min(m) } else { m });
+                    }
+                }
+                predict::unpredict_dclp(fmt, channels, &mut res, left, top, top_left, true, true);
+                // The decoder chooses the HP prediction from the predicted (final) LP values.
+                let mode = predict::hp_mode(fmt, cur);
+                let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
+                for ch in 0..hp_channels {
+                    predict::unpredict_hp(fmt, &mut res, ch, mode);
+                }
+                // Spatial order puts the HP quantizer index first, frequency order at the
+                // start of the macroblock's HP data.
+                let hp_index = bands.has_hp() && hp_qp_sets.len() > 1;
+                let set = self.mb_set[(tile.y0 + my) * mb_w + tile.x0 + mx];
+                if hp_index && !self.frequency {
+                    quant::write_qp_index(&mut ws[0], set, hp_qp_sets.len());
+                }
+                enc.dc(&mut ws[dc_w], &res, mx as u32, tile_w)?;
+                if bands.has_lp() {
+                    enc.lp(&mut ws[lp_w], &res, mx as u32, tile_w)?;
+                }
+                if bands.has_hp() {
+                    if hp_index && self.frequency {
+                        quant::write_qp_index(&mut ws[hp_w], set, hp_qp_sets.len());
+                    }
+                    let (before, rest) = cur_cbp.split_at_mut(mx * channels);
+                    let left_cbp = (mx > 0).then(|| &before[(mx - 1) * channels..]);
+                    let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
+                    let cbp = &mut rest[..channels];
+                    // Spatial order: each block's flexbits follow it; frequency order: in the
+                    // FLEXBITS packet.
+                    let inline = bands.has_flex() && !self.frequency;
+                    let bits =
+                        enc.cbp_hp(&mut ws[hp_w], &res, left_cbp, top_cbp, cbp, mode, mx as u32, tile_w, inline)?;
+                    if bands.has_flex() && self.frequency {
+                        flex_mb_encode(&mut ws[flex_w], &res, fmt, channels, trim, bits)?;
+                    }
+                }
+            }
         }
+        Ok(ws
+            .into_iter()
+            .map(|mut w| {
+                w.align();
+                w.into_bytes()
+            })
+            .collect())
     }
-    let tile_w = tile.w as u32;
-    let mut enc = PlaneEncoder::new(fmt, channels);
-    let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
-    let mut rows = [vec![0i32; tile.w * stride], vec![0i32; tile.w * stride]];
-    let mut res = vec![0i32; stride];
-    for my in 0..tile.h {
-        let [r0, r1] = &mut rows;
-        let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
-        fill_row(my, row);
-        let row = &*row;
-        let [a, b] = &mut cbp_rows;
-        let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
-        for mx in 0..tile.w {
-            let cur = &row[mx * stride..(mx + 1) * stride];
-            let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);
-            let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
-            let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
-            res.copy_from_slice(cur);
-            predict::unpredict_dclp(fmt, channels, &mut res, left, top, top_left, true, true);
-            // The decoder chooses the HP prediction from the predicted (final) LP values.
-            let mode = predict::hp_mode(fmt, cur);
-            let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
-            for ch in 0..hp_channels {
-                predict::unpredict_hp(fmt, &mut res, ch, mode);
-            }
-            if hp_qp_sets.len() > 1 {
-                quant::write_qp_index(&mut w, mb_set[(tile.y0 + my) * mb_w + tile.x0 + mx], hp_qp_sets.len());
-            }
-            enc.dc(&mut w, &res, mx as u32, tile_w)?;
-            enc.lp(&mut w, &res, mx as u32, tile_w)?;
-            let (before, rest) = cur_cbp.split_at_mut(mx * channels);
-            let left_cbp = (mx > 0).then(|| &before[(mx - 1) * channels..]);
-            let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
-            enc.cbp_hp(&mut w, &res, left_cbp, top_cbp, &mut rest[..channels], mode, mx as u32, tile_w, true)?;
-        }
+}
+
+/// Rounds the HP coefficients of one channel of a macroblock (quantized) to the nearest
+/// multiples of 2^`d` (half away from zero): what a decoder that does not read their `d`
+/// lowest bits can represent.
+fn round_hp(c: &mut [i32], d: u32) {
+    if d == 0 {
+        return;
     }
-    w.align();
-    Ok(w.into_bytes())
+    let half = 1i64 << (d - 1);
+    for v in &mut c[16..] {
+        let m = ((i64::from(*v).abs() + half) >> d) << d;
+        *v = (if *v < 0 { -m } else { m }).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+    }
 }
 
 #[cfg(test)]
@@ -834,6 +1117,114 @@ mod tests {
         assert!(report.notes.iter().any(|n| n.contains("not reached")), "{:?}", report.notes);
     }
 
+    /// Mean absolute error of decoding `file` against `image`, in half-float integer codes
+    /// (log-like: 1024 codes per factor 2).
+    fn code_error(file: &[u8], image: &HdrImage) -> f64 {
+        let raw = crate::decode_raw(file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+        let got = raw.chunks(2).map(|b| half_bits_to_int(u16::from_le_bytes([b[0], b[1]])));
+        let want = image.samples().iter().map(|&v| half_bits_to_int(half::f16::from_f32(v).to_bits()));
+        let n = image.samples().len() as f64;
+        got.zip(want).map(|(g, w)| f64::from((g - w).abs())).sum::<f64>() / n
+    }
+
+    #[test]
+    fn subsampling_orders_and_bands_round_trip_through_the_decoder() {
+        // Smooth colour (chroma subsampling has little to lose) over a few decades.
+        let (w, h) = (70u32, 45u32);
+        let samples = (0..w * h * 3)
+            .map(|i| {
+                let (p, c) = (i / 3, (i % 3) as f32);
+                let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
+                10f32.powf(3.0 * x - 1.0) * (1.0 + 0.3 * (y * 3.0 + c).sin())
+            })
+            .collect();
+        let color = hdrcodec_core::ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 80.0, hdr10: None };
+        let image = HdrImage::new(w, h, Channels::Rgb, samples, color).unwrap();
+        let pool = ThreadPool::new(2).unwrap();
+        let encode_with = |o: EncodeOptions| encode(&image, &o, &pool).unwrap().0;
+        let base = EncodeOptions { quality: 80, ..EncodeOptions::default() };
+        let reference = code_error(&encode_with(base.clone()), &image);
+        for subsampling in [Subsampling::Yuv444, Subsampling::Yuv422, Subsampling::Yuv420] {
+            for order in [BitstreamOrder::Spatial, BitstreamOrder::Frequency] {
+                for tile_mbs in [0, 2] {
+                    let o = EncodeOptions { subsampling, order, tile_mbs, ..base.clone() };
+                    let file = encode_with(o);
+                    let cs = header::parse(crate::container::parse_container(&file).unwrap().image).unwrap();
+                    assert_eq!(cs.image.frequency_mode, order == BitstreamOrder::Frequency);
+                    let err = code_error(&file, &image);
+                    // The chroma is smooth: subsampling costs little.
+                    assert!(err < reference * 3.0 + 8.0, "{subsampling:?} {order:?}: {err} against {reference}");
+                }
+            }
+        }
+        // The same macroblock data in either order: identical samples.
+        for bands in [Bands::All, Bands::NoFlexbits, Bands::NoHighpass, Bands::DcOnly] {
+            let o = |order| EncodeOptions { bands, order, tile_mbs: 2, ..base.clone() };
+            let (spatial, frequency) =
+                (encode_with(o(BitstreamOrder::Spatial)), encode_with(o(BitstreamOrder::Frequency)));
+            let decode = |f: &[u8]| crate::decode_raw(f, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            assert!(decode(&spatial) == decode(&frequency), "{bands:?}");
+        }
+        // Each band left out costs quality, each one a little more.
+        let errors: Vec<f64> = [Bands::All, Bands::NoFlexbits, Bands::NoHighpass, Bands::DcOnly]
+            .into_iter()
+            .map(|bands| code_error(&encode_with(EncodeOptions { bands, quality: 95, ..base.clone() }), &image))
+            .collect();
+        assert!(errors.windows(2).all(|e| e[0] <= e[1]), "{errors:?}");
+        // Trimmed flexbits: between all bands and none.
+        let trimmed = code_error(&encode_with(EncodeOptions { trim_flexbits: 2, quality: 95, ..base.clone() }), &image);
+        assert!(errors[0] <= trimmed && trimmed <= errors[1], "{trimmed} {errors:?}");
+        // Lossless in frequency order gives the input back.
+        let file = encode_with(EncodeOptions { quality: 100, order: BitstreamOrder::Frequency, ..base.clone() });
+        assert_eq!(code_error(&file, &image), 0.0);
+    }
+
+    #[test]
+    fn lossless_contradicts_subsampling_bands_and_trimming() {
+        let image = ramp(20, 9, ColorPrimaries::Bt709);
+        for o in [
+            EncodeOptions { subsampling: Subsampling::Yuv420, ..EncodeOptions::default() },
+            EncodeOptions { bands: Bands::NoFlexbits, ..EncodeOptions::default() },
+            EncodeOptions { trim_flexbits: 1, ..EncodeOptions::default() },
+        ] {
+            assert!(encode(&image, &o, &ThreadPool::single()).is_ok());
+            let lossless = EncodeOptions { quality: 100, ..o };
+            let err = encode(&image, &lossless, &ThreadPool::single()).unwrap_err();
+            assert!(err.to_string().contains("contradict"), "{err}");
+        }
+        let s = EncodeSettings::default().with_option("lossless", "true").with_option("subsampling", "422");
+        assert!(EncodeOptions::from_settings(&s).is_err());
+    }
+
+    #[test]
+    fn chroma_downsampling_is_a_centred_binomial_filter() {
+        // A constant stays constant; mirrored edges keep a ramp a ramp at the left edge.
+        let (pw, ph) = (16, 16);
+        let flat = vec![-77; pw * ph];
+        assert!(downsample(&flat, pw, ph, true).iter().all(|&v| v == -77));
+        let ramp: Vec<i32> = (0..pw * ph).map(|i| 16 * (i % pw) as i32).collect();
+        let half = downsample(&ramp, pw, ph, false);
+        assert_eq!(half.len(), pw / 2 * ph);
+        // Interior samples of a linear ramp are the ramp at the even positions.
+        assert_eq!(&half[1..7], &[32, 64, 96, 128, 160, 192]);
+        // Position 0 mirrored: (6·0 + 2·4·16 + 2·32)/16 = 12.
+        assert_eq!(half[0], 12);
+        // One impulse spreads [1 4 6 4 1] around its (even) position, both ways for 4:2:0.
+        let mut impulse = vec![0; pw * ph];
+        impulse[8 * pw + 8] = 256;
+        let q = downsample(&impulse, pw, ph, true);
+        assert_eq!((q[4 * 8 + 4], q[4 * 8 + 3], q[3 * 8 + 3]), (36, 6, 1));
+    }
+
+    #[test]
+    fn hp_rounding_keeps_multiples() {
+        let mut c = [0i32; MB_COEFFS];
+        c[0] = 13;
+        c[16..21].copy_from_slice(&[5, -5, 6, -1, -2]);
+        round_hp(&mut c, 2);
+        assert_eq!((c[0], &c[16..21]), (13, &[4, -4, 8, 0, -4][..]));
+    }
+
     #[test]
     fn options_come_from_the_settings() {
         let s = EncodeSettings::default().with_quality(70);
@@ -852,7 +1243,27 @@ mod tests {
         assert!(EncodeOptions::from_settings(&EncodeSettings::default().with_option("target_bpp", "-1")).is_err());
         let both = EncodeSettings::default().with_option("target_bpp", "2").with_option("lossless", "true");
         assert!(EncodeOptions::from_settings(&both).is_err());
+        let s = EncodeSettings::default()
+            .with_option("subsampling", "420")
+            .with_option("order", "frequency")
+            .with_option("bands", "noflex")
+            .with_option("trim_flexbits", "4");
+        let o = EncodeOptions::from_settings(&s).unwrap();
+        assert_eq!(
+            (o.subsampling, o.order, o.bands, o.trim_flexbits),
+            (Subsampling::Yuv420, BitstreamOrder::Frequency, Bands::NoFlexbits, 4)
+        );
+        for (v, bands) in [("all", Bands::All), ("nohp", Bands::NoHighpass), ("dc", Bands::DcOnly)] {
+            let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("bands", v)).unwrap();
+            assert_eq!(o.bands, bands);
+        }
+        let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("subsampling", "422")).unwrap();
+        assert_eq!((o.subsampling, o.order), (Subsampling::Yuv422, BitstreamOrder::Spatial));
         for (k, v) in [
+            ("subsampling", "411"),
+            ("order", "progressive"),
+            ("bands", "flex"),
+            ("trim_flexbits", "16"),
             ("tile", "100"),
             ("format", "rgbe"),
             ("overlap", "3"),

@@ -749,6 +749,12 @@ impl PlaneEncoder {
         PlaneEncoder { trim: 0, st: EntropyState::new(fmt, channels) }
     }
 
+    /// The HP model bits (luma, chroma) the next macroblock's HP band will be coded with:
+    /// its coefficients' lowest bits that become flexbits.
+    pub fn hp_model_bits(&self) -> [u32; 2] {
+        self.st.model[BAND_HP].bits
+    }
+
     /// ABSLEVEL_INDEX and its raw bits for `level` ≥ 2 (the inverse of `r_DECODE_ABS_LEVEL`).
     fn abs_level(&mut self, w: &mut BitWriter, v: V, level: u32) -> Result<()> {
         debug_assert!(level >= 2);
@@ -1213,8 +1219,6 @@ pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, mode
 /// MB_FLEXBITS written (the inverse of [`flex_mb`]): the flexbits of every block of a
 /// macroblock for a FLEXBITS packet, with the HP model bits the macroblock was coded with
 /// (what [`PlaneEncoder::cbp_hp`] returned).
-// For a FLEXBITS packet of its own (frequency order, which the encoder does not write yet).
-#[allow(dead_code)]
 pub fn flex_mb_encode(
     w: &mut BitWriter,
     c: &[i32],
