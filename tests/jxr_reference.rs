@@ -825,7 +825,8 @@ fn encoder_test_image(width: u32, height: u32, seed: u64) -> hdrcodec_core::HdrI
 /// Files our encoder writes (half and float, lossless and lossy, the three overlap modes,
 /// sizes that are and are not whole macroblocks) decode in jxrlib to exactly the samples our
 /// decoder gives; lossless half files give back the input's half bit patterns. RGBA images
-/// (planar alpha, lossless or lossy) too, alpha included.
+/// (planar alpha, lossless or lossy) too, alpha included; and the other stored formats
+/// ([`encode_other_formats`]).
 #[test]
 fn jxrlib_decodes_our_encoded_files_as_we_do() {
     use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
@@ -914,6 +915,7 @@ fn jxrlib_decodes_our_encoded_files_as_we_do() {
             }
         }
     }
+    pairs.extend(encode_other_formats(&dir, &options));
     check.assert_same(&pairs, "our encoded files");
 }
 
@@ -1017,6 +1019,53 @@ fn jxrlib_decodes_our_encoder_options_as_we_do() {
         pairs.push((path, raw_path, mode));
     }
     check.assert_same(&pairs, "our files with encoder options");
+}
+
+/// The other stored formats of our encoder (RGBE, fixed point, padded half, 8-, 16- and
+/// 10-bit codes of sRGB, PQ and linear light; RGBA in the formats that have alpha), lossless
+/// and lossy, one tile and tiles: writes each file and our decoder's samples into `dir` and
+/// returns them with the way jxrlib's samples are read (imagecodecs, or JxrDecApp's TIFF for
+/// the formats imagecodecs converts or refuses: fixed point, 64bppRGBHalf, 101010).
+fn encode_other_formats(dir: &Path, options: &DecodeOptions) -> Vec<(PathBuf, PathBuf, &'static str)> {
+    use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
+    use hdrcodec_jxr::output::SampleTransfer;
+    let formats = [
+        (SampleFormat::Rgbe, "ic"),
+        (SampleFormat::Fixed, "tif"),
+        (SampleFormat::HalfPadded, "tif"),
+        (SampleFormat::Rgb8(SampleTransfer::Srgb), "ic"),
+        (SampleFormat::Rgb16(SampleTransfer::Pq), "ic"),
+        (SampleFormat::Rgb16(SampleTransfer::Linear), "ic"),
+        (SampleFormat::Rgb101010(SampleTransfer::Pq), "tif"),
+    ];
+    let rgba = [
+        (SampleFormat::Fixed, "tif+alpha"),
+        (SampleFormat::Rgb8(SampleTransfer::Srgb), "bgr+alpha"),
+        (SampleFormat::Rgb16(SampleTransfer::Pq), "ic+alpha"),
+    ];
+    let mut pairs = Vec::new();
+    for (w, h) in [(37u32, 23u32), (161, 50)] {
+        // Samples from 0.01 to 30 000 scRGB units: every format clips some (counted).
+        let rgb = encoder_test_image(w, h, u64::from(w * h) + 2);
+        let with_alpha = with_test_alpha(&rgb);
+        let cases = formats.iter().map(|&(f, m)| (f, m, &rgb)).chain(rgba.iter().map(|&(f, m)| (f, m, &with_alpha)));
+        for (format, mode, image) in cases {
+            for quality in [100u8, 60] {
+                let tile_mbs = if w > 64 { 2 } else { 0 };
+                let opts = EncodeOptions { quality, format, tile_mbs, ..EncodeOptions::default() };
+                let (file, _) = encode(image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
+                let alpha = if mode.ends_with("alpha") { "_rgba" } else { "" };
+                let name = format!("{w}x{h}_{format:?}{alpha}_q{quality}").replace(['(', ')'], "_");
+                let raw = decode_raw(&file, options).unwrap_or_else(|e| panic!("{name}: {e}"));
+                let path = dir.join(format!("{name}.jxr"));
+                std::fs::write(&path, &file).unwrap();
+                let raw_path = dir.join(format!("{name}.ours.raw"));
+                std::fs::write(&raw_path, raw).unwrap();
+                pairs.push((path, raw_path, mode));
+            }
+        }
+    }
+    pairs
 }
 
 /// `image` with an alpha channel: opaque on the left third, a ramp from 0 to 1 with a

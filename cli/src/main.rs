@@ -89,7 +89,9 @@ struct ConvertArgs {
     /// Worker threads (0 = one per core).
     #[arg(long)]
     threads: Option<usize>,
-    /// Codec-specific option key=value (repeatable).
+    /// Codec-specific option key=value (repeatable). JPEG XR: format=half|float|rgbe|fixed|half4|
+    /// rgb8|rgb16|rgb101010 (the stored pixel format), transfer=srgb|pq|linear (integer formats),
+    /// lossless, overlap, tile, adaptive, alpha_quality, target_bpp (see codecs/jxr/README.md).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
 }

@@ -4,31 +4,26 @@
 //! and the file container.
 //!
 //! What it writes so far: tiles in spatial or frequency order, every band or fewer (trimmed
-//! flexbits too), 4:4:4, 4:2:2 or 4:2:0 from RGB, 48bppRGBHalf or
-//! 128bppRGBFloat (64bppRGBAHalf or 128bppRGBAFloat with a planar alpha codestream for RGBA
-//! images), overlap 0, 1 or 2, one quantizer set per band and
+//! flexbits too), 4:4:4, 4:2:2 or 4:2:0 from RGB, the pixel formats of [`SampleFormat`] (half,
+//! float, RGBE, fixed point, padded half, 8-, 16- and 10-bit integer codes of sRGB, PQ or
+//! linear light; the samples to integers in `input`), RGBA with a planar alpha codestream
+//! where the format has an alpha variant, overlap 0, 1 or 2, one quantizer set per band and
 //! channel for the whole image, lossless (quantizer 1, unscaled arithmetic, as JxrEncApp does)
 //! or lossy (scaled arithmetic). The quality → quantizer mapping is provisional.
 
 use crate::bits::BitWriter;
-use crate::container::{self, ContainerMeta, PixelFormat, PIXEL_FORMATS};
+use crate::container::{self, ContainerMeta};
 use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSource};
+use crate::input::{Clipped, SampleCoder};
 use crate::macroblock::{flex_mb_encode, PlaneEncoder};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::{float_to_int, forward_cc, half_bits_to_int};
+use crate::output::forward_cc;
 use crate::predict;
 use crate::quant;
 use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
 use hdrcodec_core::{Channels, EncodeReport, EncodeSettings, Error, HdrImage, Result, ThreadPool};
 
-/// How the samples are stored in the file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SampleFormat {
-    /// 48bppRGBHalf: IEEE half floats (what Windows HDR screenshots use, without alpha).
-    Half,
-    /// 128bppRGBFloat: single floats, coded with [`FLOAT_MANTISSA`] mantissa bits.
-    Float,
-}
+pub use crate::input::SampleFormat;
 
 /// Mantissa bits of the mini-float that float samples are coded as (LEN_MANTISSA, T.832
 /// 8.3.2.x; JxrEncApp's default).
@@ -111,8 +106,9 @@ impl Default for EncodeOptions {
 }
 
 impl EncodeOptions {
-    /// The options of `settings`: its quality, and the codec options `format` (`half` or
-    /// `float`), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile size
+    /// The options of `settings`: its quality, and the codec options `format` (`half`,
+    /// `float`, `rgbe`, `fixed`, `half4`, `rgb8`, `rgb16` or `rgb101010`; see [`SampleFormat`]),
+    /// `transfer` (`srgb`, `pq` or `linear`, for the integer formats only), `overlap` (0, 1 or 2), `lossless` (`true`: quality 100), `tile` (tile size
     /// in pixels, a multiple of 16; 0 for one tile), `adaptive` (`false`: one HP quantizer
     /// for every macroblock), `target_bpp` (rate control: bits per pixel), `alpha_quality`
     /// (0-100), `subsampling` (`444`, `422` or `420`), `order` (`spatial` or `frequency`),
@@ -122,6 +118,7 @@ impl EncodeOptions {
             "jxr",
             &[
                 "format",
+                "transfer",
                 "overlap",
                 "lossless",
                 "tile",
@@ -135,13 +132,7 @@ impl EncodeOptions {
             ],
         )?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
-        if let Some(f) = settings.option("format") {
-            o.format = match f {
-                "half" => SampleFormat::Half,
-                "float" => SampleFormat::Float,
-                _ => return Err(Error::invalid(format!("jxr: format={f}: expected half or float"))),
-            };
-        }
+        o.format = SampleFormat::parse(settings.option("format"), settings.option("transfer"))?;
         if let Some(v) = settings.option("overlap") {
             o.overlap = Some(match v {
                 "0" => OverlapMode::None,
@@ -238,10 +229,10 @@ impl EncodeOptions {
         self.quality >= 100
     }
 
-    /// SCALED_FLAG: jxrlib codes floats in unscaled arithmetic always, and lossless images
-    /// too (scaling would lose the low bits).
+    /// SCALED_FLAG: jxrlib codes the 32-bit formats (floats) in unscaled arithmetic always,
+    /// and lossless images too (scaling would lose the low bits).
     fn scaled(&self) -> bool {
-        !self.lossless() && self.format != SampleFormat::Float
+        !self.lossless() && !self.format.always_unscaled()
     }
 
     /// The options of the planar alpha codestream: its own quality, and the overlap asked
@@ -262,9 +253,9 @@ impl EncodeOptions {
     }
 
     /// How many HP quantizer sets the codestream lists (one, or [`HP_SET_OFFSETS`]' when
-    /// adaptive and lossy with an HP band).
+    /// adaptive and lossy with an HP band, for the formats whose codes are logarithmic).
     fn hp_sets(&self) -> usize {
-        if self.adaptive && !self.lossless() && self.bands.has_hp() {
+        if self.adaptive && !self.lossless() && self.bands.has_hp() && self.format.log_coded() {
             HP_SET_OFFSETS.len()
         } else {
             1
@@ -282,19 +273,16 @@ impl EncodeOptions {
     /// resolves less finely, 24 indices more for DC and LP and 32 more for HP (2.8 and 4
     /// times the step; in scaled arithmetic chroma DC and LP steps are halved again). At
     /// equal quantizers our files are jxrlib's size; these choices put our curve of bytes
-    /// against PU21-PSNR level with JxrEncApp's (see the crate README).
+    /// against PU21-PSNR level with JxrEncApp's (see the crate README). Formats whose codes are
+    /// coarser or finer than half's move the base index (`SampleFormat`'s QP offset).
     fn qp_indices(&self) -> [[u8; 2]; 3] {
         if self.lossless() {
             return [[0; 2]; 3];
         }
-        let base = 1.4 * f32::from(100 - self.quality.min(99)) - 4.0;
+        let base = 1.4 * f32::from(100 - self.quality.min(99)) - 4.0 + self.format.qp_offset();
         let idx = |offset: f32| (base + offset).round().clamp(1.0, 255.0) as u8;
         [[idx(0.0), idx(24.0)], [idx(0.0), idx(24.0)], [idx(0.0), idx(32.0)]]
     }
-}
-
-fn pixel_format(name: &str) -> Result<&'static PixelFormat> {
-    PIXEL_FORMATS.iter().find(|f| f.name == name).ok_or_else(|| Error::invalid(format!("no pixel format {name}")))
 }
 
 /// Encodes `image` (RGB, or RGBA with alpha as a planar alpha codestream) as a JPEG XR file.
@@ -343,13 +331,8 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     let scale = image.color.nits_per_unit / crate::output::NITS_PER_UNIT;
     let ptm_color_info = colour_info(image, &mut report)?;
     let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
-    // With alpha, the RGBA format of the same sample type (T.832 Table A.6).
-    let format = pixel_format(match (options.format, alpha) {
-        (SampleFormat::Half, false) => "48bppRGBHalf",
-        (SampleFormat::Half, true) => "64bppRGBAHalf",
-        (SampleFormat::Float, false) => "128bppRGBFloat",
-        (SampleFormat::Float, true) => "128bppRGBAFloat",
-    })?;
+    // With alpha, the RGBA format of the same sample type (T.832 Table A.6), if there is one.
+    let format = options.format.pixel_format(alpha)?;
     let alpha_options = options.for_alpha();
     // In scaled arithmetic the integers carry 3 more bits (T.832 9.10's right shift).
     let shift = if options.scaled() { 3 } else { 0 };
@@ -360,42 +343,15 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     // repeats the last column and row, as jxrlib's encoder pads.
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
     let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; spp];
-    // One sample to its integer code: (code, was NaN, was clipped). NaN has no integer
-    // coding that survives the transform: 0, counted (as BC6H does).
-    let to_int = |v: f32| -> (i32, bool, bool) {
-        if v.is_nan() {
-            return (0, true, false);
-        }
-        match options.format {
-            SampleFormat::Half => {
-                let h = half::f16::from_f32(v);
-                if h.is_infinite() {
-                    let max = half::f16::MAX.to_bits();
-                    (half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max }), false, true)
-                } else {
-                    (half_bits_to_int(h.to_bits()), false, false)
-                }
-            }
-            SampleFormat::Float => (
-                float_to_int(v.clamp(f32::MIN, f32::MAX), FLOAT_EXP_BIAS as i8, u32::from(FLOAT_MANTISSA)),
-                false,
-                v.is_infinite(),
-            ),
-        }
-    };
-    // Rows in parallel on the pool; each returns its NaN and clipped counts.
-    let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> (usize, usize) {
-        let (mut nans, mut clipped) = (0, 0);
-        let mut code = |v: f32, shift: u32| {
-            let (c, nan, clip) = to_int(v);
-            nans += usize::from(nan);
-            clipped += usize::from(clip);
-            c << shift
-        };
+    // Samples to integer codes (`input`); rows in parallel on the pool, each counting what
+    // it clipped.
+    let coder = SampleCoder::new(options.format, image.color.nits_per_unit);
+    let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> Clipped {
+        let mut clipped = Clipped::default();
         let row = image.row(y as u32);
         for x in 0..width {
             let p = &row[x * spp..][..spp];
-            let (r, g, b) = (code(p[0] * scale, shift), code(p[1] * scale, shift), code(p[2] * scale, shift));
+            let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);
             let (yy, u, v) = forward_cc(r, g, b);
             out[0][x] = yy;
             out[1][x] = u;
@@ -403,19 +359,19 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
             if alpha {
                 // Alpha is coded like a colour sample of the same format (the decoder's
                 // output formatting treats it so, T.832 9.10), but it is not light: no
-                // scRGB scaling and no colour transform.
-                out[3][x] = code(p[3], alpha_shift);
+                // scRGB scaling, no transfer function and no colour transform.
+                out[3][x] = coder.alpha(p[3], &mut clipped) << alpha_shift;
             }
         }
-        (nans, clipped)
+        clipped
     };
-    let (nans, clipped) = {
+    let clipped = {
         let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(pw)).collect();
         let rows: Vec<Vec<&mut [i32]>> =
             (0..height).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
         pool.install(|| {
             use rayon::prelude::*;
-            rows.into_par_iter().enumerate().map(convert_row).reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+            rows.into_par_iter().enumerate().map(convert_row).reduce(Clipped::default, Clipped::merge)
         })
     };
     for plane in &mut planes {
@@ -428,18 +384,11 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
             plane[y * pw + width..(y + 1) * pw].fill(last);
         }
     }
-    if nans > 0 {
-        report.note(format!("{nans} NaN samples were written as 0"));
-    }
-    if clipped > 0 {
-        let what = match options.format {
-            SampleFormat::Half => "infinite or beyond ±65504 (half float) were clipped to ±65504",
-            SampleFormat::Float => "infinite were clipped to the largest float",
-        };
-        report.note(format!("{clipped} samples {what}"));
+    for note in clipped.notes(options.format) {
+        report.note(note);
     }
 
-    // Colour as YUV 4:4:4 in an RGB image (OUTPUT_CLR_FMT 7); alpha as a planar alpha
+    // Colour as YUV 4:4:4 in an RGB (or RGBE) image (OUTPUT_CLR_FMT 7 or 8); alpha as a planar alpha
     // codestream of one YONLY plane (T.832 Table A.4: ALPHA_OFFSET), labelled OUTPUT_CLR_FMT
     // 0 with the colour's bit depth, as jxrlib writes it, on the same tile grid.
     // Each colour macroblock's HP quantizer set, from its luminance; alpha uses one set.
@@ -456,14 +405,15 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
             planes[1..3].par_iter_mut().for_each(|p| *p = downsample(p, pw, ph, fmt == ClrFmt::Yuv420));
         });
     }
-    let codestream = encode_codestream(planes, (width, height), fmt, 7, &mb_set, options, pool)?;
+    let codestream = encode_codestream(planes, (width, height), fmt, format.color as u8, &mb_set, options, pool)?;
     let alpha_codestream = alpha_plane
         .map(|a| {
             let mb_set = vec![0; mb_w * mb_h];
             encode_codestream(vec![a], (width, height), ClrFmt::YOnly, 0, &mb_set, &alpha_options, pool)
         })
         .transpose()?;
-    let meta = ContainerMeta { ptm_color_info, ..ContainerMeta::default() };
+    let meta =
+        ContainerMeta { ptm_color_info: options.format.ptm_color_info(ptm_color_info), ..ContainerMeta::default() };
     let file = container::write_container(
         format,
         width as u32,
@@ -544,10 +494,7 @@ fn encode_codestream(
     let channels = planes.len();
     let hp_sets = options.hp_sets();
     let bands = options.bands;
-    let bitdepth = match options.format {
-        SampleFormat::Half => 4u8,
-        SampleFormat::Float => 7u8,
-    };
+    let bitdepth = options.format.bit_depth() as u8;
 
     // The forward transform, then quantization.
     let overlap = options.overlap();
@@ -1121,8 +1068,8 @@ mod tests {
     /// (log-like: 1024 codes per factor 2).
     fn code_error(file: &[u8], image: &HdrImage) -> f64 {
         let raw = crate::decode_raw(file, &hdrcodec_core::DecodeOptions::default()).unwrap();
-        let got = raw.chunks(2).map(|b| half_bits_to_int(u16::from_le_bytes([b[0], b[1]])));
-        let want = image.samples().iter().map(|&v| half_bits_to_int(half::f16::from_f32(v).to_bits()));
+        let got = raw.chunks(2).map(|b| crate::output::half_bits_to_int(u16::from_le_bytes([b[0], b[1]])));
+        let want = image.samples().iter().map(|&v| crate::output::half_bits_to_int(half::f16::from_f32(v).to_bits()));
         let n = image.samples().len() as f64;
         got.zip(want).map(|(g, w)| f64::from((g - w).abs())).sum::<f64>() / n
     }
@@ -1225,6 +1172,179 @@ mod tests {
         assert_eq!((c[0], &c[16..21]), (13, &[4, -4, 8, 0, -4][..]));
     }
 
+    /// Our decoder's linear samples of `file` (the `ImageCodec` path, light in scRGB units).
+    fn decode_light(file: &[u8]) -> HdrImage {
+        use hdrcodec_core::ImageCodec;
+        crate::JxrCodec.decode(file, &hdrcodec_core::Limits::default()).unwrap()
+    }
+
+    /// A picture in `nits_per_unit` 100 whose light spans 0.001 to 90 units (0.1 to 9000
+    /// cd/m²), inside every format's range except sRGB's and linear's (80 cd/m²).
+    fn bright_ramp(width: u32, height: u32, primaries: ColorPrimaries) -> HdrImage {
+        let mut image = ramp(width, height, primaries);
+        for v in image.samples_mut() {
+            *v = (*v / 40.0).powi(3) * 90.0 + 0.001;
+        }
+        image.color.nits_per_unit = 100.0;
+        image
+    }
+
+    #[test]
+    fn rgbe_fixed_and_padded_half_round_trip_through_the_decoder() {
+        use crate::input::{f32_to_rgbe, Clipped};
+        let image = bright_ramp(45, 37, ColorPrimaries::Bt709);
+        let pool = ThreadPool::new(2).unwrap();
+        let scrgb: Vec<f32> = image.samples().iter().map(|v| v * 100.0 / 80.0).collect();
+        for tile_mbs in [0, 2] {
+            let lossless = |format| EncodeOptions { quality: 100, format, tile_mbs, ..EncodeOptions::default() };
+            // RGBE: lossless gives back exactly Radiance's bytes of the (scRGB) input.
+            let (file, report) = encode(&image, &lossless(SampleFormat::Rgbe), &pool).unwrap();
+            assert!(report.notes.is_empty(), "{:?}", report.notes);
+            assert_eq!(crate::container::parse_container(&file).unwrap().pixel_format.name, "32bppRGBE");
+            let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            let want: Vec<u8> =
+                scrgb.chunks(3).flat_map(|p| f32_to_rgbe([p[0], p[1], p[2]], &mut Clipped::default())).collect();
+            assert!(raw == want, "RGBE, tiles of {tile_mbs}");
+            // Fixed point: the nearest s2.13 value; 4 and above clip (counted).
+            let (file, report) = encode(&image, &lossless(SampleFormat::Fixed), &pool).unwrap();
+            let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            let want: Vec<u8> = scrgb
+                .iter()
+                .flat_map(|&v| ((f64::from(v) * 8192.0).round().clamp(-32768.0, 32767.0) as i16).to_le_bytes())
+                .collect();
+            assert!(raw == want, "fixed point, tiles of {tile_mbs}");
+            let above = scrgb.iter().filter(|&&v| f64::from(v) * 8192.0 > 32767.5).count();
+            assert!(above > 0 && report.notes.iter().any(|n| n.starts_with(&format!("{above} samples"))));
+            // 64bppRGBHalf: the half bits and a zero padding sample.
+            let (file, _) = encode(&image, &lossless(SampleFormat::HalfPadded), &pool).unwrap();
+            assert_eq!(crate::container::parse_container(&file).unwrap().pixel_format.name, "64bppRGBHalf");
+            let raw = crate::decode_raw(&file, &hdrcodec_core::DecodeOptions::default()).unwrap();
+            let want: Vec<u8> = scrgb
+                .chunks(3)
+                .flat_map(|p| [p[0], p[1], p[2]].map(|v| half::f16::from_f32(v).to_bits()).into_iter().chain([0]))
+                .flat_map(u16::to_le_bytes)
+                .collect();
+            assert!(raw == want, "64bppRGBHalf, tiles of {tile_mbs}");
+        }
+        // Lossy: close to the light. RGBE's error is relative to the pixel's largest channel
+        // (the exponent is shared: 1/256 of it, half that for the decoder's +0.5, before any
+        // quantization); fixed point's is absolute.
+        for (format, rel, abs, max) in
+            [(SampleFormat::Rgbe, 0.05, 0.0, f32::MAX), (SampleFormat::Fixed, 0.0, 0.05, 4.0)]
+        {
+            let fine = EncodeOptions { quality: 95, format, ..EncodeOptions::default() };
+            let (file, _) = encode(&image, &fine, &pool).unwrap();
+            let got = decode_light(&file);
+            for (g, w) in got.samples().chunks(3).zip(scrgb.chunks(3)) {
+                let top = w[0].max(w[1]).max(w[2]);
+                for (g, w) in g.iter().zip(w) {
+                    let w = w.min(max);
+                    assert!((g - w).abs() <= rel * top + abs, "{format:?}: {g} for {w} (pixel maximum {top})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn integer_formats_give_back_the_light_through_their_transfer() {
+        use crate::output::SampleTransfer;
+        let image = bright_ramp(40, 21, ColorPrimaries::Bt2020);
+        let pool = ThreadPool::single();
+        let scrgb: Vec<f32> = image.samples().iter().map(|v| v * 100.0 / 80.0).collect();
+        for (format, name, ptm) in [
+            (SampleFormat::Rgb8(SampleTransfer::Srgb), "24bppRGB", [9, 13, 0, 1]),
+            (SampleFormat::Rgb8(SampleTransfer::Pq), "24bppRGB", [9, 16, 0, 1]),
+            (SampleFormat::Rgb16(SampleTransfer::Pq), "48bppRGB", [9, 16, 0, 1]),
+            (SampleFormat::Rgb16(SampleTransfer::Linear), "48bppRGB", [9, 8, 0, 1]),
+            (SampleFormat::Rgb16(SampleTransfer::Srgb), "48bppRGB", [9, 13, 0, 1]),
+            (SampleFormat::Rgb101010(SampleTransfer::Pq), "32bppRGB101010", [9, 16, 0, 1]),
+            (SampleFormat::Rgb101010(SampleTransfer::Srgb), "32bppRGB101010", [9, 13, 0, 1]),
+        ] {
+            let t = format.transfer().unwrap();
+            let bits = match format {
+                SampleFormat::Rgb8(_) => 8,
+                SampleFormat::Rgb16(_) => 16,
+                _ => 10,
+            };
+            let options = EncodeOptions { quality: 100, format, ..EncodeOptions::default() };
+            let (file, report) = encode(&image, &options, &pool).unwrap();
+            let c = crate::container::parse_container(&file).unwrap();
+            assert_eq!((c.pixel_format.name, c.ptm_color_info), (name, Some(ptm)), "{format:?}");
+            let got = decode_light(&file);
+            assert_eq!((got.color.primaries, got.color.nits_per_unit), (ColorPrimaries::Bt2020, 80.0));
+            // What the top code holds, and half a code step of the signal around each value.
+            let top = if t == SampleTransfer::Pq { 125.0 } else { 1.0 };
+            let step = 0.5 / f64::from((1u32 << bits) - 1);
+            let mut above = 0;
+            for (&g, &w) in got.samples().iter().zip(&scrgb) {
+                above += usize::from(w > top);
+                let w = f64::from(w.min(top));
+                let (lo, hi) = match t {
+                    SampleTransfer::Srgb => (srgb_around(w, -step), srgb_around(w, step)),
+                    SampleTransfer::Pq => (pq_around(w, -step), pq_around(w, step)),
+                    SampleTransfer::Linear => (w - step, w + step),
+                };
+                let g = f64::from(g);
+                assert!(g >= lo - 1e-6 * hi && g <= hi * (1.0 + 1e-6) + 1e-9, "{format:?}: {g} for {w} ({lo}..{hi})");
+            }
+            if above > 0 {
+                assert!(
+                    report.notes.iter().any(|n| n.starts_with(&format!("{above} samples above"))),
+                    "{format:?}: {:?}",
+                    report.notes
+                );
+            } else {
+                assert!(report.notes.is_empty(), "{format:?}: {:?}", report.notes);
+            }
+            // Lossy files decode too, close to the lossless ones.
+            let lossy = EncodeOptions { quality: 80, format, ..EncodeOptions::default() };
+            let (file, _) = encode(&image, &lossy, &pool).unwrap();
+            assert_eq!(decode_light(&file).samples().len(), scrgb.len());
+        }
+    }
+
+    /// The linear light of the sRGB signal of `w` moved by `d`.
+    fn srgb_around(w: f64, d: f64) -> f64 {
+        use hdrcodec_core::transfer::SrgbTransfer;
+        SrgbTransfer::decode((SrgbTransfer::encode(w) + d).clamp(0.0, 1.0))
+    }
+
+    /// The light (scRGB units) of the PQ signal of `w` scRGB units moved by `d`.
+    fn pq_around(w: f64, d: f64) -> f64 {
+        use hdrcodec_core::transfer::PqTransfer;
+        PqTransfer::decode((PqTransfer::encode(w * 80.0) + d).clamp(0.0, 1.0)) / 80.0
+    }
+
+    #[test]
+    fn rgba_in_integer_and_fixed_formats_keeps_alpha() {
+        use crate::output::SampleTransfer;
+        let image = with_alpha(&bright_ramp(45, 37, ColorPrimaries::Bt709));
+        for (format, name, bytes) in [
+            (SampleFormat::Rgb8(SampleTransfer::Srgb), "32bppBGRA", 1),
+            (SampleFormat::Rgb16(SampleTransfer::Pq), "64bppRGBA", 2),
+            (SampleFormat::Fixed, "64bppRGBAFixedPoint", 2),
+        ] {
+            let options = EncodeOptions { quality: 100, format, ..EncodeOptions::default() };
+            let (file, _) = encode(&image, &options, &ThreadPool::single()).unwrap();
+            assert_eq!(crate::container::parse_container(&file).unwrap().pixel_format.name, name);
+            let got = decode_light(&file);
+            let max = if format == SampleFormat::Fixed {
+                8192.0
+            } else {
+                f32::from((1u16 << (8 * bytes - 1)) - 1) * 2.0 + 1.0
+            };
+            for (g, w) in got.samples().chunks(4).zip(image.samples().chunks(4)) {
+                assert!((g[3] - w[3]).abs() <= 0.5 / max + 1e-6, "{format:?}: alpha {} for {}", g[3], w[3]);
+            }
+        }
+        // Formats without alpha refuse an RGBA image before writing anything.
+        for format in [SampleFormat::Rgbe, SampleFormat::HalfPadded, SampleFormat::Rgb101010(SampleTransfer::Pq)] {
+            let options = EncodeOptions { format, ..EncodeOptions::default() };
+            let e = encode(&image, &options, &ThreadPool::single()).unwrap_err().to_string();
+            assert!(e.contains("no alpha channel"), "{e}");
+        }
+    }
+
     #[test]
     fn options_come_from_the_settings() {
         let s = EncodeSettings::default().with_quality(70);
@@ -1232,6 +1352,18 @@ mod tests {
         let s = s.with_option("lossless", "true").with_option("format", "float").with_option("tile", "256");
         let o = EncodeOptions::from_settings(&s).unwrap();
         assert_eq!((o.quality, o.format, o.tile_mbs, o.alpha_quality), (100, SampleFormat::Float, 16, 100));
+        let pq10 = EncodeSettings::default().with_option("format", "rgb101010");
+        assert_eq!(
+            EncodeOptions::from_settings(&pq10).unwrap().format,
+            SampleFormat::Rgb101010(crate::output::SampleTransfer::Pq)
+        );
+        let srgb = pq10.with_option("transfer", "srgb");
+        assert_eq!(
+            EncodeOptions::from_settings(&srgb).unwrap().format,
+            SampleFormat::Rgb101010(crate::output::SampleTransfer::Srgb)
+        );
+        let contradiction = EncodeSettings::default().with_option("format", "float").with_option("transfer", "pq");
+        assert!(EncodeOptions::from_settings(&contradiction).is_err());
         let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("alpha_quality", "40")).unwrap();
         assert_eq!(o.alpha_quality, 40);
         let o = EncodeOptions::from_settings(&EncodeSettings::default().with_option("overlap", "2")).unwrap();
@@ -1265,7 +1397,8 @@ mod tests {
             ("bands", "flex"),
             ("trim_flexbits", "16"),
             ("tile", "100"),
-            ("format", "rgbe"),
+            ("format", "rgb12"),
+            ("transfer", "pq"),
             ("overlap", "3"),
             ("lossless", "perhaps"),
             ("adaptive", "maybe"),

@@ -33,6 +33,7 @@ pub mod container;
 pub mod decoder;
 pub mod encoder;
 pub mod header;
+mod input;
 mod macroblock;
 pub mod mb;
 pub mod output;

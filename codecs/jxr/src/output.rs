@@ -243,14 +243,21 @@ fn rgbe_channel(v: i32) -> (u8, u8) {
 
 /// R, G, B integer samples to RGBE bytes (jxrlib `inverseConvertRGBE`): the largest exponent
 /// is shared, the other mantissas shift right with rounding; E is an 8-bit cast (not clamped).
+///
+/// jxrlib's shift, `(2m + 1) >> (E − e + 1)`, is a C `int` shift that reaches 32 and more when
+/// a channel is far below the largest (or zero, whose own exponent is 0); x86-64 and AArch64
+/// take the count modulo 32, so jxrlib's mantissa is `(2m + 1) >> ((E − e + 1) mod 32)`, not 0.
+/// We do the same, which is what jxrlib's files decode to (a zero channel under E = 31, 63, ...
+/// 255 comes out as mantissa 1; a small one under a large E as a larger mantissa). Found with
+/// lossy RGBE files of our encoder, whose ringing leaves such channels.
 #[inline(always)]
 pub fn int_to_rgbe(r: i32, g: i32, b: i32) -> [u8; 4] {
     let ch = [rgbe_channel(r), rgbe_channel(g), rgbe_channel(b)];
     let e = ch[0].1.max(ch[1].1).max(ch[2].1);
     let mant = |(m, ce): (u8, u8)| -> u8 {
         if e > ce {
-            let shift = u32::from(e - ce) + 1;
-            (((i32::from(m) * 2 + 1).checked_shr(shift)).unwrap_or(0)) as u8
+            let shift = (u32::from(e - ce) + 1) & 31;
+            ((i32::from(m) * 2 + 1) >> shift) as u8
         } else {
             m
         }
@@ -1090,6 +1097,12 @@ mod tests {
         // E is an 8-bit cast: 2^15 >> 7 = 256 wraps to 0.
         assert_eq!(int_to_rgbe(1 << 15, 0, 0)[3], 0);
         assert_eq!(int_to_rgbe(i32::MAX, 1, 1)[3], 0xFF);
+        // jxrlib's shift count is taken modulo 32 (x86-64): under E = 127 a zero channel is
+        // shifted by 128 ≡ 0 and keeps (2·0 + 1) = 1; under E = 130 a channel 6 (exponent 1)
+        // by 130 ≡ 2, giving 13 >> 2 = 3, and a zero one by 131 ≡ 3, giving 0. jxrlib
+        // (imagecodecs) decodes lossy RGBE files of our encoder to exactly such values.
+        assert_eq!(int_to_rgbe(127 << 7, 0, 0), [128, 1, 1, 127]);
+        assert_eq!(int_to_rgbe(130 << 7, 6, 0), [128, 3, 0, 130]);
     }
 
     #[test]
