@@ -14,7 +14,7 @@ use crate::container::{self, ContainerMeta, PixelFormat, PIXEL_FORMATS};
 use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSource};
 use crate::macroblock::PlaneEncoder;
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::{float_to_int, forward_cc, half_bits_to_int};
+use crate::output::{f32_to_half_bits, float_to_int, forward_cc, half_bits_to_int};
 use crate::predict;
 use crate::quant;
 use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
@@ -259,12 +259,12 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         }
         match options.format {
             SampleFormat::Half => {
-                let h = half::f16::from_f32(v);
-                if h.is_infinite() {
+                let h = f32_to_half_bits(v);
+                if h & 0x7fff == 0x7c00 {
                     let max = half::f16::MAX.to_bits();
                     (half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max }), false, true)
                 } else {
-                    (half_bits_to_int(h.to_bits()), false, false)
+                    (half_bits_to_int(h), false, false)
                 }
             }
             SampleFormat::Float => (

@@ -185,6 +185,44 @@ pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
     }
 }
 
+/// An f32 as the bits of the nearest IEEE half (ties to even; beyond the largest half,
+/// infinity; NaN stays NaN), exactly what `half::f16::from_f32` gives, without its run-time
+/// CPU check per call and with few branches, so that the encoder's conversion loop stays
+/// tight. Halves round at bit 13 of the f32 mantissa; below 2^-14 (subnormal halves) at a
+/// bit that moves with the exponent.
+#[inline(always)]
+pub fn f32_to_half_bits(value: f32) -> u16 {
+    let x = value.to_bits();
+    let sign = ((x >> 16) & 0x8000) as u16;
+    let abs = x & 0x7fff_ffff;
+    if abs >= 0x4780_0000 {
+        // 2^16 and above: infinity (as from 65520 up, by the rounding below), or NaN (quiet,
+        // with the top mantissa bits kept).
+        return sign | if abs > 0x7f80_0000 { 0x7e00 | ((abs >> 13) & 0x3ff) as u16 } else { 0x7c00 };
+    }
+    if abs < 0x3880_0000 {
+        // Below 2^-14: a subnormal half (or zero), the mantissa with its hidden bit shifted
+        // right by 14 − e, rounded to nearest even. Below 2^-25 everything rounds to zero.
+        if abs < 0x3300_0000 {
+            return sign;
+        }
+        let e = (abs >> 23) as i32 - 127 + 15;
+        let m = (abs & 0x7f_ffff) | 0x80_0000;
+        let shift = (14 - e) as u32; // 14..=24
+        let h = m >> shift;
+        let rem = m & ((1 << shift) - 1);
+        let halfway = 1 << (shift - 1);
+        let up = u32::from(rem > halfway || (rem == halfway && h & 1 != 0));
+        return sign | (h + up) as u16;
+    }
+    // Normal: rebias the exponent, round the mantissa at bit 13 to nearest even (a carry
+    // moves into the exponent, up to infinity, which is what the bits do).
+    let h = (abs - ((127 - 15) << 23)) >> 13;
+    let rem = abs & 0x1fff;
+    let up = u32::from(rem > 0x1000 || (rem == 0x1000 && h & 1 != 0));
+    sign | (h + up) as u16
+}
+
 /// The encoder's side of [`int_to_half_bits`]: a half's bit pattern as the integer sample
 /// that codes it (sign and magnitude; negative zero becomes zero).
 #[inline(always)]
@@ -956,6 +994,47 @@ impl OutputParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f32_to_half_bits_is_the_half_crates_rounding() {
+        let check = |bits: u32| {
+            let v = f32::from_bits(bits);
+            let want = half::f16::from_f32(v).to_bits();
+            let got = f32_to_half_bits(v);
+            if v.is_nan() {
+                assert!(got & 0x7c00 == 0x7c00 && got & 0x3ff != 0, "{bits:#x}: {got:#x}");
+            } else {
+                assert_eq!(got, want, "{bits:#x} ({v:e})");
+            }
+        };
+        // Around every exponent boundary and rounding point of the half range, both signs,
+        // and a spread of all the rest.
+        for e in 0..256u32 {
+            for m in
+                [0u32, 1, 0xfff, 0x1000, 0x1001, 0x1fff, 0x2000, 0x3000, 0x7f_e000, 0x7f_efff, 0x7f_f000, 0x7f_ffff]
+            {
+                for s in [0, 0x8000_0000] {
+                    check(s | (e << 23) | m);
+                }
+            }
+        }
+        for e in 102..=113u32 {
+            for shift in 0..24 {
+                for d in [0u32, 1, 2] {
+                    let m = (1u32 << shift).wrapping_sub(d) & 0x7f_ffff;
+                    check((e << 23) | m);
+                    check((e << 23) | (m ^ 0x40_0000));
+                }
+            }
+        }
+        let mut x = 0x2545_F491u32;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            check(x);
+        }
+    }
     use crate::container::PIXEL_FORMATS;
     use crate::testing::rng;
 
