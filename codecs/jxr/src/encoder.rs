@@ -14,7 +14,7 @@ use crate::container::{self, ContainerMeta, PixelFormat, PIXEL_FORMATS};
 use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSource};
 use crate::macroblock::PlaneEncoder;
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::{f32_to_half_bits, float_to_int, forward_cc, half_bits_to_int};
+use crate::output::{f32_to_half_bits, float_to_int, forward_cc, half_bits_to_int, half_codes};
 use crate::predict;
 use crate::quant;
 use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
@@ -276,6 +276,17 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     };
     // Rows in parallel on the pool; each returns its NaN and clipped counts.
     let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> (usize, usize) {
+        if options.format == SampleFormat::Half && !alpha {
+            // Half RGB: the whole row's codes in one vectorised pass, then the colour
+            // transform pixel by pixel.
+            let mut codes = vec![0i32; width * 3];
+            let counts = half_codes(&image.row(y as u32)[..width * 3], scale, &mut codes);
+            let [o0, o1, o2] = &mut out[..] else { unreachable!("three planes without alpha") };
+            for (((p, yy), u), v) in codes.chunks_exact(3).zip(o0.iter_mut()).zip(o1.iter_mut()).zip(o2.iter_mut()) {
+                (*yy, *u, *v) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
+            }
+            return counts;
+        }
         let (mut nans, mut clipped) = (0, 0);
         let mut code = |v: f32, shift: u32| {
             let (c, nan, clip) = to_int(v);
