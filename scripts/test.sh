@@ -35,7 +35,7 @@ step "cargo test on the portable path (HDRCODEC_CPU=scalar)"
 HDRCODEC_CPU=scalar cargo test --workspace --lib \
     --test robustness --test portable_path --test bad_input --test mips \
     --test damage --test limits --test roundtrip --test seek --test spec \
-    --test rgbe_oiio --test bc6h_decode --test bc6h_encode
+    --test rgbe_oiio --test bc6h_decode --test bc6h_encode --test encode_pinned
 
 # Peak resident memory of info and convert for every format, on a 3 MP generated image: each
 # must stay within decoded image + input file + 64 MB (issue 10; the README has the 13 MP table).

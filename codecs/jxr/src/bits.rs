@@ -177,12 +177,16 @@ impl<'a> BitReader<'a> {
 
 /// An MSB-first bit writer: the exact inverse of [`BitReader`] (what one writes with
 /// `write(v, n)` the other reads back with `read(n)`).
+///
+/// Bits gather in a 64-bit accumulator and go to the byte vector 32 at a time, so that most
+/// writes are a shift, an or and one compare.
 #[derive(Clone, Debug, Default)]
 pub struct BitWriter {
     bytes: Vec<u8>,
-    /// Bits not yet in `bytes`, right-aligned: the low `pending` bits of `acc`.
+    /// Bits not yet in `bytes`, right-aligned: the low `pending` bits of `acc` (the bits above
+    /// them are stale and never read).
     acc: u64,
-    /// Fewer than 8 between calls.
+    /// Fewer than 32 between calls.
     pending: u32,
 }
 
@@ -196,13 +200,14 @@ impl BitWriter {
     #[inline]
     pub fn write(&mut self, value: u32, n: u32) {
         debug_assert!(n <= 32);
-        let mask = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
-        // pending < 8 and n <= 32: the shift keeps every pending bit (at most 40 in use).
-        self.acc = (self.acc << n) | u64::from(value & mask);
+        // n <= 32 < 64: the shifts are defined; pending < 32 and n <= 32, so no pending bit
+        // is shifted out of the accumulator.
+        let v = u64::from(value) & ((1u64 << (n & 63)) - 1);
+        self.acc = (self.acc << (n & 63)) | v;
         self.pending += n;
-        while self.pending >= 8 {
-            self.pending -= 8;
-            self.bytes.push((self.acc >> self.pending) as u8);
+        if self.pending >= 32 {
+            self.pending -= 32;
+            self.bytes.extend_from_slice(&((self.acc >> self.pending) as u32).to_be_bytes());
         }
     }
 
@@ -214,8 +219,9 @@ impl BitWriter {
 
     /// Writes zero bits up to the next byte boundary (what [`BitReader::align`] skips).
     pub fn align(&mut self) {
-        if self.pending != 0 {
-            self.write(0, 8 - self.pending);
+        let rem = self.pending % 8;
+        if rem != 0 {
+            self.write(0, 8 - rem);
         }
     }
 
@@ -227,6 +233,10 @@ impl BitWriter {
     /// The bytes written, the last one padded with zero bits.
     pub fn into_bytes(mut self) -> Vec<u8> {
         self.align();
+        while self.pending >= 8 {
+            self.pending -= 8;
+            self.bytes.push((self.acc >> self.pending) as u8);
+        }
         self.bytes
     }
 

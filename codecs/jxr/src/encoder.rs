@@ -17,7 +17,7 @@ use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSour
 use crate::input::{Clipped, SampleCoder};
 use crate::macroblock::{flex_mb_encode, PlaneEncoder};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::forward_cc;
+use crate::output::{forward_cc, half_codes};
 use crate::predict;
 use crate::quant;
 use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
@@ -368,6 +368,17 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> Clipped {
         let mut clipped = Clipped::default();
         let row = image.row(y as u32);
+        if matches!(options.format, SampleFormat::Half | SampleFormat::HalfPadded) && !alpha {
+            // Half RGB: the whole row's codes in one vectorised pass, then the colour
+            // transform pixel by pixel.
+            let mut codes = vec![0i32; width * 3];
+            let (nan, above) = half_codes(&row[..width * 3], scale, &mut codes);
+            let [o0, o1, o2] = &mut out[..] else { unreachable!("three planes without alpha") };
+            for (((p, yy), u), v) in codes.chunks_exact(3).zip(o0.iter_mut()).zip(o1.iter_mut()).zip(o2.iter_mut()) {
+                (*yy, *u, *v) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
+            }
+            return Clipped { nan, above, ..clipped };
+        }
         for x in 0..width {
             let p = &row[x * spp..][..spp];
             let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);

@@ -291,13 +291,13 @@ impl SampleCoder {
         let v = if light { v * self.scale } else { v };
         match self.format {
             SampleFormat::Half | SampleFormat::HalfPadded => {
-                let h = half::f16::from_f32(v);
-                if h.is_infinite() {
+                let h = crate::output::f32_to_half_bits(v);
+                if h & 0x7fff == 0x7c00 {
                     clipped.above += 1;
                     let max = half::f16::MAX.to_bits();
                     half_bits_to_int(if v < 0.0 { max | 0x8000 } else { max })
                 } else {
-                    half_bits_to_int(h.to_bits())
+                    half_bits_to_int(h)
                 }
             }
             SampleFormat::Float => {

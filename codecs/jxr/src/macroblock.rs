@@ -227,6 +227,86 @@ const ABS_FIXED: [u32; 6] = [0, 0, 1, 2, 2, 2];
 /// The largest absolute level the escape codes: width 29, all ones.
 const MAX_ABS_LEVEL: u32 = 2 + (1 << 29) + ((1 << 29) - 1);
 
+/// The encoder's ABSLEVEL_INDEX of each level from 2 to 17 (18 and up take the escape, 6).
+const ABS_INDEX: [usize; 18] = {
+    let mut t = [0; 18];
+    let mut level = 2;
+    while level < 18 {
+        let mut index = 0;
+        while index + 1 < 6 && ABS_REMAP[index + 1] <= level as u32 {
+            index += 1;
+        }
+        t[level] = index;
+        level += 1;
+    }
+    t
+};
+
+/// Each level from 2 to 17 written whole for each of the two ABSLEVEL_INDEX tables: the
+/// index's code followed by its raw bits, in one code.
+const ABS_CODES: [[vlc::Code; 18]; 2] = {
+    let tables = [vlc::codes(&vlc::ABS_LEVEL_CODES[0]), vlc::codes(&vlc::ABS_LEVEL_CODES[1])];
+    let mut t = [[vlc::Code { bits: 0, len: 0 }; 18]; 2];
+    let mut table = 0;
+    while table < 2 {
+        let mut level = 2;
+        while level < 18 {
+            let index = ABS_INDEX[level];
+            let code = tables[table][index];
+            let fixed = ABS_FIXED[index];
+            let raw = level as u32 - ABS_REMAP[index];
+            t[table][level] = vlc::Code { bits: (code.bits << fixed) | raw, len: code.len + fixed };
+            level += 1;
+        }
+        table += 1;
+    }
+    t
+};
+
+/// The length that marks "no code" in [`RUN_CODES`].
+const NO_CODE: u32 = u32::MAX;
+
+/// Every run written whole, by the largest run possible (0..=14) and the run (0..=14):
+/// RUN_INDEX's code followed by its raw bits, or the unary codes of a maximum below 5 (the
+/// longest run drops its final 1; nothing at all for a maximum of 1). [`NO_CODE`] for run 0
+/// and runs past the maximum.
+const RUN_CODES: [[vlc::Code; 15]; 15] = {
+    let index = vlc::RUN_INDEX_ENC;
+    let mut t = [[vlc::Code { bits: 0, len: NO_CODE }; 15]; 15];
+    let mut max_run = 1;
+    while max_run < 15 {
+        let mut run = 1;
+        while run <= max_run {
+            let r = run as u32;
+            t[max_run][run] = if max_run == 1 {
+                vlc::Code { bits: 0, len: 0 }
+            } else if max_run < 5 {
+                if run < max_run {
+                    vlc::Code { bits: 1, len: r }
+                } else {
+                    vlc::Code { bits: 0, len: r - 1 }
+                }
+            } else {
+                let bin = 5 * RUN_BIN[max_run];
+                let mut code = vlc::Code { bits: 0, len: NO_CODE };
+                let mut i = 0;
+                while i < 5 {
+                    let (low, bits) = (RUN_REMAP[bin + i], RUN_FIXED[bin + i]);
+                    if r >= low && r - low < 1 << bits {
+                        code = vlc::Code { bits: (index[i].bits << bits) | (r - low), len: index[i].len + bits };
+                        break;
+                    }
+                    i += 1;
+                }
+                code
+            };
+            run += 1;
+        }
+        max_run += 1;
+    }
+    t
+};
+
 /// RUN_INDEX (`r_DECODE_RUN`): the symbol set (bin) by the largest run possible, and each
 /// symbol's smallest run and raw bits.
 const RUN_BIN: [usize; 15] = [0, 0, 0, 0, 0, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0];
@@ -733,6 +813,33 @@ fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> us
     n
 }
 
+/// The run-level pairs of an HP block (`block[k]` is coefficient `k`, 1..=15, in T.832's
+/// numbering) read through the adaptive `scan`, which every non-zero level updates (a hit
+/// reorders only the position hit and the one before it, so the positions still to visit
+/// keep their coefficients: what the decoder sees). Returns the number of pairs.
+#[inline(always)]
+fn scan_pairs(block: &[i32; 16], scan: &mut vlc::Scan, model_bits: u32, out: &mut [RunLevel; 16]) -> Result<usize> {
+    let (mut n, mut run, mut max) = (0usize, 0u32, 0u32);
+    for p in 0..15 {
+        let v = block[usize::from(scan.order[p]) & 15];
+        let level = v.unsigned_abs() >> model_bits;
+        if level != 0 {
+            scan.hit(p);
+            max = max.max(level);
+            let signed = if v < 0 { (level as i32).wrapping_neg() } else { level as i32 };
+            out[n & 15] = RunLevel { run, level: signed };
+            n += 1;
+            run = 0;
+        } else {
+            run += 1;
+        }
+    }
+    if max > MAX_ABS_LEVEL {
+        return Err(uncodable("a coefficient this large for its model bits"));
+    }
+    Ok(n)
+}
+
 /// The entropy encoder of one plane in one tile (reset at each tile start): writes what
 /// [`PlaneDecoder`] reads, from the same coefficient arrays, adapting its [`EntropyState`] at
 /// the same points. After an error, the writer and the state are not usable.
@@ -755,66 +862,62 @@ impl PlaneEncoder {
         self.st.model[BAND_HP].bits
     }
 
-    /// ABSLEVEL_INDEX and its raw bits for `level` ≥ 2 (the inverse of `r_DECODE_ABS_LEVEL`).
+    /// ABSLEVEL_INDEX and its raw bits for `level` ≥ 2 (the inverse of `r_DECODE_ABS_LEVEL`):
+    /// one write from [`ABS_CODES`] below 18, the escape above.
+    #[inline(always)]
     fn abs_level(&mut self, w: &mut BitWriter, v: V, level: u32) -> Result<()> {
         debug_assert!(level >= 2);
+        let ctx = &mut self.st.vlc[v as usize];
+        if let Some(&index) = ABS_INDEX.get(level as usize) {
+            let code = ABS_CODES[usize::from(ctx.table & 1)][level as usize];
+            w.write(code.bits, code.len);
+            ctx.count(&vlc::ABS_LEVEL_DELTA, index);
+            return Ok(());
+        }
+        self.abs_escape(w, v, level)
+    }
+
+    /// [`abs_level`](Self::abs_level) from 18 up: ABSLEVEL_INDEX 6 and a coded width.
+    #[inline(never)]
+    fn abs_escape(&mut self, w: &mut BitWriter, v: V, level: u32) -> Result<()> {
         if level > MAX_ABS_LEVEL {
             return Err(uncodable("a level this large"));
         }
-        let index = if level < 18 { ABS_REMAP.iter().rposition(|&r| r <= level).unwrap_or(0) } else { 6 };
         let ctx = &mut self.st.vlc[v as usize];
-        vlc::encode(w, &vlc::ABS_LEVEL_ENC[ctx.table as usize], index);
-        ctx.count(&vlc::ABS_LEVEL_DELTA, index);
-        if index < 6 {
-            w.write(level - ABS_REMAP[index], ABS_FIXED[index]);
-        } else {
-            // The escape: a width of 4..=29 bits, coded in 4 bits, then 2 more from 19 on, then
-            // 3 more from 22 on; then level − 2 − 2^width in that width.
-            let m = level - 2;
-            let fixed = 31 - m.leading_zeros();
-            w.write((fixed - 4).min(15), 4);
-            if fixed >= 19 {
-                w.write((fixed - 19).min(3), 2);
-                if fixed >= 22 {
-                    w.write(fixed - 22, 3);
-                }
+        vlc::encode(w, &vlc::ABS_LEVEL_ENC[ctx.table as usize], 6);
+        ctx.count(&vlc::ABS_LEVEL_DELTA, 6);
+        // A width of 4..=29 bits, coded in 4 bits, then 2 more from 19 on, then 3 more from
+        // 22 on; then level − 2 − 2^width in that width.
+        let m = level - 2;
+        let fixed = 31 - m.leading_zeros();
+        w.write((fixed - 4).min(15), 4);
+        if fixed >= 19 {
+            w.write((fixed - 19).min(3), 2);
+            if fixed >= 22 {
+                w.write(fixed - 22, 3);
             }
-            w.write(m - (1 << fixed), fixed);
         }
+        w.write(m - (1 << fixed), fixed);
         Ok(())
     }
 
     /// A run of `run` ≥ 1 zeros when at most `max_run` positions remain (the inverse of
-    /// `r_DECODE_RUN`).
+    /// `r_DECODE_RUN`): one write from [`RUN_CODES`].
+    #[inline(always)]
     fn run(w: &mut BitWriter, run: u32, max_run: i32) -> Result<()> {
-        if run == 0 || run as i32 > max_run {
-            return Err(uncodable("a run past the end of a block"));
-        }
-        if max_run < 5 {
-            // 1, 01, 001, ...; the longest run possible drops its final 1.
-            if max_run > 1 {
-                if (run as i32) < max_run {
-                    w.write(1, run);
-                } else {
-                    w.write(0, run - 1);
-                }
-            }
-            return Ok(());
-        }
-        let bin = 5 * RUN_BIN[max_run.min(14) as usize];
-        for i in 0..5 {
-            let (low, bits) = (RUN_REMAP[bin + i], RUN_FIXED[bin + i]);
-            if run >= low && run - low < 1 << bits {
-                vlc::encode(w, &vlc::RUN_INDEX_ENC, i);
-                w.write(run - low, bits);
-                return Ok(());
-            }
-        }
-        Err(uncodable("a run this long"))
+        let code = usize::try_from(max_run)
+            .ok()
+            .and_then(|m| RUN_CODES.get(m.min(14))?.get(run as usize))
+            .filter(|c| c.len != NO_CODE && run as i32 <= max_run)
+            .ok_or_else(|| uncodable("a run past the end of a block"))?;
+        w.write(code.bits, code.len);
+        Ok(())
     }
 
     /// One block of run-level symbols (the inverse of `r_DECODE_BLOCK`) starting at position
-    /// `location`; `pairs` is not empty and ends inside the block.
+    /// `location`; `pairs` is not empty and ends inside the block. Each index code goes out
+    /// with the sign bit that follows it in one write.
+    #[inline(always)]
     fn block(
         &mut self,
         w: &mut BitWriter,
@@ -824,6 +927,7 @@ impl PlaneEncoder {
         pairs: &[RunLevel],
     ) -> Result<()> {
         let (first_v, ind_v, abs_v) = block_contexts(band, chroma);
+        let n = pairs.len();
         // What follows pair i: 0 nothing, 1 a coefficient right after, 2 one after a run.
         let srn = |i: usize| match pairs.get(i + 1) {
             None => 0usize,
@@ -835,10 +939,10 @@ impl PlaneEncoder {
         let next = srn(0);
         let index = (next << 2) | (usize::from(mag > 1) << 1) | usize::from(first.run == 0);
         let ctx = &mut self.st.vlc[first_v as usize];
-        vlc::encode(w, &vlc::FIRST_INDEX_ENC[ctx.table as usize], index);
+        let code = vlc::FIRST_INDEX_ENC[ctx.table as usize][index];
         ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
+        w.write((code.bits << 1) | u32::from(first.level < 0), code.len + 1);
         let mut context = (index & 1) & next;
-        w.bit(first.level < 0);
         if mag > 1 {
             self.abs_level(w, abs_v[context], mag)?;
         }
@@ -846,7 +950,7 @@ impl PlaneEncoder {
             Self::run(w, first.run, 15 - location as i32)?;
         }
         location += first.run + 1;
-        for i in 1..pairs.len() {
+        for i in 1..n {
             let p = pairs[i];
             if p.run != 0 {
                 Self::run(w, p.run, 15 - location as i32)?;
@@ -858,18 +962,20 @@ impl PlaneEncoder {
             let next = srn(i);
             let mag = p.level.unsigned_abs();
             let index = (next << 1) | usize::from(mag > 1);
+            let sign = u32::from(p.level < 0);
             if location > 15 {
                 // The last position: nothing can follow, one bit says whether level > 1.
-                w.write(index as u32, 1);
+                w.write(((index as u32 & 1) << 1) | sign, 2);
             } else if location == 15 {
-                vlc::encode(w, &vlc::INDEX2_ENC, index);
+                let code = vlc::INDEX2_ENC[index];
+                w.write((code.bits << 1) | sign, code.len + 1);
             } else {
                 let ctx = &mut self.st.vlc[ind_v[context] as usize];
-                vlc::encode(w, &vlc::INDEX_ENC[ctx.table as usize], index);
+                let code = vlc::INDEX_ENC[ctx.table as usize][index];
                 ctx.count2(&vlc::INDEX_DELTA, index);
+                w.write((code.bits << 1) | sign, code.len + 1);
             }
             context &= next;
-            w.bit(p.level < 0);
             if mag > 1 {
                 self.abs_level(w, abs_v[context], mag)?;
             }
@@ -1041,9 +1147,11 @@ impl PlaneEncoder {
             for j in 0..blocks {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
                 let base = ch * MB_COEFFS + hp(b, 1);
-                if c[base..base + 15].iter().any(|&v| split(v, model_bits).0 != 0) {
-                    pattern |= 1 << j;
-                }
+                let block: &[i32; 15] = c[base..base + 15].try_into().expect("a block is 15 coefficients");
+                // Any level (magnitude above the model bits) not zero: an or of all 15, which
+                // vectorises, instead of a search.
+                let any = block.iter().fold(0u32, |a, &v| a | (v.unsigned_abs() >> model_bits));
+                pattern |= u32::from(any != 0) << j;
             }
             cbp_out[ch] = pattern;
         }
@@ -1163,17 +1271,10 @@ impl PlaneEncoder {
             for j in 0..blocks {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
                 if pattern & 1 != 0 {
-                    let block = &c[ch * MB_COEFFS + hp(b, 1) - 1..][..16];
+                    let block: &[i32; 16] =
+                        c[ch * MB_COEFFS + hp(b, 1) - 1..][..16].try_into().expect("DC slot and 15 coefficients");
                     let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
-                    // As for LP: hits in scan order leave the positions ahead unchanged.
-                    let mut levels = [0i32; 15];
-                    for p in 0..15 {
-                        levels[p] = signed_level(block[usize::from(scan.order[p])], model_bits)?;
-                        if levels[p] != 0 {
-                            scan.hit(p);
-                        }
-                    }
-                    let n = run_levels(levels.into_iter(), &mut pairs);
+                    let n = scan_pairs(block, scan, model_bits, &mut pairs)?;
                     self.block(w, chroma, BAND_HP, 1, &pairs[..n])?;
                     lap_mean[usize::from(chroma)] += n as i32;
                 }
@@ -1193,28 +1294,45 @@ impl PlaneEncoder {
 /// lowest (which must be zero), and the sign of a coefficient whose level is zero.
 pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, model_bits: u32, trim: u32) -> Result<()> {
     let base = ch * MB_COEFFS + hp(b, 1);
-    let block = &c[base..base + 15];
-    let lost = (1u32 << trim.min(model_bits)) - 1;
-    if block.iter().any(|&v| split(v, model_bits).1 & lost != 0) {
-        return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
+    let block: &[i32; 15] = c[base..base + 15].try_into().expect("a block is 15 coefficients");
+    if trim > 0 {
+        let lost = (1u32 << trim.min(model_bits)) - 1;
+        if block.iter().any(|&v| split(v, model_bits).1 & lost != 0) {
+            return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
+        }
     }
     if trim >= model_bits {
         return Ok(());
     }
     let n = model_bits - trim;
-    for group in &FLEX_ORDER {
-        for &i in group {
-            let v = block[usize::from(i)];
-            let (level, fine) = split(v, model_bits);
-            let fine = fine >> trim;
-            w.write(fine, n);
-            if level == 0 && fine != 0 {
-                w.bit(v < 0);
-            }
-        }
+    // One coefficient's bits and (zero level, non-zero bits) its sign: at most 16 bits, as
+    // model bits are at most 15, so two coefficients go out in one write.
+    let code = |v: i32| -> (u32, u32) {
+        let (level, fine) = split(v, model_bits);
+        let fine = fine >> trim;
+        let signed = u32::from(level == 0 && fine != 0);
+        ((fine << signed) | (signed & u32::from(v < 0)), n + signed)
+    };
+    for pair in FLEX_ORDER_FLAT[..14].chunks_exact(2) {
+        let (a, la) = code(block[usize::from(pair[0])]);
+        let (b, lb) = code(block[usize::from(pair[1])]);
+        w.write((a << lb) | b, la + lb);
     }
+    let (a, la) = code(block[usize::from(FLEX_ORDER_FLAT[14])]);
+    w.write(a, la);
     Ok(())
 }
+
+/// [`FLEX_ORDER`] as one list.
+const FLEX_ORDER_FLAT: [u8; 15] = {
+    let mut order = [0; 15];
+    let mut i = 0;
+    while i < 15 {
+        order[i] = FLEX_ORDER[i / 3][i % 3];
+        i += 1;
+    }
+    order
+};
 
 /// MB_FLEXBITS written (the inverse of [`flex_mb`]): the flexbits of every block of a
 /// macroblock for a FLEXBITS packet, with the HP model bits the macroblock was coded with

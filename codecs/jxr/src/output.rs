@@ -185,6 +185,114 @@ pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
     }
 }
 
+/// An f32 as the bits of the nearest IEEE half (ties to even; beyond the largest half,
+/// infinity; NaN stays NaN), exactly what `half::f16::from_f32` gives, without its run-time
+/// CPU check per call and with few branches, so that the encoder's conversion loop stays
+/// tight. Halves round at bit 13 of the f32 mantissa; below 2^-14 (subnormal halves) at a
+/// bit that moves with the exponent.
+#[inline(always)]
+pub fn f32_to_half_bits(value: f32) -> u16 {
+    let x = value.to_bits();
+    let sign = ((x >> 16) & 0x8000) as u16;
+    let abs = x & 0x7fff_ffff;
+    if abs >= 0x4780_0000 {
+        // 2^16 and above: infinity (as from 65520 up, by the rounding below), or NaN (quiet,
+        // with the top mantissa bits kept).
+        return sign | if abs > 0x7f80_0000 { 0x7e00 | ((abs >> 13) & 0x3ff) as u16 } else { 0x7c00 };
+    }
+    if abs < 0x3880_0000 {
+        // Below 2^-14: a subnormal half (or zero), the mantissa with its hidden bit shifted
+        // right by 14 − e, rounded to nearest even. Below 2^-25 everything rounds to zero.
+        if abs < 0x3300_0000 {
+            return sign;
+        }
+        let e = (abs >> 23) as i32 - 127 + 15;
+        let m = (abs & 0x7f_ffff) | 0x80_0000;
+        let shift = (14 - e) as u32; // 14..=24
+        let h = m >> shift;
+        let rem = m & ((1 << shift) - 1);
+        let halfway = 1 << (shift - 1);
+        let up = u32::from(rem > halfway || (rem == halfway && h & 1 != 0));
+        return sign | (h + up) as u16;
+    }
+    // Normal: rebias the exponent, round the mantissa at bit 13 to nearest even (a carry
+    // moves into the exponent, up to infinity, which is what the bits do).
+    let h = (abs - ((127 - 15) << 23)) >> 13;
+    let rem = abs & 0x1fff;
+    let up = u32::from(rem > 0x1000 || (rem == 0x1000 && h & 1 != 0));
+    sign | (h + up) as u16
+}
+
+/// The encoder's integer codes of the samples `src` times `scale` as halves into `out`
+/// ([`half_bits_to_int`] of [`f32_to_half_bits`]), NaN as 0 and magnitudes beyond the largest
+/// half (infinities included) as ±65504, each counted: returns (NaNs, clipped). Branch-free,
+/// so that the loop vectorises; compiled portable and for AVX2 (variable shifts), chosen at
+/// run time.
+#[allow(unsafe_code)]
+pub fn half_codes(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
+    #[cfg(target_arch = "x86_64")]
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+        return unsafe { half_codes_avx2(src, scale, out) };
+    }
+    half_codes_portable(src, scale, out)
+}
+
+/// [`half_codes_portable`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn half_codes_avx2(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
+    half_codes_portable(src, scale, out)
+}
+
+#[inline(always)]
+fn half_codes_portable(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
+    let (mut nans, mut clipped) = (0u32, 0u32);
+    for (o, &v) in out.iter_mut().zip(src) {
+        let (code, nan, clip) = half_code(v * scale);
+        *o = code;
+        nans += nan;
+        clipped += clip;
+    }
+    (nans as usize, clipped as usize)
+}
+
+/// One sample of [`half_codes`]: (code, NaN, clipped), every case computed and one selected.
+#[inline(always)]
+fn half_code(v: f32) -> (i32, u32, u32) {
+    let x = v.to_bits();
+    let abs = x & 0x7fff_ffff;
+    // Normal halves: the exponent rebiased, the mantissa rounded at bit 13 to nearest even
+    // (a carry moves into the exponent, up to infinity).
+    let h = abs.wrapping_sub((127 - 15) << 23) >> 13;
+    let rem = abs & 0x1fff;
+    let normal = h + u32::from((rem > 0x1000) | ((rem == 0x1000) & (h & 1 != 0)));
+    // Below 2^-14, subnormal halves: the mantissa with its hidden bit shifted right by
+    // 126 − exponent (14..=24; from 25 on everything rounds to 0), rounded to nearest even.
+    let shift = 126u32.saturating_sub(abs >> 23).min(31);
+    let m = (abs & 0x7f_ffff) | 0x80_0000;
+    let hs = m >> shift;
+    let rs = m & ((1u32 << shift) - 1);
+    let halfway = (1u32 << shift) >> 1;
+    let subnormal = hs + u32::from((rs > halfway) | ((rs == halfway) & (hs & 1 != 0)));
+    let bits = if abs < 0x3880_0000 { subnormal } else { normal };
+    let nan = abs > 0x7f80_0000;
+    let big = (abs >= 0x4780_0000) | (bits >= 0x7c00);
+    let magnitude = if nan {
+        0
+    } else if big {
+        0x7bff
+    } else {
+        bits as i32
+    };
+    let code = if x >> 31 != 0 { -magnitude } else { magnitude };
+    (code, u32::from(nan), u32::from(big & !nan))
+}
+
 /// The encoder's side of [`int_to_half_bits`]: a half's bit pattern as the integer sample
 /// that codes it (sign and magnitude; negative zero becomes zero).
 #[inline(always)]
@@ -963,6 +1071,104 @@ impl OutputParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f32_to_half_bits_is_the_half_crates_rounding() {
+        let check = |bits: u32| {
+            let v = f32::from_bits(bits);
+            let want = half::f16::from_f32(v).to_bits();
+            let got = f32_to_half_bits(v);
+            if v.is_nan() {
+                assert!(got & 0x7c00 == 0x7c00 && got & 0x3ff != 0, "{bits:#x}: {got:#x}");
+            } else {
+                assert_eq!(got, want, "{bits:#x} ({v:e})");
+            }
+        };
+        // Around every exponent boundary and rounding point of the half range, both signs,
+        // and a spread of all the rest.
+        for e in 0..256u32 {
+            for m in
+                [0u32, 1, 0xfff, 0x1000, 0x1001, 0x1fff, 0x2000, 0x3000, 0x7f_e000, 0x7f_efff, 0x7f_f000, 0x7f_ffff]
+            {
+                for s in [0, 0x8000_0000] {
+                    check(s | (e << 23) | m);
+                }
+            }
+        }
+        for e in 102..=113u32 {
+            for shift in 0..24 {
+                for d in [0u32, 1, 2] {
+                    let m = (1u32 << shift).wrapping_sub(d) & 0x7f_ffff;
+                    check((e << 23) | m);
+                    check((e << 23) | (m ^ 0x40_0000));
+                }
+            }
+        }
+        let mut x = 0x2545_F491u32;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            check(x);
+        }
+    }
+
+    /// [`half_codes`] (and its AVX2 twin) against the per-sample conversion it replaces:
+    /// `half::f16::from_f32`, infinities clipped to ±65504, NaN as 0.
+    #[test]
+    #[allow(unsafe_code)]
+    fn half_codes_match_the_per_sample_conversion() {
+        let mut src = Vec::new();
+        for e in 0..256u32 {
+            for m in [0u32, 1, 0xfff, 0x1000, 0x1001, 0x3000, 0x40_0000, 0x7f_f000, 0x7f_ffff] {
+                src.extend([f32::from_bits((e << 23) | m), f32::from_bits(0x8000_0000 | (e << 23) | m)]);
+            }
+        }
+        for e in 102..=113u32 {
+            for shift in 0..24 {
+                for d in [0u32, 1, 2] {
+                    src.push(f32::from_bits((e << 23) | ((1u32 << shift).wrapping_sub(d) & 0x7f_ffff)));
+                }
+            }
+        }
+        let mut x = 0x9E37_79B9u32;
+        for _ in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            src.push(f32::from_bits(x));
+        }
+        src.extend([65504.0, 65519.99, 65520.0, -65520.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -0.0]);
+        for scale in [1.0f32, 0.37, 3.0] {
+            let mut want = Vec::new();
+            let (mut nans, mut clipped) = (0, 0);
+            for &v in &src {
+                let v = v * scale;
+                if v.is_nan() {
+                    nans += 1;
+                    want.push(0);
+                    continue;
+                }
+                let h = half::f16::from_f32(v);
+                if h.is_infinite() {
+                    clipped += 1;
+                    want.push(if v < 0.0 { -0x7bff } else { 0x7bff });
+                } else {
+                    want.push(half_bits_to_int(h.to_bits()));
+                }
+            }
+            let mut got = vec![0; src.len()];
+            assert_eq!(half_codes_portable(&src, scale, &mut got), (nans, clipped));
+            assert!(got == want, "scale {scale}");
+            #[cfg(target_arch = "x86_64")]
+            if hdrcodec_core::cpu::twin_test_can_run(hdrcodec_core::cpu::CpuLevel::Avx2, "half_codes") {
+                let mut twin = vec![0; src.len()];
+                // SAFETY: the CPU has AVX2 (checked above).
+                assert_eq!(unsafe { half_codes_avx2(&src, scale, &mut twin) }, (nans, clipped));
+                assert!(twin == want, "AVX2, scale {scale}");
+            }
+        }
+    }
     use crate::container::PIXEL_FORMATS;
     use crate::testing::rng;
 

@@ -136,16 +136,56 @@ pub fn offsets(dc: i32, lp: i32, hp: i32) -> (i32, i32, i32) {
     (dc / 2, (3 * lp + 1) / 8, (3 * hp + 1) / 8)
 }
 
+/// [`quantize_value`] for one step and offset, without a division: the quotient of a
+/// 32-bit dividend by a divisor below 2^31 is the high half of its 128-bit product with
+/// ⌈2^64 / step⌉ (Lemire, Kaser and Kurz, "Faster remainder by direct computation", 2019:
+/// exact when the shift, 64, is at least the dividend's 32 bits plus the divisor's 31).
+#[derive(Clone, Copy, Debug)]
+struct Quantizer {
+    /// ⌈2^64 / step⌉; 0 for steps of 1 or less, which keep the value.
+    magic: u64,
+    offset: u32,
+}
+
+impl Quantizer {
+    fn new(step: i32, offset: i32) -> Self {
+        if step <= 1 {
+            return Quantizer { magic: 0, offset: 0 };
+        }
+        // step ≥ 2: u64::MAX / step + 1 is ⌈2^64 / step⌉ and fits.
+        Quantizer { magic: u64::MAX / step as u64 + 1, offset: offset.max(0) as u32 }
+    }
+
+    #[inline(always)]
+    fn apply(self, v: i32) -> i32 {
+        if self.magic == 0 {
+            return v;
+        }
+        // |v| ≤ 2^31 and offset < step < 2^31: the dividend is below 2^32, and the quotient
+        // (step ≥ 2) at most 2^30.
+        let a = u64::from(v.unsigned_abs()) + u64::from(self.offset);
+        let q = ((u128::from(a) * u128::from(self.magic)) >> 64) as i32;
+        if v < 0 {
+            -q
+        } else {
+            q
+        }
+    }
+}
+
 /// The encoder's side of [`dequantize`]: quantizes one channel's coefficients (shape as
-/// there) with the steps `dc`, `lp` and `hp`.
+/// there) with the steps `dc`, `lp` and `hp` ([`quantize_value`] with the [`offsets`], the
+/// divisions done as multiplications).
 pub fn quantize(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32, hp: i32) {
     let (odc, olp, ohp) = offsets(dc, lp, hp);
     c[mb::DC] = quantize_value(c[mb::DC], dc, odc);
+    let q = Quantizer::new(lp, olp);
     for v in &mut c[1..shape.0] {
-        *v = quantize_value(*v, lp, olp);
+        *v = q.apply(*v);
     }
+    let q = Quantizer::new(hp, ohp);
     for v in &mut c[16..16 + 15 * shape.1] {
-        *v = quantize_value(*v, hp, ohp);
+        *v = q.apply(*v);
     }
 }
 
@@ -206,6 +246,39 @@ mod tests {
             let mut got = [0; mb::MB_COEFFS];
             dequantize_into(&src, &mut got, shape, 3, 5, 11);
             assert_eq!(got, want, "{shape:?}");
+        }
+    }
+
+    #[test]
+    fn quantizers_divide_exactly() {
+        // Every step kind (small, powers of two, the largest QP index's) at the values where
+        // a multiplicative inverse would first go wrong: around multiples of the step and at
+        // the ends of the range.
+        let mut steps: Vec<i32> = (0..=255u8).flat_map(|i| [step(i, false, true), step(i, true, true)]).collect();
+        steps.extend([2, 3, 7, (1 << 30) - 1, 1 << 30, i32::MAX]);
+        let mut x = 0x1234_5678u32;
+        for &s in &steps {
+            for o in [0, s / 2, ((3 * i64::from(s) + 1) / 8) as i32] {
+                let q = Quantizer::new(s, o);
+                let mut values = vec![0, 1, -1, i32::MAX, i32::MIN, i32::MIN + 1, s, -s, s - 1, 1 - s];
+                for k in [1i64, 2, 3, 1000, 65_537] {
+                    for d in [-1i64, 0, 1] {
+                        let v = k * i64::from(s) + d - i64::from(o);
+                        if let Ok(v) = i32::try_from(v) {
+                            values.extend([v, v.wrapping_neg()]);
+                        }
+                    }
+                }
+                for _ in 0..200 {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    values.push(x as i32);
+                }
+                for v in values {
+                    assert_eq!(q.apply(v), quantize_value(v, s, o), "{v} / {s} + {o}");
+                }
+            }
         }
     }
 

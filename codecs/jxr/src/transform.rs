@@ -1470,6 +1470,102 @@ pub fn inverse_plane(
     Ok(Plane { width, height, data })
 }
 
+/// The stage-1 forward PCT of a whole plane (`data`, after the stage-1 POT): each 4×4 block's
+/// DC into the DC plane `dc` (`bx·mb_w` wide) and its 15 HP coefficients into its macroblock
+/// of `coeffs`. Block row by block row: the four sample rows are split coefficient-major into
+/// the scratch `cm` (row `k` holds sample `k`, raster order, of every block), transformed
+/// [`LANES`] blocks at a time and scattered: the decoder's stage 1 backwards. Compiled twice,
+/// portable and for AVX2, chosen at run time.
+#[allow(unsafe_code)]
+fn forward_stage1(
+    kind: PlaneKind,
+    mb_w: usize,
+    mb_h: usize,
+    data: &[i32],
+    dc: &mut [i32],
+    coeffs: &mut [MbCoeffs],
+    cm: &mut Vec<i32>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if hdrcodec_core::cpu::avx2() {
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+        return unsafe { forward_stage1_avx2(kind, mb_w, mb_h, data, dc, coeffs, cm) };
+    }
+    forward_stage1_portable(kind, mb_w, mb_h, data, dc, coeffs, cm)
+}
+
+/// [`forward_stage1_portable`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn forward_stage1_avx2(
+    kind: PlaneKind,
+    mb_w: usize,
+    mb_h: usize,
+    data: &[i32],
+    dc: &mut [i32],
+    coeffs: &mut [MbCoeffs],
+    cm: &mut Vec<i32>,
+) {
+    forward_stage1_portable(kind, mb_w, mb_h, data, dc, coeffs, cm)
+}
+
+#[inline(always)]
+fn forward_stage1_portable(
+    kind: PlaneKind,
+    mb_w: usize,
+    mb_h: usize,
+    data: &[i32],
+    dc: &mut [i32],
+    coeffs: &mut [MbCoeffs],
+    cm: &mut Vec<i32>,
+) {
+    let (bx, by) = kind.blocks();
+    let (dw, dh) = (bx * mb_w, by * mb_h);
+    let width = 4 * dw;
+    let n = scratch_stride(dw);
+    cm.resize(16 * n, 0);
+    for y in 0..dh {
+        let (my, jy) = (y / by, y % by);
+        // Scratch row 4j + i holds sample i of row j of every block.
+        for (j, quad) in cm.chunks_exact_mut(4 * n).enumerate() {
+            let [a, b, c, d] = four_rows(quad, n, dw);
+            deinterleave4(&data[(4 * y + j) * width..][..width], [a, b, c, d]);
+        }
+        run_lanes!(cm, n, dw, pct4x4_g);
+        let mut rows = cm.chunks_exact(n).map(|r| &r[..dw]);
+        let rows: [&[i32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+        dc[y * dw..][..dw].copy_from_slice(rows[0]);
+        let mbs = &mut coeffs[my * mb_w..][..mb_w];
+        if bx == 4 {
+            // Full planes: the macroblock's four blocks of this block row are 60 consecutive
+            // coefficients, coefficient k of block i at 15i + k − 1.
+            for (mx, mb) in mbs.iter_mut().enumerate() {
+                let quad: &mut [i32; 60] = (&mut mb[hp(4 * jy, 1)..][..60]).try_into().expect("four blocks");
+                for (k, row) in rows[1..].iter().enumerate() {
+                    let v: &[i32; 4] = row[4 * mx..4 * mx + 4].try_into().expect("four blocks");
+                    quad[k] = v[0];
+                    quad[15 + k] = v[1];
+                    quad[30 + k] = v[2];
+                    quad[45 + k] = v[3];
+                }
+            }
+        } else {
+            for xb in 0..dw {
+                let b = jy * bx + xb % bx;
+                let block: &mut [i32; 15] =
+                    (&mut mbs[xb / bx][hp(b, 1)..=hp(b, 15)]).try_into().expect("a block is 15 coefficients");
+                for (h, row) in block.iter_mut().zip(&rows[1..]) {
+                    *h = row[xb];
+                }
+            }
+        }
+    }
+}
+
 /// The forward lapped transform of one channel: the exact inverse of [`inverse_plane`] (same
 /// parameters, same layouts). In scaled arithmetic, channels after the first lose the lowest
 /// bit of their block DCs (the decoder doubles them), as jxrlib's encoder does.
@@ -1502,20 +1598,7 @@ pub fn forward_plane(
     let (dw, dh) = (bx * mb_w, by * mb_h);
     let mut dc = vec![0i32; dw * dh];
     let mut coeffs = vec![[0i32; MB_COEFFS]; mb_w * mb_h];
-    for (m, c) in coeffs.iter_mut().enumerate() {
-        let (mx, my) = (m % mb_w, m / mb_w);
-        for b in 0..bx * by {
-            let (x, y) = (mx * bx + b % bx, my * by + b / bx);
-            let mut t = [0i32; 16];
-            for j in 0..4 {
-                let row = (y * 4 + j) * width + x * 4;
-                t[j * 4..j * 4 + 4].copy_from_slice(&data[row..row + 4]);
-            }
-            pct4x4(&mut t);
-            dc[y * dw + x] = t[0];
-            c[hp(b, 1)..=hp(b, 15)].copy_from_slice(&t[1..]);
-        }
-    }
+    forward_stage1(kind, mb_w, mb_h, &data, &mut dc, &mut coeffs, &mut cm);
     if params.overlap == OverlapMode::Two {
         let mut p = Rows { data: &mut dc, stride: dw, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
@@ -1587,6 +1670,18 @@ mod tests {
                 }
             }
         }
+        // The forward stage-1 PCT's twin, on planes of random samples of every kind.
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            let (bx, by) = kind.blocks();
+            let (dw, dh) = (bx * mb_w, by * mb_h);
+            let plane: Vec<i32> = (0..16 * dw * dh).map(|_| sample(&mut r, 20)).collect();
+            let mut a = (vec![0; dw * dh], vec![[0; MB_COEFFS]; mb_w * mb_h], Vec::new());
+            let mut b = (vec![1; dw * dh], vec![[0; MB_COEFFS]; mb_w * mb_h], Vec::new());
+            forward_stage1_portable(kind, mb_w, mb_h, &plane, &mut a.0, &mut a.1, &mut a.2);
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe { forward_stage1_avx2(kind, mb_w, mb_h, &plane, &mut b.0, &mut b.1, &mut b.2) };
+            assert_eq!((a.0, a.1), (b.0, b.1), "{kind:?}");
+        }
         // The stage-1 overlap filter's own twin, on a plane of random samples.
         for dir in [Dir::Inverse, Dir::Forward] {
             let (w, h) = (16 * mb_w, 16 * mb_h);
@@ -1602,6 +1697,34 @@ mod tests {
                 };
             }
             assert_eq!(a, b, "{dir:?}");
+        }
+    }
+
+    /// The row-wise stage-1 forward PCT gives each block what [`pct4x4`] gives it alone.
+    #[test]
+    fn forward_stage1_is_the_blockwise_pct() {
+        let mut r = rng(41);
+        let (mb_w, mb_h) = (5, 3);
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            let (bx, by) = kind.blocks();
+            let (dw, dh) = (bx * mb_w, by * mb_h);
+            let width = 4 * dw;
+            let plane: Vec<i32> = (0..16 * dw * dh).map(|_| sample(&mut r, 24)).collect();
+            let (mut dc, mut coeffs) = (vec![0; dw * dh], vec![[0; MB_COEFFS]; mb_w * mb_h]);
+            forward_stage1(kind, mb_w, mb_h, &plane, &mut dc, &mut coeffs, &mut Vec::new());
+            for (m, c) in coeffs.iter().enumerate() {
+                let (mx, my) = (m % mb_w, m / mb_w);
+                for b in 0..bx * by {
+                    let (x, y) = (mx * bx + b % bx, my * by + b / bx);
+                    let mut t = [0i32; 16];
+                    for j in 0..4 {
+                        t[j * 4..j * 4 + 4].copy_from_slice(&plane[(y * 4 + j) * width + x * 4..][..4]);
+                    }
+                    pct4x4(&mut t);
+                    assert_eq!(dc[y * dw + x], t[0], "{kind:?} block {b} of macroblock {m}");
+                    assert_eq!(c[hp(b, 1)..=hp(b, 15)], t[1..], "{kind:?} block {b} of macroblock {m}");
+                }
+            }
         }
     }
 

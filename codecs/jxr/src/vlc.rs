@@ -143,7 +143,7 @@ pub struct Code {
 
 /// The encoding table of a prefix code given as one bit string per symbol: built from the
 /// same strings as the decoder's [`Lut`], so that encoder and decoder cannot disagree.
-const fn codes<const N: usize>(strings: &[&str; N]) -> [Code; N] {
+pub(crate) const fn codes<const N: usize>(strings: &[&str; N]) -> [Code; N] {
     let mut t = [Code { bits: 0, len: 0 }; N];
     let mut sym = 0;
     while sym < N {
@@ -185,7 +185,7 @@ pub static INDEX_ENC: [[Code; 6]; 4] =
 /// See [`INDEX2_CODES`].
 pub static INDEX2_ENC: [Code; 4] = codes(&INDEX2_CODES);
 /// See [`RUN_INDEX_CODES`].
-pub static RUN_INDEX_ENC: [Code; 5] = codes(&RUN_INDEX_CODES);
+pub const RUN_INDEX_ENC: [Code; 5] = codes(&RUN_INDEX_CODES);
 /// See [`NUM_CBP_CODES`].
 pub static NUM_CBP_ENC: [[Code; 5]; 2] = [codes(&NUM_CBP_CODES[0]), codes(&NUM_CBP_CODES[1])];
 /// See [`NUM_BLKCBP_YUV_CODES`].
