@@ -1027,7 +1027,8 @@ fn jxrlib_decodes_our_encoder_options_as_we_do() {
 /// returns them with the way jxrlib's samples are read (imagecodecs, or JxrDecApp's TIFF for
 /// the formats imagecodecs converts or refuses: fixed point, 64bppRGBHalf, 101010).
 fn encode_other_formats(dir: &Path, options: &DecodeOptions) -> Vec<(PathBuf, PathBuf, &'static str)> {
-    use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
+    use hdrcodec_jxr::encoder::{encode, BitstreamOrder, EncodeOptions, SampleFormat, Subsampling};
+    use hdrcodec_jxr::header::Bands;
     use hdrcodec_jxr::output::SampleTransfer;
     let formats = [
         (SampleFormat::Rgbe, "ic"),
@@ -1043,7 +1044,42 @@ fn encode_other_formats(dir: &Path, options: &DecodeOptions) -> Vec<(PathBuf, Pa
         (SampleFormat::Rgb8(SampleTransfer::Srgb), "bgr+alpha"),
         (SampleFormat::Rgb16(SampleTransfer::Pq), "ic+alpha"),
     ];
+    // Formats crossed with the codestream options (subsampling, order, bands, trimming, tiles),
+    // at quality 60 on the larger image: (format, mode, alpha, options).
+    let (freq, s420, s422) = (BitstreamOrder::Frequency, Subsampling::Yuv420, Subsampling::Yuv422);
+    let o = EncodeOptions { quality: 60, ..EncodeOptions::default() };
+    let (srgb8, pq16, pq10) = (
+        SampleFormat::Rgb8(SampleTransfer::Srgb),
+        SampleFormat::Rgb16(SampleTransfer::Pq),
+        SampleFormat::Rgb101010(SampleTransfer::Pq),
+    );
+    let crossed = [
+        (srgb8, "ic", false, EncodeOptions { subsampling: s420, order: freq, ..o.clone() }),
+        (pq16, "ic+alpha", true, EncodeOptions { subsampling: s422, bands: Bands::NoHighpass, ..o.clone() }),
+        (SampleFormat::Rgbe, "ic", false, EncodeOptions { subsampling: s420, order: freq, tile_mbs: 2, ..o.clone() }),
+        (SampleFormat::Fixed, "tif", false, EncodeOptions { order: freq, bands: Bands::NoFlexbits, ..o.clone() }),
+        (pq10, "tif", false, EncodeOptions { subsampling: s420, trim_flexbits: 3, ..o.clone() }),
+        (SampleFormat::HalfPadded, "tif", false, EncodeOptions { subsampling: s420, ..o.clone() }),
+        (srgb8, "bgr+alpha", true, EncodeOptions { order: freq, bands: Bands::DcOnly, ..o.clone() }),
+    ];
     let mut pairs = Vec::new();
+    // Encodes `image`, keeps the file and our decoder's samples in `dir` under `name`.
+    let mut keep = |name: String, image: &hdrcodec_core::HdrImage, opts: &EncodeOptions, mode: &'static str| {
+        let (file, _) = encode(image, opts, &hdrcodec_core::ThreadPool::single()).unwrap();
+        let name = name.replace(['(', ')'], "_");
+        let raw = decode_raw(&file, options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let path = dir.join(format!("{name}.jxr"));
+        std::fs::write(&path, &file).unwrap();
+        let raw_path = dir.join(format!("{name}.ours.raw"));
+        std::fs::write(&raw_path, raw).unwrap();
+        pairs.push((path, raw_path, mode));
+    };
+    let rgb = encoder_test_image(161, 50, 161 * 50 + 3);
+    let with_alpha = with_test_alpha(&rgb);
+    for (i, (format, mode, alpha, opts)) in crossed.into_iter().enumerate() {
+        let image = if alpha { &with_alpha } else { &rgb };
+        keep(format!("crossed{i}_{format:?}"), image, &EncodeOptions { format, ..opts }, mode);
+    }
     for (w, h) in [(37u32, 23u32), (161, 50)] {
         // Samples from 0.01 to 30 000 scRGB units: every format clips some (counted).
         let rgb = encoder_test_image(w, h, u64::from(w * h) + 2);
@@ -1053,15 +1089,8 @@ fn encode_other_formats(dir: &Path, options: &DecodeOptions) -> Vec<(PathBuf, Pa
             for quality in [100u8, 60] {
                 let tile_mbs = if w > 64 { 2 } else { 0 };
                 let opts = EncodeOptions { quality, format, tile_mbs, ..EncodeOptions::default() };
-                let (file, _) = encode(image, &opts, &hdrcodec_core::ThreadPool::single()).unwrap();
                 let alpha = if mode.ends_with("alpha") { "_rgba" } else { "" };
-                let name = format!("{w}x{h}_{format:?}{alpha}_q{quality}").replace(['(', ')'], "_");
-                let raw = decode_raw(&file, options).unwrap_or_else(|e| panic!("{name}: {e}"));
-                let path = dir.join(format!("{name}.jxr"));
-                std::fs::write(&path, &file).unwrap();
-                let raw_path = dir.join(format!("{name}.ours.raw"));
-                std::fs::write(&raw_path, raw).unwrap();
-                pairs.push((path, raw_path, mode));
+                keep(format!("{w}x{h}_{format:?}{alpha}_q{quality}"), image, &opts, mode);
             }
         }
     }
