@@ -546,9 +546,7 @@ fn encode_codestream(
         let shape = quant::channel_shape(fmt, ch);
         for (mb, &set) in c.iter_mut().zip(mb_set) {
             let (lp, hp) = (lp[usize::from(set).min(lp_sets - 1)], hp[usize::from(set).min(hp_sets - 1)]);
-            let unquantized = *mb;
             quant::quantize(mb, shape, dc, lp, hp);
-            quant::zero_marginal_hp_blocks(&unquantized, mb, shape.1, hp);
             // The bands left out are zero for the decoder.
             if !bands.has_lp() {
                 mb[1..16].fill(0);
