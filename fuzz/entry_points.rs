@@ -15,6 +15,7 @@ use hdrcodec_bc6h::{Bc6hDdsCodec, Bc6hKtx2Codec};
 use hdrcodec_container::{decode_frames, HdrcCodec, RawF16Codec, RawF32Codec, Reader, SeekReader};
 use hdrcodec_core::{EncodeSettings, HdrImage, ImageCodec, ImageInfo, Limits, Result};
 use hdrcodec_exr::{ExrCodec, ExrCompression};
+use hdrcodec_jpeghdr::{GainMapJpegCodec, Rendering};
 use hdrcodec_jxr::JxrCodec;
 use hdrcodec_logluv::{raster_to_image, read_tiff, DecodeOptions, Encoding, LogLuvTiffCodec};
 use hdrcodec_pfm::PfmCodec;
@@ -24,11 +25,12 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 8] = [
+pub const TARGETS: [(&str, Target); 9] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
     ("exr", exr),
+    ("gainmap_jpeg", gainmap_jpeg),
     ("jxr", jxr),
     ("logluv", logluv),
     ("pfm", pfm),
@@ -131,6 +133,14 @@ pub fn pfm(data: &[u8]) {
         let same = img.samples().iter().zip(back.samples()).all(|(a, b)| a.to_bits() == b.to_bits());
         assert!(same && img.samples().len() == back.samples().len(), "PFM round trip changed samples");
     }
+}
+
+/// Gain-map JPEG: the file's structure and metadata (MPF, XMP, ISO 21496-1, ICC), `probe`
+/// against the full HDR decode, and a decode for a display of headroom 2.
+pub fn gainmap_jpeg(data: &[u8]) {
+    let limits = Limits::fuzzing();
+    let _ = probe_and_decode(&GainMapJpegCodec, data, &limits);
+    let _ = hdrcodec_jpeghdr::decode(data, &limits, Rendering { headroom: Some(2.0) });
 }
 
 /// JPEG XR: the codec (probe and decode through the container, entropy decoding, the

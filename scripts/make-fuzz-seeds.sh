@@ -27,4 +27,6 @@ seed logluv tif --codec logluv32
 seed bc6h_files dds --effort 0
 # JPEG XR: no encoder yet; the crate's small test streams (JxrEncApp and T.835 wrote them).
 mkdir -p "$out/jxr" && cp codecs/jxr/testdata/*.jxr "$out/jxr/"
+# Gain-map JPEG: no encoder yet; a small file libultrahdr wrote.
+mkdir -p "$out/gainmap_jpeg" && cp codecs/jpeghdr/testdata/*.jpg "$out/gainmap_jpeg/"
 echo "seeds: $(find "$out" -type f | wc -l) files in $out" >&2

@@ -21,6 +21,7 @@ pub use hdrcodec_bc6h as bc6h;
 pub use hdrcodec_container as container;
 pub use hdrcodec_core as core;
 pub use hdrcodec_exr as exr;
+pub use hdrcodec_jpeghdr as jpeghdr;
 pub use hdrcodec_jxr as jxr;
 pub use hdrcodec_logluv as logluv;
 pub use hdrcodec_pfm as pfm;
@@ -49,6 +50,7 @@ fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
         Arc::new(bc6h::Bc6hDdsCodec),
         Arc::new(bc6h::Bc6hKtx2Codec),
         Arc::new(jxr::JxrCodec),
+        Arc::new(jpeghdr::GainMapJpegCodec),
     ]
 }
 

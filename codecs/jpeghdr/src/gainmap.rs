@@ -1,0 +1,398 @@
+//! Gain-map JPEG decoding: find the gain-map image (MPF, GContainer, or the next JPEG after the
+//! primary's EOI), read its metadata (ISO 21496-1 record, else Adobe `hdrgm` XMP, else Apple's
+//! headroom), decode both JPEGs and apply the gain (ISO 21496-1 clause 7):
+//!
+//! `hdr = (base + k_base) · 2^(W · L) − k_alt`, `L = min·(1 − g) + max·g`, `g = (code/255)^(1/γ)`
+//!
+//! per channel, with `base` the sRGB-decoded primary in its own primaries, the map upsampled to
+//! the base's size, and `W` the weight of the display headroom (1: full HDR).
+
+use crate::markers::{self, JpegImage, APP1, APP2};
+use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
+use crate::xmp::{self, Xmp};
+use crate::{icc, mpf};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer};
+
+/// The luminance of the base's (SDR) white, cd/m²: ITU-R BT.2408's reference white, which
+/// libultrahdr and the Ultra HDR format use when they give gain-map output absolute units.
+pub const SDR_WHITE_NITS: f32 = 203.0;
+
+/// Which gain-map convention a file follows (the source of its metadata).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flavour {
+    /// ISO 21496-1 binary metadata.
+    Iso21496,
+    /// Adobe's `hdrgm` XMP (Android Ultra HDR, Photoshop, Lightroom).
+    AdobeXmp,
+    /// Apple's HDR gain map (one channel, headroom in the map's XMP).
+    Apple,
+}
+
+impl Flavour {
+    /// A short name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Flavour::Iso21496 => "ISO 21496-1",
+            Flavour::AdobeXmp => "Adobe hdrgm XMP",
+            Flavour::Apple => "Apple HDR gain map",
+        }
+    }
+}
+
+/// A gain-map file taken apart: the primary image, the gain-map image and its metadata.
+pub struct GainMapFile<'a> {
+    /// The primary (base) image.
+    pub primary: JpegImage<'a>,
+    /// The gain-map image, or `None` for a plain JPEG (or one whose gain map is unusable; see
+    /// `warning`).
+    pub gain_map: Option<(JpegImage<'a>, GainMapMetadata, Flavour)>,
+    /// Why a gain map that the file announces could not be used.
+    pub warning: Option<String>,
+}
+
+impl<'a> GainMapFile<'a> {
+    /// Reads the structure and metadata of a file (no pixels). Fails only if the primary image
+    /// itself is broken; a damaged or missing gain map leaves `gain_map` empty with a warning.
+    pub fn parse(data: &'a [u8]) -> Result<Self> {
+        let primary = markers::parse_image(data, 0)?;
+        match find_gain_map(data, &primary) {
+            Ok(Some((map, meta, flavour))) => {
+                Ok(GainMapFile { primary, gain_map: Some((map, meta, flavour)), warning: None })
+            }
+            Ok(None) => Ok(GainMapFile { primary, gain_map: None, warning: None }),
+            Err(e) => Ok(GainMapFile { primary, gain_map: None, warning: Some(e.to_string()) }),
+        }
+    }
+}
+
+/// The primary's XMP, if it has one that parses.
+fn xmp_of(image: &JpegImage<'_>) -> Option<Xmp> {
+    image.app_payload(APP1, xmp::SIGNATURE).and_then(|(_, p)| Xmp::new(p).ok())
+}
+
+/// Where the gain map is and what it means: `Ok(None)` when the file announces none.
+fn find_gain_map<'a>(
+    data: &'a [u8],
+    primary: &JpegImage<'a>,
+) -> Result<Option<(JpegImage<'a>, GainMapMetadata, Flavour)>> {
+    let primary_xmp = xmp_of(primary);
+    let announces_iso = primary.app_payload(APP2, ISO_SIGNATURE).is_some();
+    let announces_adobe = primary_xmp.as_ref().and_then(Xmp::hdrgm_version).is_some();
+    // Candidates for the second image, most trusted first: MPF entries after the first, the
+    // GContainer's GainMap item, the first image after the primary's EOI.
+    let mut candidates = Vec::new();
+    if let Some((offset, payload)) = primary.app_payload(APP2, mpf::SIGNATURE) {
+        if let Ok(entries) = mpf::parse(payload, offset, primary.start) {
+            candidates.extend(entries.iter().skip(1).map(|e| e.file_offset));
+        }
+    }
+    if let Some(x) = &primary_xmp {
+        let items = x.container_items();
+        let mut at = primary.end;
+        for (semantic, length) in items.iter().skip(1) {
+            if semantic == "GainMap" {
+                candidates.push(at);
+            }
+            at += length.unwrap_or(0) as usize;
+        }
+    }
+    candidates.extend(markers::next_image_start(data, primary.end));
+    let mut seen = Vec::new();
+    let mut first_error = None;
+    for start in candidates {
+        if seen.contains(&start) {
+            continue;
+        }
+        seen.push(start);
+        let Ok(image) = markers::parse_image(data, start) else { continue };
+        match metadata_of(&image) {
+            Ok(Some((meta, flavour))) => return Ok(Some((image, meta, flavour))),
+            Ok(None) => {}
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    match first_error {
+        Some(e) => Err(e),
+        None if announces_iso || announces_adobe => {
+            Err(Error::invalid("the file announces a gain map but none was found"))
+        }
+        None => Ok(None),
+    }
+}
+
+/// The gain-map metadata an image carries, if it is a gain map: its ISO 21496-1 record first
+/// (what libultrahdr and Skia prefer), else its hdrgm XMP, else Apple's.
+fn metadata_of(image: &JpegImage<'_>) -> Result<Option<(GainMapMetadata, Flavour)>> {
+    if let Some((_, record)) = image.app_payload(APP2, ISO_SIGNATURE) {
+        if let Some(m) = GainMapMetadata::from_iso(record)? {
+            return Ok(Some((m, Flavour::Iso21496)));
+        }
+    }
+    let Some(x) = xmp_of(image) else { return Ok(None) };
+    if let Some(m) = x.hdrgm_metadata()? {
+        return Ok(Some((m, Flavour::AdobeXmp)));
+    }
+    if x.is_apple_gain_map() {
+        let headroom = x.apple_headroom()?.ok_or_else(|| {
+            Error::unsupported("Apple HDR gain map without HDRGainMapHeadroom (its headroom is in the maker note)")
+        })?;
+        if !(headroom >= 1.0 && headroom.is_finite()) {
+            return Err(Error::invalid(format!("Apple HDRGainMapHeadroom {headroom}")));
+        }
+        // Read as a linear ratio (Skia, libavif); mapped to ISO terms as libavif does: a
+        // log-domain gain from 0 to log2(headroom), gamma 1, no offsets.
+        let stops = headroom.log2();
+        let m = GainMapMetadata {
+            base_headroom: 0.0,
+            alternate_headroom: stops,
+            gain_min: [0.0; 3],
+            gain_max: [stops; 3],
+            gamma: [1.0; 3],
+            base_offset: [0.0; 3],
+            alternate_offset: [0.0; 3],
+            multichannel: false,
+            use_base_colour_space: true,
+        };
+        return Ok(Some((m, Flavour::Apple)));
+    }
+    Ok(None)
+}
+
+/// A decoded 8-bit JPEG: `channels` samples (1 or 3) per pixel.
+pub(crate) struct Pixels {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    pub samples: Vec<u8>,
+}
+
+fn jpeg_options(limits: &Limits) -> zune_jpeg::zune_core::options::DecoderOptions {
+    zune_jpeg::zune_core::options::DecoderOptions::default()
+        .set_max_width(limits.max_width.min(65535) as usize)
+        .set_max_height(limits.max_height.min(65535) as usize)
+        .set_strict_mode(false)
+}
+
+/// The size and channels (1: grey, 3: colour) of one JPEG image, from its headers.
+fn jpeg_header(bytes: &[u8], limits: &Limits, what: &str) -> Result<(usize, usize, usize)> {
+    use zune_jpeg::zune_core::colorspace::ColorSpace;
+    let mut decoder = zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits));
+    decoder.decode_headers().map_err(|e| Error::invalid(format!("{what}: {e}")))?;
+    let info = decoder.info().ok_or_else(|| Error::invalid(format!("{what}: no frame header")))?;
+    let (width, height) = (usize::from(info.width), usize::from(info.height));
+    let channels = match decoder.get_input_colorspace() {
+        Some(ColorSpace::Luma) => 1,
+        Some(ColorSpace::YCbCr | ColorSpace::RGB) => 3,
+        other => return Err(Error::unsupported(format!("{what}: JPEG colour space {other:?}"))),
+    };
+    if (width as u64) * (height as u64) > limits.max_pixels {
+        return Err(Error::limit(format!("{what}: {width}x{height} pixels")));
+    }
+    Ok((width, height, channels))
+}
+
+/// Decodes one JPEG image to grey (one-component files) or RGB, within `limits`.
+pub(crate) fn decode_jpeg(bytes: &[u8], limits: &Limits, what: &str) -> Result<Pixels> {
+    use zune_jpeg::zune_core::colorspace::ColorSpace;
+    let (width, height, channels) = jpeg_header(bytes, limits, what)?;
+    let _charge = limits.charge((width * height * channels) as u64, what)?;
+    let out = if channels == 1 { ColorSpace::Luma } else { ColorSpace::RGB };
+    let mut decoder =
+        zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits).jpeg_set_out_colorspace(out));
+    let samples = decoder.decode().map_err(|e| Error::invalid(format!("{what}: {e}")))?;
+    if samples.len() != width * height * channels {
+        return Err(Error::invalid(format!(
+            "{what}: the JPEG decoder gave {} samples for {width}x{height}",
+            samples.len()
+        )));
+    }
+    Ok(Pixels { width, height, channels, samples })
+}
+
+/// What a file says before its pixels are decoded: size, colour and the notes a decode
+/// attaches (the flavour and size of the gain map, colour caveats, a damaged gain map).
+pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    describe(&GainMapFile::parse(data)?, data, limits)
+}
+
+/// [`probe`] of a file already taken apart.
+fn describe(file: &GainMapFile<'_>, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
+    let (width, height, _) = jpeg_header(file.primary.bytes(data), limits, "primary image")?;
+    let (primaries, mut metadata) = primaries_of(&file.primary);
+    match &file.gain_map {
+        Some((map, meta, flavour)) => {
+            let (w, h, c) = jpeg_header(map.bytes(data), limits, "gain-map image")?;
+            metadata.push(("jpeg.gain_map".into(), format!("{} ({w}x{h}, {c} channel(s))", flavour.name())));
+            if !meta.use_base_colour_space {
+                metadata.push((
+                    "jpeg.colour_note".into(),
+                    "the metadata asks for the gain in the gain map's colour space; applied in the base's".into(),
+                ));
+            }
+        }
+        None => {
+            if let Some(w) = &file.warning {
+                metadata.push(("jpeg.warning".into(), format!("gain map unusable, decoded as SDR: {w}")));
+            }
+        }
+    }
+    let color = ColorInfo { primaries, nits_per_unit: SDR_WHITE_NITS, hdr10: None };
+    let mut info = ImageInfo::new(width as u32, height as u32, Channels::Rgb, color);
+    info.format = match &file.gain_map {
+        Some((_, _, flavour)) => format!("JPEG with a gain map ({})", flavour.name()),
+        None => "JPEG without HDR data (SDR)".into(),
+    };
+    info.metadata = metadata;
+    Ok(info)
+}
+
+/// The primaries of an image's ICC profile (sRGB without one, as the gain-map formats say),
+/// and a note when the profile names primaries the family does not know.
+fn primaries_of(image: &JpegImage<'_>) -> (ColorPrimaries, Vec<(String, String)>) {
+    match icc::assemble(image.app_payloads(APP2, icc::SIGNATURE).map(|(_, p)| p)) {
+        None => (ColorPrimaries::Bt709, Vec::new()),
+        Some(profile) => match icc::primaries(&profile) {
+            Some(p) => (p, Vec::new()),
+            None => (
+                ColorPrimaries::Unspecified,
+                vec![(
+                    "jpeg.colour_note".into(),
+                    "the ICC profile's primaries are not a known set: samples kept in its space".into(),
+                )],
+            ),
+        },
+    }
+}
+
+/// What a decode should render.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Rendering {
+    /// The display's headroom (linear ratio of HDR white to SDR white, ≥ 1); `None` for the
+    /// full HDR rendition the file describes.
+    pub headroom: Option<f64>,
+}
+
+/// Decodes a gain-map JPEG (or a plain JPEG, as SDR) to linear samples in the base image's
+/// primaries, 1.0 = SDR white = [`SDR_WHITE_NITS`]. Notes what it found in the metadata.
+pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrImage> {
+    let file = GainMapFile::parse(data)?;
+    let info = describe(&file, data, limits)?;
+    let base = decode_jpeg(file.primary.bytes(data), limits, "primary image")?;
+    let pixels = base.width * base.height;
+    let _charge = limits.charge_image(base.width as u64, base.height as u64, Channels::Rgb)?;
+    let mut out = Vec::new();
+    out.try_reserve_exact(pixels * 3).map_err(|_| Error::limit("gain-map JPEG: output buffer"))?;
+    // The sRGB EOTF of every code, once (the base is always sRGB-encoded, ISO 21496-1 6.2).
+    let eotf: [f32; 256] = std::array::from_fn(|c| SrgbTransfer::decode(c as f64 / 255.0) as f32);
+    match &file.gain_map {
+        None => out.extend(
+            base.samples
+                .chunks_exact(base.channels)
+                .flat_map(|p| (0..3).map(|c| eotf[usize::from(p[c.min(p.len() - 1)])])),
+        ),
+        Some((map_image, meta, _)) => {
+            let map = decode_jpeg(map_image.bytes(data), limits, "gain-map image")?;
+            let weight = match rendering.headroom {
+                None => meta.full_hdr_weight(),
+                Some(h) if h >= 1.0 && h.is_finite() => meta.weight(h.log2()),
+                Some(h) => return Err(Error::invalid(format!("display headroom {h} (must be at least 1)"))),
+            };
+            apply_gain(&base, &map, meta, weight, &eotf, &mut out);
+        }
+    }
+    let mut image = HdrImage::new(info.width, info.height, Channels::Rgb, out, info.color)?;
+    image.metadata = info.metadata;
+    Ok(image)
+}
+
+/// One axis of the map's bilinear upsampling, pixel centres aligned: for each output
+/// coordinate, the two map coordinates and the weight of the second.
+fn axis(out_len: usize, map_len: usize) -> Vec<(usize, usize, f32)> {
+    let scale = map_len as f64 / out_len as f64;
+    (0..out_len)
+        .map(|x| {
+            let u = ((x as f64 + 0.5) * scale - 0.5).clamp(0.0, (map_len - 1) as f64);
+            let i = u.floor() as usize;
+            (i, (i + 1).min(map_len - 1), (u - i as f64) as f32)
+        })
+        .collect()
+}
+
+fn apply_gain(base: &Pixels, map: &Pixels, meta: &GainMapMetadata, weight: f64, eotf: &[f32; 256], out: &mut Vec<f32>) {
+    let (xs, ys) = (axis(base.width, map.width), axis(base.height, map.height));
+    let inv_gamma: [f32; 3] = std::array::from_fn(|c| (1.0 / meta.gamma[c]) as f32);
+    let lo: [f32; 3] = std::array::from_fn(|c| (weight * meta.gain_min[c]) as f32);
+    let span: [f32; 3] = std::array::from_fn(|c| (weight * (meta.gain_max[c] - meta.gain_min[c])) as f32);
+    let k_base: [f32; 3] = std::array::from_fn(|c| meta.base_offset[c] as f32);
+    let k_alt: [f32; 3] = std::array::from_fn(|c| meta.alternate_offset[c] as f32);
+    let code = |x: usize, y: usize, c: usize| {
+        f32::from(map.samples[(y * map.width + x) * map.channels + c.min(map.channels - 1)])
+    };
+    for (row, &(y0, y1, fy)) in ys.iter().enumerate() {
+        for (x, &(x0, x1, fx)) in xs.iter().enumerate() {
+            let i = row * base.width + x;
+            for c in 0..3 {
+                let top = code(x0, y0, c) * (1.0 - fx) + code(x1, y0, c) * fx;
+                let bottom = code(x0, y1, c) * (1.0 - fx) + code(x1, y1, c) * fx;
+                let g = (top * (1.0 - fy) + bottom * fy) / 255.0;
+                let g = if inv_gamma[c] == 1.0 { g } else { g.powf(inv_gamma[c]) };
+                let b = eotf[usize::from(base.samples[i * base.channels + if base.channels == 3 { c } else { 0 }])];
+                out.push((b + k_base[c]) * (lo[c] + span[c] * g).exp2() - k_alt[c]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 64x48, written by libultrahdr 1.4 (imagecodecs `ultrahdr_encode`, level 90, map scale 2)
+    /// from a ramp with a highlight 8x brighter: ISO 21496-1 metadata only, MPF.
+    const RAMP: &[u8] = include_bytes!("../testdata/ramp_libultrahdr.jpg");
+
+    #[test]
+    fn libultrahdr_file_decodes_with_its_gain_map() {
+        let file = GainMapFile::parse(RAMP).unwrap();
+        let (map, meta, flavour) = file.gain_map.as_ref().unwrap();
+        assert_eq!(flavour, &Flavour::Iso21496);
+        assert!(meta.alternate_headroom > meta.base_headroom && map.start == file.primary.end);
+        let hdr = decode(RAMP, &Limits::default(), Rendering::default()).unwrap();
+        let sdr = decode(RAMP, &Limits::default(), Rendering { headroom: Some(1.0) }).unwrap();
+        assert_eq!((hdr.width(), hdr.height(), hdr.color.nits_per_unit), (64, 48, SDR_WHITE_NITS));
+        let peak = |i: &HdrImage| i.samples().iter().copied().fold(0.0f32, f32::max);
+        // The highlight goes well past SDR white only with the gain applied.
+        assert!(peak(&hdr) > 4.0 && peak(&sdr) <= 1.1, "{} {}", peak(&hdr), peak(&sdr));
+        let too_small = Limits::default().with_max_alloc_bytes(10_000);
+        assert!(decode(RAMP, &too_small, Rendering::default()).is_err());
+        assert!(decode(RAMP, &Limits::default(), Rendering { headroom: Some(0.5) }).is_err());
+    }
+
+    #[test]
+    fn truncated_or_corrupted_files_fail_cleanly_or_fall_back_to_sdr() {
+        let primary_end = GainMapFile::parse(RAMP).unwrap().primary.end;
+        for n in (0..RAMP.len()).step_by(7) {
+            match decode(&RAMP[..n], &Limits::default(), Rendering::default()) {
+                // With the primary whole and the gain map cut, the SDR base comes back with a
+                // warning.
+                Ok(image) => {
+                    assert!(n >= primary_end, "{n}");
+                    assert!(image.metadata_value("jpeg.warning").is_some() || n == RAMP.len());
+                }
+                Err(_) => assert!(n < primary_end || n < RAMP.len(), "{n}"),
+            }
+        }
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..300 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let mut data = RAMP.to_vec();
+            let at = (state % data.len() as u64) as usize;
+            data[at] ^= (state >> 32) as u8 | 1;
+            let _ = decode(&data, &Limits::default(), Rendering::default());
+        }
+    }
+}

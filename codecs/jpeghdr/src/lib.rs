@@ -1,0 +1,60 @@
+//! Backward-compatible HDR JPEG: an ordinary JPEG every viewer shows as SDR, carrying what
+//! rebuilds the HDR image.
+//!
+//! This first part decodes gain-map JPEGs in every flavour found in the wild: ISO 21496-1
+//! (binary metadata), Android Ultra HDR and Adobe's gain map (`hdrgm` XMP, one or three
+//! channels, MPF or GContainer), and Apple's HDR gain map; a plain JPEG decodes as SDR. The
+//! output is linear, in the base image's primaries (read from its ICC profile; sRGB without
+//! one), with SDR white = 1.0 = 203 cd/m² ([`gainmap::SDR_WHITE_NITS`]). Ward & Simmons'
+//! ratio-image JPEG-HDR and the encoders are not written yet.
+
+pub mod gainmap;
+pub mod icc;
+pub mod markers;
+pub mod metadata;
+pub mod mpf;
+pub mod xmp;
+
+use hdrcodec_core::{
+    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, Result,
+};
+
+pub use gainmap::{decode, probe, Flavour, GainMapFile, Rendering};
+pub use metadata::GainMapMetadata;
+
+/// The gain-map JPEG codec (decode only for now): `.jpg` files with or without a gain map.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GainMapJpegCodec;
+
+impl ImageCodec for GainMapJpegCodec {
+    fn name(&self) -> &'static str {
+        "ultrahdr"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"UHDR"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        &["jpg", "jpeg"]
+    }
+    fn sniff(&self, head: &[u8]) -> bool {
+        head.starts_with(&[0xFF, 0xD8, 0xFF])
+    }
+    /// The base image's ICC profile: sRGB or Display P3, the spaces gain-map writers use.
+    fn color_signalling(&self) -> ColorSignalling {
+        ColorSignalling::Only(&[ColorPrimaries::Bt709, ColorPrimaries::DisplayP3])
+    }
+    fn can_encode(&self) -> bool {
+        false
+    }
+    /// The headers of both images and the metadata, without decoding pixels.
+    fn probe(&self, data: &[u8], limits: &hdrcodec_core::Limits) -> Result<hdrcodec_core::ImageInfo> {
+        gainmap::probe(data, limits)
+    }
+    /// The full HDR rendition (see [`decode`] for a display's headroom).
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        decode(data, &options.limits, Rendering::default())
+    }
+    fn encode_to(&self, _: &HdrImage, _: &EncodeSettings, _: &mut dyn std::io::Write) -> Result<EncodeReport> {
+        Err(Error::unsupported("writing gain-map JPEG is not implemented yet"))
+    }
+}
