@@ -307,13 +307,16 @@ pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrI
     Ok(image)
 }
 
-/// One axis of the map's bilinear upsampling, pixel centres aligned: for each output
-/// coordinate, the two map coordinates and the weight of the second.
+/// One axis of the map's bilinear upsampling: for each output coordinate, the two map
+/// coordinates and the weight of the second. Output pixel `x` samples the map at
+/// `x · map_len / out_len`, as libultrahdr does (map pixel `m` sits on base pixel `m · scale`;
+/// on the corpus's Pixel file this agrees with libultrahdr better than centre alignment, p99
+/// 0.037 against 0.042 stops). Skia samples centre-aligned, half a map pixel away.
 fn axis(out_len: usize, map_len: usize) -> Vec<(usize, usize, f32)> {
     let scale = map_len as f64 / out_len as f64;
     (0..out_len)
         .map(|x| {
-            let u = ((x as f64 + 0.5) * scale - 0.5).clamp(0.0, (map_len - 1) as f64);
+            let u = (x as f64 * scale).min((map_len - 1) as f64);
             let i = u.floor() as usize;
             (i, (i + 1).min(map_len - 1), (u - i as f64) as f32)
         })

@@ -5,9 +5,11 @@
 //! (binary metadata), Android Ultra HDR and Adobe's gain map (`hdrgm` XMP, one or three
 //! channels, MPF or GContainer), and Apple's HDR gain map; a plain JPEG decodes as SDR. The
 //! output is linear, in the base image's primaries (read from its ICC profile; sRGB without
-//! one), with SDR white = 1.0 = 203 cd/m² ([`gainmap::SDR_WHITE_NITS`]). Ward & Simmons'
-//! ratio-image JPEG-HDR and the encoders are not written yet.
+//! one), with SDR white = 1.0 = 203 cd/m² ([`gainmap::SDR_WHITE_NITS`]). The encoder writes
+//! a GT-tone-mapped sRGB base and a gain map with ISO 21496-1 and hdrgm metadata together, MPF
+//! and GContainer. Ward & Simmons' ratio-image JPEG-HDR is not written yet.
 
+pub mod encode;
 pub mod gainmap;
 pub mod icc;
 pub mod markers;
@@ -16,13 +18,14 @@ pub mod mpf;
 pub mod xmp;
 
 use hdrcodec_core::{
-    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, Result,
+    ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, HdrImage, ImageCodec, Result,
 };
 
+pub use encode::{encode, GainMapEncodeOptions};
 pub use gainmap::{decode, probe, Flavour, GainMapFile, Rendering};
 pub use metadata::GainMapMetadata;
 
-/// The gain-map JPEG codec (decode only for now): `.jpg` files with or without a gain map.
+/// The gain-map JPEG codec: `.jpg` files with or without a gain map.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GainMapJpegCodec;
 
@@ -43,9 +46,6 @@ impl ImageCodec for GainMapJpegCodec {
     fn color_signalling(&self) -> ColorSignalling {
         ColorSignalling::Only(&[ColorPrimaries::Bt709, ColorPrimaries::DisplayP3])
     }
-    fn can_encode(&self) -> bool {
-        false
-    }
     /// The headers of both images and the metadata, without decoding pixels.
     fn probe(&self, data: &[u8], limits: &hdrcodec_core::Limits) -> Result<hdrcodec_core::ImageInfo> {
         gainmap::probe(data, limits)
@@ -54,7 +54,16 @@ impl ImageCodec for GainMapJpegCodec {
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
         decode(data, &options.limits, Rendering::default())
     }
-    fn encode_to(&self, _: &HdrImage, _: &EncodeSettings, _: &mut dyn std::io::Write) -> Result<EncodeReport> {
-        Err(Error::unsupported("writing gain-map JPEG is not implemented yet"))
+    /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
+    /// `map_scale`, `map_channels`.
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<EncodeReport> {
+        let (file, report) = encode(image, &GainMapEncodeOptions::from_settings(settings)?)?;
+        out.write_all(&file)?;
+        Ok(report)
     }
 }

@@ -1,0 +1,412 @@
+//! Gain-map JPEG encoding: a tone-mapped sRGB base every viewer shows, a gain map that turns it
+//! back into the HDR image, and the metadata every reader looks for (what
+//! `../shared/HDRJPEG-NOTES.md` section 7 lists): in the primary, the hdrgm XMP version with a
+//! GContainer directory, the ISO 21496-1 version record and an MPF index; in the gain map, the
+//! nine hdrgm properties and the full ISO 21496-1 record.
+//!
+//! The base: luminance is tone-mapped with the GT curve (1.0 = SDR white = 203 cd/m²) and the
+//! colour scaled with it, desaturated towards grey where a channel would leave [0, 1]. The gain
+//! is measured against the base as a decoder will see it (its 8-bit codes), in the log domain,
+//! averaged over the map's blocks.
+
+use crate::gainmap::SDR_WHITE_NITS;
+use crate::markers::{self, APP1, APP2};
+use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
+use crate::{mpf, xmp};
+use hdrcodec_core::color::{convert_primaries, luminance_weights};
+use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Result, SrgbTransfer};
+
+/// Options of the gain-map encoder (`--opt key=value`: `map_quality`, `map_scale`,
+/// `map_channels`; the base's quality is the settings' `quality`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GainMapEncodeOptions {
+    /// JPEG quality of the base image (1-100).
+    pub base_quality: u8,
+    /// JPEG quality of the gain map (1-100).
+    pub map_quality: u8,
+    /// The map is this many times smaller than the base on each axis (1-16).
+    pub map_scale: u32,
+    /// 1: one gain for all channels (luminance); 3: a gain per channel (exact colour where the
+    /// base had to be desaturated; about twice the map's bytes).
+    pub map_channels: u8,
+}
+
+impl Default for GainMapEncodeOptions {
+    /// Base quality 90 (4:2:0), map quality 85 at a quarter per axis, one channel: the Ultra
+    /// HDR format's recommendations.
+    fn default() -> Self {
+        GainMapEncodeOptions { base_quality: 90, map_quality: 85, map_scale: 4, map_channels: 1 }
+    }
+}
+
+impl GainMapEncodeOptions {
+    /// The options `settings` give (unknown keys are errors).
+    pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
+        settings.check_options("ultrahdr", &["map_quality", "map_scale", "map_channels"])?;
+        let d = Self::default();
+        let o = GainMapEncodeOptions {
+            base_quality: settings.quality.clamp(1, 100),
+            map_quality: settings.parse_option("map_quality")?.unwrap_or(d.map_quality),
+            map_scale: settings.parse_option("map_scale")?.unwrap_or(d.map_scale),
+            map_channels: settings.parse_option("map_channels")?.unwrap_or(d.map_channels),
+        };
+        if !(1..=100).contains(&o.map_quality) {
+            return Err(Error::invalid(format!("map_quality={} (1-100)", o.map_quality)));
+        }
+        if !(1..=16).contains(&o.map_scale) {
+            return Err(Error::invalid(format!("map_scale={} (1-16)", o.map_scale)));
+        }
+        if o.map_channels != 1 && o.map_channels != 3 {
+            return Err(Error::invalid(format!("map_channels={} (1 or 3)", o.map_channels)));
+        }
+        Ok(o)
+    }
+}
+
+/// The offset added on both sides of the gain (ISO 21496-1's k; the Ultra HDR format's
+/// recommended 1/64), so that black pixels keep a finite gain.
+const OFFSET: f64 = 1.0 / 64.0;
+
+/// Encodes `image` as a gain-map JPEG.
+pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
+    let mut report = EncodeReport::new();
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    if w == 0 || h == 0 || w > 65535 || h > 65535 {
+        return Err(Error::invalid(format!("a JPEG is 1 to 65535 pixels on a side, not {w}x{h}")));
+    }
+    // The base is sRGB (BT.709 primaries): other primaries are converted (linearly, before
+    // tone mapping; the gain map restores what the base's gamut cut).
+    let converted;
+    let image = match image.color.primaries {
+        ColorPrimaries::Bt709 => image,
+        ColorPrimaries::Unspecified => {
+            report.note("the image records no primaries: its samples are written as BT.709 (sRGB)");
+            image
+        }
+        ref p => {
+            report.note(format!("converted from {} to BT.709 primaries (the base is sRGB)", p.name()));
+            converted = convert_primaries(image, ColorPrimaries::Bt709);
+            &converted
+        }
+    };
+    if image.channels().count() == 4 {
+        report.note("JPEG has no alpha: the alpha channel was dropped");
+    }
+    let weights = luminance_weights(&ColorPrimaries::Bt709);
+    let scale = f64::from(image.color.nits_per_unit) / f64::from(SDR_WHITE_NITS);
+    let channels = image.channels().count();
+    let curve = GtToneCurve::default();
+    let (base, hdr, mut clipped) = tone_map(image.samples(), channels, scale, weights, &curve);
+    // Linear values of the base as decoders will see them.
+    let eotf: [f64; 256] = std::array::from_fn(|c| SrgbTransfer::decode(c as f64 / 255.0));
+    let map_channels = usize::from(options.map_channels);
+    // Map pixel m sits on base pixel m · w / mw (the decoders' sampling, see `gainmap::axis`)
+    // and averages the log2 gain over a box one map pixel wide centred there (each base pixel
+    // weighted by its overlap with the box).
+    let s = options.map_scale as usize;
+    let (mw, mh) = (w.div_ceil(s), h.div_ceil(s));
+    let (xs, ys) = (box_weights(w, mw), box_weights(h, mh));
+    let mut gains = vec![0.0f64; mw * mh * map_channels];
+    let mut weight_sums = vec![0.0f64; mw * mh];
+    for (y, y_weights) in ys.iter().enumerate() {
+        for (x, x_weights) in xs.iter().enumerate() {
+            let i = y * w + x;
+            let sdr = [
+                eotf[usize::from(base[3 * i])],
+                eotf[usize::from(base[3 * i + 1])],
+                eotf[usize::from(base[3 * i + 2])],
+            ];
+            let hdr = &hdr[3 * i..3 * i + 3];
+            let gain: [f64; 3] = if map_channels == 1 {
+                let y_sdr = weights[0] * sdr[0] + weights[1] * sdr[1] + weights[2] * sdr[2];
+                let y_hdr = (weights[0] * hdr[0] + weights[1] * hdr[1] + weights[2] * hdr[2]).max(0.0);
+                [((y_hdr + OFFSET) / (y_sdr + OFFSET)).log2(), 0.0, 0.0]
+            } else {
+                std::array::from_fn(|c| ((hdr[c].max(0.0) + OFFSET) / (sdr[c] + OFFSET)).log2())
+            };
+            for &(my, wy) in y_weights {
+                for &(mx, wx) in x_weights {
+                    let m = my * mw + mx;
+                    weight_sums[m] += wy * wx;
+                    for c in 0..map_channels {
+                        gains[m * map_channels + c] += wy * wx * gain[c];
+                    }
+                }
+            }
+        }
+    }
+    for (m, &total) in weight_sums.iter().enumerate() {
+        for g in &mut gains[m * map_channels..(m + 1) * map_channels] {
+            *g /= total;
+        }
+    }
+    let mut gain_min = [f64::INFINITY; 3];
+    let mut gain_max = [f64::NEG_INFINITY; 3];
+    for px in gains.chunks_exact(map_channels) {
+        for (c, &g) in px.iter().enumerate() {
+            gain_min[c] = gain_min[c].min(g);
+            gain_max[c] = gain_max[c].max(g);
+        }
+    }
+    if map_channels == 1 {
+        gain_min = [gain_min[0]; 3];
+        gain_max = [gain_max[0]; 3];
+    }
+    for c in 0..3 {
+        // A flat gain still needs a range to code it in.
+        if gain_max[c] - gain_min[c] < 1e-3 {
+            gain_max[c] = gain_min[c] + 0.1;
+        }
+    }
+    let map_codes: Vec<u8> = gains
+        .chunks_exact(map_channels)
+        .flat_map(|px| {
+            px.iter().enumerate().map(|(c, &g)| {
+                (255.0 * (g - gain_min[c]) / (gain_max[c] - gain_min[c])).round().clamp(0.0, 255.0) as u8
+            })
+        })
+        .collect();
+    let peak = gain_max.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let meta = GainMapMetadata {
+        base_headroom: 0.0,
+        alternate_headroom: peak.max(0.01),
+        gain_min,
+        gain_max,
+        gamma: [1.0; 3],
+        base_offset: [OFFSET; 3],
+        alternate_offset: [OFFSET; 3],
+        multichannel: map_channels == 3,
+        use_base_colour_space: true,
+    };
+    // HDR values below zero (outside BT.709) have no gain that reaches them.
+    clipped += hdr.iter().filter(|&&v| v < 0.0).count();
+    if clipped > 0 {
+        report.note(format!("{clipped} samples were outside what the base and gain map can hold (negative, or desaturated in the base with a one-channel map)"));
+    }
+    let map_jpeg = gain_map_image(&map_codes, mw, mh, map_channels, options.map_quality, &meta)?;
+    let file = primary_image(&base, w, h, options.base_quality, &map_jpeg)?;
+    Ok((file, report))
+}
+
+/// For each of `len` base pixels along an axis, the map pixels (of `map_len`) whose box it
+/// overlaps and by how much: map pixel m's box is one map pixel wide, centred on base
+/// coordinate m · len / map_len.
+fn box_weights(len: usize, map_len: usize) -> Vec<Vec<(usize, f64)>> {
+    let spacing = len as f64 / map_len as f64;
+    (0..len)
+        .map(|x| {
+            let (lo, hi) = (x as f64 - 0.5, x as f64 + 0.5);
+            // The boxes that can overlap [lo, hi]: centres within half a box of it.
+            let first = ((lo - spacing / 2.0) / spacing).ceil().max(0.0) as usize;
+            let last = (((hi + spacing / 2.0) / spacing).floor() as usize).min(map_len - 1);
+            (first..=last)
+                .filter_map(|m| {
+                    let c = m as f64 * spacing;
+                    let overlap = hi.min(c + spacing / 2.0) - lo.max(c - spacing / 2.0);
+                    (overlap > 1e-9).then_some((m, overlap))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The 8-bit sRGB base and the HDR samples as RGB in SDR-white units; counts samples whose
+/// colour the base had to desaturate.
+fn tone_map(
+    samples: &[f32],
+    channels: usize,
+    scale: f64,
+    weights: [f64; 3],
+    curve: &GtToneCurve,
+) -> (Vec<u8>, Vec<f64>, usize) {
+    let pixels = samples.len() / channels;
+    let mut base = Vec::with_capacity(pixels * 3);
+    let mut hdr = Vec::with_capacity(pixels * 3);
+    let mut desaturated = 0;
+    for px in samples.chunks_exact(channels) {
+        let rgb = [0, 1, 2].map(|c| if px[c].is_finite() { f64::from(px[c]) * scale } else { 0.0 });
+        hdr.extend(rgb);
+        let y = (weights[0] * rgb[0] + weights[1] * rgb[1] + weights[2] * rgb[2]).max(0.0);
+        let t = curve.map(y).min(1.0);
+        let mut sdr = if y > 1e-12 { rgb.map(|v| v * t / y) } else { [t; 3] };
+        // Pull towards grey (luminance kept) until every channel is in [0, 1].
+        let (hi, lo) = (sdr.iter().copied().fold(f64::MIN, f64::max), sdr.iter().copied().fold(f64::MAX, f64::min));
+        let mut s: f64 = 1.0;
+        if hi > 1.0 {
+            s = s.min((1.0 - t) / (hi - t));
+        }
+        if lo < 0.0 {
+            s = s.min(t / (t - lo));
+        }
+        if s < 1.0 {
+            desaturated += 1;
+            sdr = sdr.map(|v| t + (v - t) * s.max(0.0));
+        }
+        base.extend(sdr.map(|v| (SrgbTransfer::encode(v.clamp(0.0, 1.0)) * 255.0).round() as u8));
+    }
+    (base, hdr, desaturated)
+}
+
+fn jpeg_error(what: &str, e: jpeg_encoder::EncodingError) -> Error {
+    Error::invalid(format!("{what}: JPEG encoder: {e}"))
+}
+
+/// The gain-map image: a JPEG with its hdrgm XMP and full ISO 21496-1 record.
+fn gain_map_image(
+    codes: &[u8],
+    w: usize,
+    h: usize,
+    channels: usize,
+    quality: u8,
+    meta: &GainMapMetadata,
+) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+    if channels == 3 {
+        encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_4_4);
+    }
+    let app = |e: &mut jpeg_encoder::Encoder<&mut Vec<u8>>, n: u8, sig: &[u8], body: &[u8]| {
+        e.add_app_segment(n, &[sig, body].concat()).map_err(|e| jpeg_error("gain map", e))
+    };
+    app(&mut encoder, 1, xmp::SIGNATURE, hdrgm_xmp(meta).as_bytes())?;
+    app(&mut encoder, 2, ISO_SIGNATURE, &meta.to_iso())?;
+    let color = if channels == 1 { jpeg_encoder::ColorType::Luma } else { jpeg_encoder::ColorType::Rgb };
+    encoder.encode(codes, w as u16, h as u16, color).map_err(|e| jpeg_error("gain map", e))?;
+    Ok(out)
+}
+
+/// The primary image with the gain map appended: XMP (hdrgm version and GContainer with the
+/// map's length), the ISO version record and an MPF index, patched once the sizes are known.
+fn primary_image(base: &[u8], w: usize, h: usize, quality: u8, map: &[u8]) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+    encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
+    let app = |e: &mut jpeg_encoder::Encoder<&mut Vec<u8>>, n: u8, sig: &[u8], body: &[u8]| {
+        e.add_app_segment(n, &[sig, body].concat()).map_err(|e| jpeg_error("base image", e))
+    };
+    app(&mut encoder, 1, xmp::SIGNATURE, container_xmp(map.len()).as_bytes())?;
+    app(&mut encoder, 2, ISO_SIGNATURE, &GainMapMetadata::iso_version_record())?;
+    // A placeholder of the final size; the offsets are patched below.
+    encoder.add_app_segment(2, &mpf::write(0, 0, 0)).map_err(|e| jpeg_error("base image", e))?;
+    encoder.encode(base, w as u16, h as u16, jpeg_encoder::ColorType::Rgb).map_err(|e| jpeg_error("base image", e))?;
+    let primary = markers::parse_image(&out, 0)?;
+    let (mpf_at, _) = primary
+        .app_payload(APP2, mpf::SIGNATURE)
+        .ok_or_else(|| Error::invalid("base image: the JPEG encoder dropped the MPF segment"))?;
+    debug_assert!(primary.app_payload(APP1, xmp::SIGNATURE).is_some());
+    let too_big = || Error::limit("a gain-map JPEG over 4 GiB");
+    let primary_len = u32::try_from(out.len()).map_err(|_| too_big())?;
+    let map_len = u32::try_from(map.len()).map_err(|_| too_big())?;
+    // The MPF offsets count from the byte-order field, right after the signature.
+    let second_offset = primary_len - u32::try_from(mpf_at).map_err(|_| too_big())?;
+    let patched = mpf::write(primary_len, map_len, second_offset);
+    out[mpf_at - mpf::SIGNATURE.len()..mpf_at - mpf::SIGNATURE.len() + patched.len()].copy_from_slice(&patched);
+    out.extend_from_slice(map);
+    Ok(out)
+}
+
+/// The primary's XMP: hdrgm:Version and the GContainer directory (Ultra HDR 1.0).
+fn container_xmp(map_len: usize) -> String {
+    format!(
+        concat!(
+            r#"<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">"#,
+            r#"<rdf:Description xmlns:Container="http://ns.google.com/photos/1.0/container/" "#,
+            r#"xmlns:Item="http://ns.google.com/photos/1.0/container/item/" xmlns:hdrgm="{hdrgm}" hdrgm:Version="1.0">"#,
+            r#"<Container:Directory><rdf:Seq>"#,
+            r#"<rdf:li rdf:parseType="Resource"><Container:Item Item:Semantic="Primary" Item:Mime="image/jpeg"/></rdf:li>"#,
+            r#"<rdf:li rdf:parseType="Resource"><Container:Item Item:Semantic="GainMap" Item:Mime="image/jpeg" Item:Length="{len}"/></rdf:li>"#,
+            r#"</rdf:Seq></Container:Directory></rdf:Description></rdf:RDF></x:xmpmeta>"#
+        ),
+        hdrgm = xmp::HDRGM,
+        len = map_len
+    )
+}
+
+/// The gain map's XMP: the nine hdrgm properties, as attributes when the channels share their
+/// values (what libultrahdr 1.4 reads), else per channel as `rdf:Seq` (Adobe's form).
+fn hdrgm_xmp(m: &GainMapMetadata) -> String {
+    let (mut attributes, mut elements) = (String::new(), String::new());
+    for (name, v) in [
+        ("GainMapMin", m.gain_min),
+        ("GainMapMax", m.gain_max),
+        ("Gamma", m.gamma),
+        ("OffsetSDR", m.base_offset),
+        ("OffsetHDR", m.alternate_offset),
+    ] {
+        if v[0] == v[1] && v[1] == v[2] {
+            attributes += &format!(r#" hdrgm:{name}="{}""#, v[0]);
+        } else {
+            elements += &format!("<hdrgm:{name}><rdf:Seq><rdf:li>{}</rdf:li><rdf:li>{}</rdf:li><rdf:li>{}</rdf:li></rdf:Seq></hdrgm:{name}>", v[0], v[1], v[2]);
+        }
+    }
+    format!(
+        concat!(
+            r#"<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">"#,
+            r#"<rdf:Description xmlns:hdrgm="{hdrgm}" hdrgm:Version="1.0" hdrgm:BaseRenditionIsHDR="False" "#,
+            r#"hdrgm:HDRCapacityMin="{cmin}" hdrgm:HDRCapacityMax="{cmax}"{attributes}>{elements}</rdf:Description></rdf:RDF></x:xmpmeta>"#
+        ),
+        hdrgm = xmp::HDRGM,
+        cmin = m.base_headroom,
+        cmax = m.alternate_headroom,
+        attributes = attributes,
+        elements = elements
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gainmap::{decode, GainMapFile, Rendering};
+    use hdrcodec_core::{Channels, ColorInfo, Limits};
+
+    /// A 96x64 ramp over four decades with a saturated red highlight.
+    fn scene() -> HdrImage {
+        let (w, h) = (96u32, 64u32);
+        let mut s = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let l = 10f32.powf(-1.5 + 4.0 * x as f32 / w as f32);
+                let red = if (30..40).contains(&y) && (60..80).contains(&x) { 3.0 } else { 1.0 };
+                s.extend([l * red, l * (0.6 + 0.4 * y as f32 / h as f32), l * 0.8]);
+            }
+        }
+        HdrImage::new(w, h, Channels::Rgb, s, ColorInfo { nits_per_unit: 100.0, ..ColorInfo::default() }).unwrap()
+    }
+
+    #[test]
+    fn encoded_files_decode_back_to_the_hdr_image() {
+        let image = scene();
+        for channels in [1u8, 3] {
+            let options = GainMapEncodeOptions { map_channels: channels, map_scale: 2, ..Default::default() };
+            let (file, _) = encode(&image, &options).unwrap();
+            let parsed = GainMapFile::parse(&file).unwrap();
+            assert!(parsed.gain_map.is_some(), "{:?}", parsed.warning);
+            let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+            assert_eq!((back.width(), back.height(), back.color.nits_per_unit), (96, 64, SDR_WHITE_NITS));
+            // Luminance within a few percent (JPEG quantisation of base and map), in nits.
+            let mut errors: Vec<f64> = image
+                .samples()
+                .chunks_exact(3)
+                .zip(back.samples().chunks_exact(3))
+                .map(|(a, b)| {
+                    let y =
+                        |p: &[f32], n: f64| (0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64) * n;
+                    (y(a, 100.0).max(0.1).log2() - y(b, 203.0).max(0.1).log2()).abs()
+                })
+                .collect();
+            errors.sort_by(f64::total_cmp);
+            let (median, p99) = (errors[errors.len() / 2], errors[errors.len() * 99 / 100]);
+            assert!(median < 0.03 && p99 < 0.2, "channels {channels}: {median} {p99}");
+        }
+    }
+
+    #[test]
+    fn options_are_checked() {
+        let bad = |k: &str, v: &str| {
+            GainMapEncodeOptions::from_settings(&EncodeSettings::default().with_option(k, v)).is_err()
+        };
+        assert!(bad("map_scale", "0") && bad("map_scale", "17") && bad("map_channels", "2") && bad("map_quality", "0"));
+        assert!(bad("unknown", "1"));
+        assert!(!bad("map_channels", "3"));
+    }
+}
