@@ -1126,8 +1126,54 @@ impl PlaneEncoder {
     /// (`left`/`top`, inside the tile) and then the HP blocks, each followed by its flexbits
     /// when `flex_inline`. `cbp_out` receives the patterns (what [`PlaneDecoder::cbp`]
     /// outputs). Returns the HP model bits used, as [`PlaneDecoder::hp`] does.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments, unsafe_code)]
     pub fn cbp_hp(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        left: Option<&[u32]>,
+        top: Option<&[u32]>,
+        cbp_out: &mut [u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        #[cfg(target_arch = "x86_64")]
+        if hdrcodec_core::cpu::avx2() {
+            // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+            return unsafe { self.cbp_hp_avx2(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline) };
+        }
+        self.cbp_hp_portable(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline)
+    }
+
+    /// [`cbp_hp_portable`](Self::cbp_hp_portable) compiled for AVX2 (the blocks' level masks
+    /// and flexbit codes vectorise eight coefficients at a time).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code, clippy::too_many_arguments)]
+    unsafe fn cbp_hp_avx2(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        left: Option<&[u32]>,
+        top: Option<&[u32]>,
+        cbp_out: &mut [u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        self.cbp_hp_portable(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline)
+    }
+
+    /// [`cbp_hp`](Self::cbp_hp) for any CPU.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn cbp_hp_portable(
         &mut self,
         w: &mut BitWriter,
         c: &[i32],
@@ -1248,6 +1294,7 @@ impl PlaneEncoder {
     }
 
     /// MB_HP (the inverse of `_jxr_r_MB_HP`) of the coded blocks of `cbp`.
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn hp(
         &mut self,
@@ -1292,34 +1339,60 @@ impl PlaneEncoder {
 /// BLOCK_FLEXBITS written (the inverse of [`block_flex`]): for each HP coefficient of block
 /// `b` of channel `ch`, in refinement order, its low `model_bits` bits without the `trim`
 /// lowest (which must be zero), and the sign of a coefficient whose level is zero.
+#[inline(always)]
 pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, model_bits: u32, trim: u32) -> Result<()> {
     let base = ch * MB_COEFFS + hp(b, 1);
     let block: &[i32; 15] = c[base..base + 15].try_into().expect("a block is 15 coefficients");
+    if trim >= model_bits {
+        if trim > 0 && block.iter().any(|&v| split(v, model_bits).1 != 0) {
+            return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
+        }
+        return Ok(());
+    }
+    let mask = (1u32 << model_bits) - 1;
     if trim > 0 {
-        let lost = (1u32 << trim.min(model_bits)) - 1;
-        if block.iter().any(|&v| split(v, model_bits).1 & lost != 0) {
+        let lost = (1u32 << trim) - 1;
+        if block.iter().fold(0, |a, &v| a | v.unsigned_abs()) & lost != 0 {
             return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
         }
     }
-    if trim >= model_bits {
+    let n = model_bits - trim;
+    // Every coefficient's code in one branch-free pass (it vectorises): its bits and, for a
+    // level of zero with non-zero bits (0 < |v| ≤ mask; the trimmed bits are zero), its
+    // sign: at most 16 bits, as model bits are at most 15.
+    let mut codes = [0u32; 15];
+    let mut signed = [0u32; 15];
+    for ((code, s), &v) in codes.iter_mut().zip(signed.iter_mut()).zip(block) {
+        let a = v.unsigned_abs();
+        let sg = u32::from(a.wrapping_sub(1) < mask);
+        let fine = (a & mask) >> trim;
+        *code = (fine + (fine & sg.wrapping_neg())) | (sg & ((v as u32) >> 31));
+        *s = sg;
+    }
+    if n <= 3 {
+        // At most 15 · 4 = 60 bits: the whole block in a local accumulator, then two writes.
+        let (mut acc, mut len) = (0u64, 0u32);
+        for &i in &FLEX_ORDER_FLAT {
+            let l = n + signed[usize::from(i)];
+            acc = (acc << l) | u64::from(codes[usize::from(i)]);
+            len += l;
+        }
+        if len > 32 {
+            w.write((acc >> 32) as u32, len - 32);
+            w.write(acc as u32, 32);
+        } else {
+            w.write(acc as u32, len);
+        }
         return Ok(());
     }
-    let n = model_bits - trim;
-    // One coefficient's bits and (zero level, non-zero bits) its sign: at most 16 bits, as
-    // model bits are at most 15, so two coefficients go out in one write.
-    let code = |v: i32| -> (u32, u32) {
-        let (level, fine) = split(v, model_bits);
-        let fine = fine >> trim;
-        let signed = u32::from(level == 0 && fine != 0);
-        ((fine << signed) | (signed & u32::from(v < 0)), n + signed)
-    };
+    // Two coefficients (at most 32 bits) per write.
     for pair in FLEX_ORDER_FLAT[..14].chunks_exact(2) {
-        let (a, la) = code(block[usize::from(pair[0])]);
-        let (b, lb) = code(block[usize::from(pair[1])]);
-        w.write((a << lb) | b, la + lb);
+        let (i, j) = (usize::from(pair[0]), usize::from(pair[1]));
+        let lb = n + signed[j];
+        w.write((codes[i] << lb) | codes[j], n + signed[i] + lb);
     }
-    let (a, la) = code(block[usize::from(FLEX_ORDER_FLAT[14])]);
-    w.write(a, la);
+    let i = usize::from(FLEX_ORDER_FLAT[14]);
+    w.write(codes[i], n + signed[i]);
     Ok(())
 }
 
