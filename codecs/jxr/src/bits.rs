@@ -211,6 +211,20 @@ impl BitWriter {
         }
     }
 
+    /// [`write`](Self::write) of a `value` that has no bits at or above bit `n` (codes from
+    /// the tables, which are built so): no masking.
+    #[inline]
+    pub fn put(&mut self, value: u32, n: u32) {
+        debug_assert!(n <= 32 && u64::from(value) >> n == 0);
+        // As in `write`: n <= 32, pending < 32.
+        self.acc = (self.acc << (n & 63)) | u64::from(value);
+        self.pending += n;
+        if self.pending >= 32 {
+            self.pending -= 32;
+            self.bytes.extend_from_slice(&((self.acc >> self.pending) as u32).to_be_bytes());
+        }
+    }
+
     /// Writes one bit.
     #[inline]
     pub fn bit(&mut self, b: bool) {

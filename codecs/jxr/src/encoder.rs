@@ -682,20 +682,32 @@ fn macroblock_qp_sets(image: &HdrImage, scale: f32, mb_w: usize, mb_h: usize, se
     let (width, height) = (image.width() as usize, image.height() as usize);
     let spp = image.channels().count();
     let mut sum = vec![0f64; mb_w * mb_h];
-    let mut count = vec![0u32; mb_w * mb_h];
-    for y in 0..height {
-        let row = image.row(y as u32);
-        for x in 0..width {
-            let p = &row[x * spp..][..3];
-            let lum = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            let lum = f64::from(lum * scale) * f64::from(crate::output::NITS_PER_UNIT);
-            let m = (y / 16) * mb_w + x / 16;
-            if lum.is_finite() {
-                sum[m] += lum.max(0.0);
+    // Each macroblock's pixels are summed in the same order as pixel by pixel (row by row,
+    // left to right), a run of up to 16 at a time into a local sum.
+    fn add_row<const SPP: usize>(row: &[f32], sums: &mut [f64], scale: f32) {
+        for (s, run) in sums.iter_mut().zip(row.chunks(16 * SPP)) {
+            let mut acc = *s;
+            for p in run.chunks_exact(SPP) {
+                let lum = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                let lum = f64::from(lum * scale) * f64::from(crate::output::NITS_PER_UNIT);
+                if lum.is_finite() {
+                    acc += lum.max(0.0);
+                }
             }
-            count[m] += 1;
+            *s = acc;
         }
     }
+    for y in 0..height {
+        let row = &image.row(y as u32)[..width * spp];
+        let sums = &mut sum[(y / 16) * mb_w..][..mb_w];
+        if spp == 4 {
+            add_row::<4>(row, sums, scale);
+        } else {
+            add_row::<3>(row, sums, scale);
+        }
+    }
+    // Pixels of the image in each macroblock.
+    let count = |m: usize| ((width - (m % mb_w) * 16).min(16) * (height - (m / mb_w) * 16).min(16)) as u32;
     // PU21's slope per unit of log luminance; above a few thousand cd/m² it is taken as
     // constant (the metric stops at 10 000, the eye does not).
     let slope = |l: f64| {
@@ -709,7 +721,7 @@ fn macroblock_qp_sets(image: &HdrImage, scale: f32, mb_w: usize, mb_h: usize, se
         for mx in 0..mb_w {
             // Macroblocks past the image repeat its last row or column of macroblocks.
             let m = my.min((height - 1) / 16) * mb_w + mx.min((width - 1) / 16);
-            let mean = sum[m] / f64::from(count[m].max(1));
+            let mean = sum[m] / f64::from(count(m).max(1));
             let offset = 16.0 * (peak / slope(mean).max(1e-9)).log2();
             let k = QP_SET_OFFSETS[..sets]
                 .iter()

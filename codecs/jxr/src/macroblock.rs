@@ -819,8 +819,15 @@ fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> us
 /// keep their coefficients: what the decoder sees). Returns the number of pairs.
 #[inline(always)]
 fn scan_pairs(block: &[i32; 16], scan: &mut vlc::Scan, model_bits: u32, out: &mut [RunLevel; 16]) -> Result<usize> {
+    // The number of non-zero levels first (a pass over 16 values with the slot masked, which
+    // vectorises): the scan stops at the last one instead of visiting all 15 positions.
+    let count: u32 =
+        block.iter().zip(SLOT_MASK).map(|(&v, m)| u32::from((v.unsigned_abs() >> model_bits) & m != 0)).sum();
     let (mut n, mut run, mut max) = (0usize, 0u32, 0u32);
     for p in 0..15 {
+        if n == count as usize {
+            break;
+        }
         let v = block[usize::from(scan.order[p]) & 15];
         let level = v.unsigned_abs() >> model_bits;
         if level != 0 {
@@ -839,6 +846,14 @@ fn scan_pairs(block: &[i32; 16], scan: &mut vlc::Scan, model_bits: u32, out: &mu
     }
     Ok(n)
 }
+
+/// Masks out the slot before an HP block's 15 coefficients (a DC or LP coefficient) in passes
+/// over 16 values.
+const SLOT_MASK: [u32; 16] = {
+    let mut m = [u32::MAX; 16];
+    m[0] = 0;
+    m
+};
 
 /// The entropy encoder of one plane in one tile (reset at each tile start): writes what
 /// [`PlaneDecoder`] reads, from the same coefficient arrays, adapting its [`EntropyState`] at
@@ -870,7 +885,7 @@ impl PlaneEncoder {
         let ctx = &mut self.st.vlc[v as usize];
         if let Some(&index) = ABS_INDEX.get(level as usize) {
             let code = ABS_CODES[usize::from(ctx.table & 1)][level as usize];
-            w.write(code.bits, code.len);
+            w.put(code.bits, code.len);
             ctx.count(&vlc::ABS_LEVEL_DELTA, index);
             return Ok(());
         }
@@ -910,7 +925,7 @@ impl PlaneEncoder {
             .and_then(|m| RUN_CODES.get(m.min(14))?.get(run as usize))
             .filter(|c| c.len != NO_CODE && run as i32 <= max_run)
             .ok_or_else(|| uncodable("a run past the end of a block"))?;
-        w.write(code.bits, code.len);
+        w.put(code.bits, code.len);
         Ok(())
     }
 
@@ -941,7 +956,7 @@ impl PlaneEncoder {
         let ctx = &mut self.st.vlc[first_v as usize];
         let code = vlc::FIRST_INDEX_ENC[ctx.table as usize][index];
         ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
-        w.write((code.bits << 1) | u32::from(first.level < 0), code.len + 1);
+        w.put((code.bits << 1) | u32::from(first.level < 0), code.len + 1);
         let mut context = (index & 1) & next;
         if mag > 1 {
             self.abs_level(w, abs_v[context], mag)?;
@@ -965,15 +980,15 @@ impl PlaneEncoder {
             let sign = u32::from(p.level < 0);
             if location > 15 {
                 // The last position: nothing can follow, one bit says whether level > 1.
-                w.write(((index as u32 & 1) << 1) | sign, 2);
+                w.put(((index as u32 & 1) << 1) | sign, 2);
             } else if location == 15 {
                 let code = vlc::INDEX2_ENC[index];
-                w.write((code.bits << 1) | sign, code.len + 1);
+                w.put((code.bits << 1) | sign, code.len + 1);
             } else {
                 let ctx = &mut self.st.vlc[ind_v[context] as usize];
                 let code = vlc::INDEX_ENC[ctx.table as usize][index];
                 ctx.count2(&vlc::INDEX_DELTA, index);
-                w.write((code.bits << 1) | sign, code.len + 1);
+                w.put((code.bits << 1) | sign, code.len + 1);
             }
             context &= next;
             if mag > 1 {
@@ -1126,8 +1141,54 @@ impl PlaneEncoder {
     /// (`left`/`top`, inside the tile) and then the HP blocks, each followed by its flexbits
     /// when `flex_inline`. `cbp_out` receives the patterns (what [`PlaneDecoder::cbp`]
     /// outputs). Returns the HP model bits used, as [`PlaneDecoder::hp`] does.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments, unsafe_code)]
     pub fn cbp_hp(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        left: Option<&[u32]>,
+        top: Option<&[u32]>,
+        cbp_out: &mut [u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        #[cfg(target_arch = "x86_64")]
+        if hdrcodec_core::cpu::avx2() {
+            // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+            return unsafe { self.cbp_hp_avx2(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline) };
+        }
+        self.cbp_hp_portable(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline)
+    }
+
+    /// [`cbp_hp_portable`](Self::cbp_hp_portable) compiled for AVX2 (the blocks' level masks
+    /// and flexbit codes vectorise eight coefficients at a time).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code, clippy::too_many_arguments)]
+    unsafe fn cbp_hp_avx2(
+        &mut self,
+        w: &mut BitWriter,
+        c: &[i32],
+        left: Option<&[u32]>,
+        top: Option<&[u32]>,
+        cbp_out: &mut [u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+        flex_inline: bool,
+    ) -> Result<[u32; 2]> {
+        self.cbp_hp_portable(w, c, left, top, cbp_out, mode, mx, tile_w, flex_inline)
+    }
+
+    /// [`cbp_hp`](Self::cbp_hp) for any CPU.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn cbp_hp_portable(
         &mut self,
         w: &mut BitWriter,
         c: &[i32],
@@ -1146,11 +1207,12 @@ impl PlaneEncoder {
             let mut pattern = 0;
             for j in 0..blocks {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[j] } else { j };
-                let base = ch * MB_COEFFS + hp(b, 1);
-                let block: &[i32; 15] = c[base..base + 15].try_into().expect("a block is 15 coefficients");
+                let base = ch * MB_COEFFS + hp(b, 1) - 1;
+                let block: &[i32; 16] = c[base..base + 16].try_into().expect("a slot and 15 coefficients");
                 // Any level (magnitude above the model bits) not zero: an or of all 15, which
-                // vectorises, instead of a search.
-                let any = block.iter().fold(0u32, |a, &v| a | (v.unsigned_abs() >> model_bits));
+                // vectorises (16 values, the slot before the block masked), instead of a search.
+                let any =
+                    block.iter().zip(SLOT_MASK).fold(0u32, |a, (&v, m)| a | ((v.unsigned_abs() >> model_bits) & m));
                 pattern |= u32::from(any != 0) << j;
             }
             cbp_out[ch] = pattern;
@@ -1248,6 +1310,7 @@ impl PlaneEncoder {
     }
 
     /// MB_HP (the inverse of `_jxr_r_MB_HP`) of the coded blocks of `cbp`.
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn hp(
         &mut self,
@@ -1292,34 +1355,63 @@ impl PlaneEncoder {
 /// BLOCK_FLEXBITS written (the inverse of [`block_flex`]): for each HP coefficient of block
 /// `b` of channel `ch`, in refinement order, its low `model_bits` bits without the `trim`
 /// lowest (which must be zero), and the sign of a coefficient whose level is zero.
+#[inline(always)]
 pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, model_bits: u32, trim: u32) -> Result<()> {
-    let base = ch * MB_COEFFS + hp(b, 1);
-    let block: &[i32; 15] = c[base..base + 15].try_into().expect("a block is 15 coefficients");
+    // The block with the slot before it (the DC or LP coefficient the block's position
+    // holds), 16 values, so that the passes below are two vectors of eight; `LANES` masks
+    // that slot out.
+    let base = ch * MB_COEFFS + hp(b, 1) - 1;
+    let block: &[i32; 16] = c[base..base + 16].try_into().expect("a slot and 15 coefficients");
+    if trim >= model_bits {
+        if trim > 0 && block[1..].iter().any(|&v| split(v, model_bits).1 != 0) {
+            return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
+        }
+        return Ok(());
+    }
+    let mask = (1u32 << model_bits) - 1;
     if trim > 0 {
-        let lost = (1u32 << trim.min(model_bits)) - 1;
-        if block.iter().any(|&v| split(v, model_bits).1 & lost != 0) {
+        let lost = (1u32 << trim) - 1;
+        if block[1..].iter().fold(0, |a, &v| a | v.unsigned_abs()) & lost != 0 {
             return Err(uncodable("a flexbit below TRIM_FLEXBITS"));
         }
     }
-    if trim >= model_bits {
+    let n = model_bits - trim;
+    // Every coefficient's code in one branch-free pass (it vectorises): its bits and, for a
+    // level of zero with non-zero bits (0 < |v| ≤ mask; the trimmed bits are zero), its
+    // sign: at most 16 bits, as model bits are at most 15. Slot 0 is computed and unused.
+    let mut codes = [0u32; 16];
+    let mut signed = [0u32; 16];
+    for ((code, s), &v) in codes.iter_mut().zip(signed.iter_mut()).zip(block) {
+        let a = v.unsigned_abs();
+        let sg = u32::from(a.wrapping_sub(1) < mask);
+        let fine = (a & mask) >> trim;
+        *code = (fine + (fine & sg.wrapping_neg())) | (sg & ((v as u32) >> 31));
+        *s = sg;
+    }
+    if n <= 3 {
+        // At most 15 · 4 = 60 bits: the whole block in a local accumulator, then two writes.
+        let (mut acc, mut len) = (0u64, 0u32);
+        for &i in &FLEX_ORDER_SLOT {
+            let l = n + signed[usize::from(i)];
+            acc = (acc << l) | u64::from(codes[usize::from(i)]);
+            len += l;
+        }
+        if len > 32 {
+            w.put((acc >> 32) as u32, len - 32);
+            w.put(acc as u32, 32);
+        } else {
+            w.put(acc as u32, len);
+        }
         return Ok(());
     }
-    let n = model_bits - trim;
-    // One coefficient's bits and (zero level, non-zero bits) its sign: at most 16 bits, as
-    // model bits are at most 15, so two coefficients go out in one write.
-    let code = |v: i32| -> (u32, u32) {
-        let (level, fine) = split(v, model_bits);
-        let fine = fine >> trim;
-        let signed = u32::from(level == 0 && fine != 0);
-        ((fine << signed) | (signed & u32::from(v < 0)), n + signed)
-    };
-    for pair in FLEX_ORDER_FLAT[..14].chunks_exact(2) {
-        let (a, la) = code(block[usize::from(pair[0])]);
-        let (b, lb) = code(block[usize::from(pair[1])]);
-        w.write((a << lb) | b, la + lb);
+    // Two coefficients (at most 32 bits) per write.
+    for pair in FLEX_ORDER_SLOT[..14].chunks_exact(2) {
+        let (i, j) = (usize::from(pair[0]), usize::from(pair[1]));
+        let lb = n + signed[j];
+        w.put((codes[i] << lb) | codes[j], n + signed[i] + lb);
     }
-    let (a, la) = code(block[usize::from(FLEX_ORDER_FLAT[14])]);
-    w.write(a, la);
+    let i = usize::from(FLEX_ORDER_SLOT[14]);
+    w.put(codes[i], n + signed[i]);
     Ok(())
 }
 
@@ -1329,6 +1421,17 @@ const FLEX_ORDER_FLAT: [u8; 15] = {
     let mut i = 0;
     while i < 15 {
         order[i] = FLEX_ORDER[i / 3][i % 3];
+        i += 1;
+    }
+    order
+};
+
+/// [`FLEX_ORDER_FLAT`] as indices into a block with the slot before it (one more).
+const FLEX_ORDER_SLOT: [u8; 15] = {
+    let mut order = FLEX_ORDER_FLAT;
+    let mut i = 0;
+    while i < 15 {
+        order[i] += 1;
         i += 1;
     }
     order
@@ -1655,6 +1758,55 @@ mod tests {
                     let profile = ((mx + my * 5) / 9 % 4) as u32;
                     random_mb(&mut rng, fmt, channels, profile, trim)
                 });
+            }
+        }
+    }
+
+    /// The AVX2 twin of [`PlaneEncoder::cbp_hp`] writes the bits and leaves the state and
+    /// patterns the portable code does, macroblock after macroblock.
+    #[test]
+    #[allow(unsafe_code)]
+    fn cbp_hp_twins_agree() {
+        #[cfg(target_arch = "x86_64")]
+        if hdrcodec_core::cpu::twin_test_can_run(hdrcodec_core::cpu::CpuLevel::Avx2, "cbp_hp") {
+            for (n, &(fmt, channels)) in FORMATS.iter().enumerate() {
+                for (flex_inline, trim) in [(true, 0), (false, 0), (true, 2)] {
+                    let mut rng = Rng(0x9E37_79B9_7F4A_7C15 + n as u64 * 131 + u64::from(trim));
+                    let (width, rows) = (37, 3);
+                    let mut encs = [PlaneEncoder::new(fmt, channels), PlaneEncoder::new(fmt, channels)];
+                    let mut ws = [BitWriter::new(), BitWriter::new()];
+                    let mut cbps = [vec![0u32; width * rows * channels], vec![0u32; width * rows * channels]];
+                    for e in &mut encs {
+                        e.trim = trim;
+                    }
+                    for i in 0..width * rows {
+                        let (mx, my) = (i % width, i / width);
+                        let c = random_mb(&mut rng, fmt, channels, ((mx + my * 5) / 9 % 4) as u32, trim);
+                        let mode = rng.below(3) as u8;
+                        let mut bits = [[0; 2]; 2];
+                        for t in 0..2 {
+                            let (done, rest) = cbps[t].split_at_mut(i * channels);
+                            let left = (mx > 0).then(|| &done[(i - 1) * channels..]);
+                            let top = (my > 0).then(|| &done[(i - width) * channels..(i - width + 1) * channels]);
+                            let cur = &mut rest[..channels];
+                            let (e, w, x, tw) = (&mut encs[t], &mut ws[t], mx as u32, width as u32);
+                            e.dc(w, &c, x, tw).unwrap();
+                            e.lp(w, &c, x, tw).unwrap();
+                            bits[t] = if t == 0 {
+                                e.cbp_hp_portable(w, &c, left, top, cur, mode, x, tw, flex_inline).unwrap()
+                            } else {
+                                // SAFETY: the CPU has AVX2 (checked above).
+                                unsafe { e.cbp_hp_avx2(w, &c, left, top, cur, mode, x, tw, flex_inline) }.unwrap()
+                            };
+                        }
+                        assert_eq!(bits[0], bits[1], "{fmt:?} macroblock {i}");
+                        assert_eq!(ws[0].bit_len(), ws[1].bit_len(), "{fmt:?} macroblock {i}");
+                    }
+                    assert_eq!(cbps[0], cbps[1]);
+                    assert_eq!(format!("{:?}", encs[0].st), format!("{:?}", encs[1].st));
+                    let [a, b] = ws;
+                    assert!(a.into_bytes() == b.into_bytes(), "{fmt:?} flex_inline {flex_inline} trim {trim}");
+                }
             }
         }
     }

@@ -131,8 +131,9 @@ pub fn predict_dclp(
 /// The encoder's side of [`predict_dclp`]: turns the quantized DC and LP coefficients of
 /// `cur` into the residuals the bitstream carries, so that [`predict_dclp`] with the same
 /// neighbours gives `cur` back. Every prediction adds a neighbour's value, except in 4:2:2
-/// chroma, where coefficient 5 adds the macroblock's own (final) coefficient 1: those are
-/// undone first, while coefficient 1 still holds its final value. Returns the DC mode.
+/// chroma, where coefficient 5 adds the macroblock's own (final) coefficient 1: that one is
+/// undone first, while coefficient 1 still holds its final value. Only the predicted
+/// coefficients are touched, in place. Returns the DC mode.
 #[allow(clippy::too_many_arguments)]
 pub fn unpredict_dclp(
     fmt: ClrFmt,
@@ -144,21 +145,74 @@ pub fn unpredict_dclp(
     same_lp_qp_left: bool,
     same_lp_qp_top: bool,
 ) -> u8 {
-    // What predict_dclp adds to a macroblock of zeros is the prediction from the
-    // neighbours alone.
-    let mut pred = vec![0i32; channels * MB_COEFFS];
-    let mode = predict_dclp(fmt, channels, &mut pred, left, top, top_left, same_lp_qp_left, same_lp_qp_top);
-    if fmt == ClrFmt::Yuv422 && mode == 1 {
-        for ch in 1..channels.min(3) {
-            let o = ch * MB_COEFFS;
-            // With DC from the top, coefficient 5 of 4:2:2 chroma adds coefficient 1 after
-            // that one's own prediction: the final value, not the neighbours' part of it that
-            // the zeros gave.
-            pred[o + 5] = pred[o + 5].wrapping_sub(pred[o + 1]).wrapping_add(cur[o + 1]);
+    let mode = dc_mode(fmt, left, top, top_left);
+    let lp_mode = if mode == 0 && same_lp_qp_left {
+        0
+    } else if mode == 1 && same_lp_qp_top {
+        1
+    } else {
+        2
+    };
+    let sub = |c: &mut [i32], i: usize, v: i32| c[i] = c[i].wrapping_sub(v);
+    for ch in 0..channels {
+        let o = ch * MB_COEFFS;
+        let c = &mut cur[o..o + 16];
+        let l = left.map(|m| &m[o..o + 16]);
+        let t = top.map(|m| &m[o..o + 16]);
+        let (lv, tv) = (l.map_or(0, |m| i64::from(m[0])), t.map_or(0, |m| i64::from(m[0])));
+        let dc = match mode {
+            0 => lv,
+            1 => tv,
+            2 => {
+                if ch > 0 && matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) {
+                    (lv + tv + 1) >> 1
+                } else {
+                    (lv + tv) >> 1
+                }
+            }
+            _ => 0,
+        };
+        sub(c, 0, dc as i32);
+        match (fmt, ch > 0) {
+            (ClrFmt::Yuv420, true) => match (lp_mode, l, t) {
+                (0, Some(l), _) => sub(c, 2, l[2]),
+                (1, _, Some(t)) => sub(c, 1, t[1]),
+                _ => {}
+            },
+            (ClrFmt::Yuv422, true) => match (lp_mode, l, t) {
+                (0, Some(l), _) => {
+                    sub(c, 4, l[4]);
+                    sub(c, 2, l[2]);
+                    sub(c, 6, l[6]);
+                }
+                (1, _, Some(t)) => {
+                    // Coefficient 5 added the final coefficient 1, after that one's own
+                    // prediction.
+                    let v = c[1];
+                    sub(c, 5, v);
+                    sub(c, 4, t[4]);
+                    sub(c, 1, t[5]);
+                }
+                (2, _, _) if mode == 1 => {
+                    let v = c[1];
+                    sub(c, 5, v);
+                }
+                _ => {}
+            },
+            _ => match (lp_mode, l, t) {
+                (0, Some(l), _) => {
+                    for k in [4, 8, 12] {
+                        sub(c, k, l[k]);
+                    }
+                }
+                (1, _, Some(t)) => {
+                    for k in [1, 2, 3] {
+                        sub(c, k, t[k]);
+                    }
+                }
+                _ => {}
+            },
         }
-    }
-    for (c, p) in cur.iter_mut().zip(&pred) {
-        *c = c.wrapping_sub(*p);
     }
     mode
 }
