@@ -383,6 +383,72 @@ static RUN_LUT: [[u8; 256]; 15] = {
     t
 };
 
+/// FIRST_INDEX (5 tables) and INDEX (4 tables) with the discriminant deltas of each symbol:
+/// `symbol | length << 4 | delta << 8 | delta2 << 16` (deltas as `i8` bytes), by table. The
+/// delta tables are the ones the table selects (`AdaptiveVlc::adapt_two` sets them from the
+/// table alone: table − 1 and table, both table − 1 at the last, both 0 at the first; the
+/// start state, table 1 with delta tables 0 and 1, agrees).
+static FIRST_INDEX_LUT: [[u32; 256]; 5] = {
+    let mut t = [[0; 256]; 5];
+    let mut table = 0;
+    while table < 5 {
+        t[table] = index_lut(&vlc::FIRST_INDEX_CODES[table], &vlc::FIRST_INDEX_DELTA, table, 4);
+        table += 1;
+    }
+    t
+};
+
+/// See [`FIRST_INDEX_LUT`].
+static INDEX_LUT: [[u32; 256]; 4] = {
+    let mut t = [[0; 256]; 4];
+    let mut table = 0;
+    while table < 4 {
+        t[table] = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
+        table += 1;
+    }
+    t
+};
+
+/// The delta tables (first and second discriminant) that table `table` of `max + 1` selects.
+const fn index_deltas(table: usize, max: usize) -> (usize, usize) {
+    if table == max {
+        (table - 1, table - 1)
+    } else if table == 0 {
+        (0, 0)
+    } else {
+        (table - 1, table)
+    }
+}
+
+const fn index_lut<const N: usize>(codes: &[&str; N], deltas: &[[i32; N]], table: usize, max: usize) -> [u32; 256] {
+    let lut = vlc::lut(codes);
+    let (d1, d2) = index_deltas(table, max);
+    let mut t = [0u32; 256];
+    let mut w = 0;
+    while w < 256 {
+        let (sym, len) = ((lut[w] >> 4) as usize, (lut[w] & 15) as u32);
+        let (a, b) = (deltas[d1][sym] as i8 as u8 as u32, deltas[d2][sym] as i8 as u8 as u32);
+        t[w] = sym as u32 | (len << 4) | (a << 8) | (b << 16);
+        w += 1;
+    }
+    t
+}
+
+/// One symbol of [`FIRST_INDEX_LUT`] or [`INDEX_LUT`] (`table`, at least 8 bits buffered),
+/// counted in `ctx`.
+#[inline(always)]
+fn index_symbol(ctx: &mut AdaptiveVlc, r: &mut BitReader, table: &[u32; 256], max: u8) -> usize {
+    debug_assert_eq!(
+        (usize::from(ctx.delta), usize::from(ctx.delta2)),
+        index_deltas(usize::from(ctx.table), usize::from(max))
+    );
+    let e = table[r.peek_buffered(8) as usize];
+    r.skip((e >> 4) & 15);
+    ctx.disc += i32::from((e >> 8) as u8 as i8);
+    ctx.disc2 += i32::from((e >> 16) as u8 as i8);
+    (e & 15) as usize
+}
+
 /// Bits a run-level symbol, its sign, run and level take at most, unless its level escapes
 /// (8 + 1 + 8 + 8).
 const SYMBOL_BITS: u32 = 25;
@@ -456,10 +522,7 @@ impl PlaneDecoder {
         let vlc = &mut self.st.vlc;
         r.ensure(SYMBOL_BITS);
         let ctx = &mut vlc[first_v as usize];
-        let e = vlc::FIRST_INDEX[ctx.table as usize][r.peek_buffered(8) as usize];
-        r.skip(u32::from(e & 15));
-        let index = usize::from(e >> 4);
-        ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
+        let index = index_symbol(ctx, r, &FIRST_INDEX_LUT[usize::from(ctx.table)], 4);
         let mut srn = index >> 2;
         let mut context = (index & 1) & srn;
         let sign = r.peek_buffered(1);
@@ -500,11 +563,7 @@ impl PlaneDecoder {
                 usize::from(e >> 4)
             } else {
                 let ctx = &mut vlc[ind_v[context] as usize];
-                let e = vlc::INDEX[ctx.table as usize][r.peek_buffered(8) as usize];
-                r.skip(u32::from(e & 15));
-                let index = usize::from(e >> 4);
-                ctx.count2(&vlc::INDEX_DELTA, index);
-                index
+                index_symbol(ctx, r, &INDEX_LUT[usize::from(ctx.table)], 3)
             };
             srn = index >> 1;
             context &= srn;

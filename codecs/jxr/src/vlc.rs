@@ -101,16 +101,6 @@ pub const REFINE_CBP2_VALUES: [u32; 6] = [3, 5, 6, 9, 10, 12];
 
 /// Lookup tables of the codes above.
 pub static DC_YUV: Lut = lut(&DC_YUV_CODES);
-/// See [`FIRST_INDEX_CODES`].
-pub static FIRST_INDEX: [Lut; 5] = [
-    lut(&FIRST_INDEX_CODES[0]),
-    lut(&FIRST_INDEX_CODES[1]),
-    lut(&FIRST_INDEX_CODES[2]),
-    lut(&FIRST_INDEX_CODES[3]),
-    lut(&FIRST_INDEX_CODES[4]),
-];
-/// See [`INDEX_CODES`].
-pub static INDEX: [Lut; 4] = [lut(&INDEX_CODES[0]), lut(&INDEX_CODES[1]), lut(&INDEX_CODES[2]), lut(&INDEX_CODES[3])];
 /// See [`INDEX2_CODES`].
 pub static INDEX2: Lut = lut(&INDEX2_CODES);
 /// See [`NUM_CBP_CODES`].
@@ -513,12 +503,13 @@ mod tests {
 
     #[test]
     fn lookup_tables_decode_every_code() {
+        let (first4, first0, index3) = (lut(&FIRST_INDEX_CODES[4]), lut(&FIRST_INDEX_CODES[0]), lut(&INDEX_CODES[3]));
         let cases: Vec<(&[&str], &Lut)> = vec![
-            (&FIRST_INDEX_CODES[4], &FIRST_INDEX[4]),
-            (&FIRST_INDEX_CODES[0], &FIRST_INDEX[0]),
+            (&FIRST_INDEX_CODES[4], &first4),
+            (&FIRST_INDEX_CODES[0], &first0),
             (&NUM_BLKCBP_YUV_CODES[1], &NUM_BLKCBP_YUV[1]),
             (&DC_YUV_CODES, &DC_YUV),
-            (&INDEX_CODES[3], &INDEX[3]),
+            (&INDEX_CODES[3], &index3),
         ];
         for (codes, table) in cases {
             for (sym, code) in codes.iter().enumerate() {
@@ -585,9 +576,11 @@ mod tests {
 
     #[test]
     fn every_encoding_table_round_trips_through_its_decoding_table() {
-        // The decoder reads these two through combined tables (`macroblock`), built from these.
+        // The decoder reads these through combined tables (`macroblock`), built from these.
         let run_index = lut(&RUN_INDEX_CODES);
         let abs_level = [lut(&ABS_LEVEL_CODES[0]), lut(&ABS_LEVEL_CODES[1])];
+        let first_index = FIRST_INDEX_CODES.map(|c| lut(&c));
+        let index = INDEX_CODES.map(|c| lut(&c));
         let mut cases: Vec<(&[Code], &Lut)> = vec![
             (&DC_YUV_ENC, &DC_YUV),
             (&INDEX2_ENC, &INDEX2),
@@ -599,8 +592,8 @@ mod tests {
             (&REFINE_CBP2_ENC, &REFINE_CBP2),
         ];
         cases.extend(ABS_LEVEL_ENC.iter().map(|t| &t[..]).zip(abs_level.iter()));
-        cases.extend(FIRST_INDEX_ENC.iter().map(|t| &t[..]).zip(FIRST_INDEX.iter()));
-        cases.extend(INDEX_ENC.iter().map(|t| &t[..]).zip(INDEX.iter()));
+        cases.extend(FIRST_INDEX_ENC.iter().map(|t| &t[..]).zip(first_index.iter()));
+        cases.extend(INDEX_ENC.iter().map(|t| &t[..]).zip(index.iter()));
         cases.extend(NUM_CBP_ENC.iter().map(|t| &t[..]).zip(NUM_CBP.iter()));
         cases.extend(NUM_BLKCBP_YUV_ENC.iter().map(|t| &t[..]).zip(NUM_BLKCBP_YUV.iter()));
         assert_eq!(cases.len(), 8 + 2 + 5 + 4 + 2 + 2);
