@@ -388,26 +388,21 @@ static RUN_LUT: [[u8; 256]; 15] = {
 /// delta tables are the ones the table selects (`AdaptiveVlc::adapt_two` sets them from the
 /// table alone: table − 1 and table, both table − 1 at the last, both 0 at the first; the
 /// start state, table 1 with delta tables 0 and 1, agrees).
-static FIRST_INDEX_LUT: [[u32; 256]; 5] = {
-    let mut t = [[0; 256]; 5];
-    let mut table = 0;
-    while table < 5 {
-        t[table] = index_lut(&vlc::FIRST_INDEX_CODES[table], &vlc::FIRST_INDEX_DELTA, table, 4);
-        table += 1;
-    }
-    t
-};
+static FIRST_INDEX_LUT: [[u32; 256]; 5] = index_luts(&vlc::FIRST_INDEX_CODES, &vlc::FIRST_INDEX_DELTA);
 
 /// See [`FIRST_INDEX_LUT`].
-static INDEX_LUT: [[u32; 256]; 4] = {
-    let mut t = [[0; 256]; 4];
+static INDEX_LUT: [[u32; 256]; 4] = index_luts(&vlc::INDEX_CODES, &vlc::INDEX_DELTA);
+
+/// Every table of [`FIRST_INDEX_LUT`] or [`INDEX_LUT`].
+const fn index_luts<const N: usize, const T: usize>(codes: &[[&str; N]; T], deltas: &[[i32; N]]) -> [[u32; 256]; T] {
+    let mut t = [[0; 256]; T];
     let mut table = 0;
-    while table < 4 {
-        t[table] = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
+    while table < T {
+        t[table] = index_lut(&codes[table], deltas, table, T - 1);
         table += 1;
     }
     t
-};
+}
 
 /// The delta tables (first and second discriminant) that table `table` of `max + 1` selects.
 const fn index_deltas(table: usize, max: usize) -> (usize, usize) {
