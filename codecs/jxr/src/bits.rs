@@ -87,6 +87,16 @@ impl<'a> BitReader<'a> {
         }
     }
 
+    /// Makes sure that at least `n` (≤ 56) bits are buffered, for
+    /// [`peek_buffered`](Self::peek_buffered): a compare when they are.
+    #[inline(always)]
+    pub fn ensure(&mut self, n: u32) {
+        debug_assert!(n <= 56);
+        if self.avail < n {
+            self.refill();
+        }
+    }
+
     /// The next `n` bits (1 ≤ `n` ≤ 32) without consuming them, from the buffer alone: the
     /// caller made sure, with [`fill`](Self::fill), that at least `n` bits are buffered.
     #[inline]

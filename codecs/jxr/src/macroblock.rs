@@ -315,6 +315,139 @@ const RUN_FIXED: [u32; 15] = [0, 0, 1, 1, 3, 0, 0, 1, 1, 2, 0, 0, 0, 0, 1];
 /// See [`RUN_BIN`].
 const RUN_REMAP: [u32; 15] = [1, 2, 3, 5, 7, 1, 2, 3, 5, 7, 1, 2, 3, 4, 5];
 
+/// ABSLEVEL_INDEX and the raw bits after it in one lookup of the next 8 bits (no code and its
+/// bits take more), for each of the two tables: `level << 8 | symbol << 4 | length`. The
+/// escape (symbol 6) has level 0 and the length of its code alone.
+static ABS_LEVEL_LUT: [[u16; 256]; 2] = [abs_level_lut(0), abs_level_lut(1)];
+
+const fn abs_level_lut(table: usize) -> [u16; 256] {
+    let codes = vlc::lut(&vlc::ABS_LEVEL_CODES[table]);
+    let mut t = [0u16; 256];
+    let mut w = 0;
+    while w < 256 {
+        let (sym, len) = ((codes[w] >> 4) as usize, (codes[w] & 15) as u32);
+        t[w] = if sym < 6 {
+            let fixed = ABS_FIXED[sym];
+            let raw = (((w as u32) << len) & 0xff) >> (8 - fixed);
+            (((ABS_REMAP[sym] + raw) as u16) << 8) | ((sym as u16) << 4) | (len + fixed) as u16
+        } else {
+            ((sym as u16) << 4) | len as u16
+        };
+        w += 1;
+    }
+    t
+}
+
+/// [`vlc::ABS_LEVEL_DELTA`] padded to 8 symbols.
+const ABS_LEVEL_DELTA8: [i32; 8] = {
+    let mut t = [0; 8];
+    let mut i = 0;
+    while i < 7 {
+        t[i] = vlc::ABS_LEVEL_DELTA[i];
+        i += 1;
+    }
+    t
+};
+
+/// RUN_INDEX, its raw bits, or the unary code of a short run, in one lookup of the next 8
+/// bits, by the largest run possible (0..=14; below 1, a run of 0 in no bits): `run << 4 |
+/// length`, exactly what [`PlaneDecoder::run`] reads for every window, codes or not.
+static RUN_LUT: [[u8; 256]; 15] = {
+    let index = vlc::lut(&vlc::RUN_INDEX_CODES);
+    let mut t = [[0u8; 256]; 15];
+    let mut max_run = 1;
+    while max_run < 15 {
+        let mut w = 0;
+        while w < 256 {
+            let (run, len) = if max_run == 1 {
+                (1, 0)
+            } else if max_run < 5 {
+                // 1, 01, 001, ... with the last code of max_run - 1 zeros.
+                let bits = max_run as u32 - 1;
+                let mut zeros = 0;
+                while zeros < bits && (w >> (7 - zeros)) & 1 == 0 {
+                    zeros += 1;
+                }
+                (zeros + 1, if zeros + 1 < bits { zeros + 1 } else { bits })
+            } else {
+                let (sym, len) = ((index[w] >> 4) as usize, (index[w] & 15) as u32);
+                let i = sym + 5 * RUN_BIN[max_run];
+                let fixed = RUN_FIXED[i];
+                (RUN_REMAP[i] + ((((w as u32) << len) & 0xff) >> (8 - fixed)), len + fixed)
+            };
+            t[max_run][w] = ((run << 4) | len) as u8;
+            w += 1;
+        }
+        max_run += 1;
+    }
+    t
+};
+
+/// FIRST_INDEX (5 tables) and INDEX (4 tables) with the discriminant deltas of each symbol:
+/// `symbol | length << 4 | delta << 8 | delta2 << 16` (deltas as `i8` bytes), by table. The
+/// delta tables are the ones the table selects (`AdaptiveVlc::adapt_two` sets them from the
+/// table alone: table − 1 and table, both table − 1 at the last, both 0 at the first; the
+/// start state, table 1 with delta tables 0 and 1, agrees).
+static FIRST_INDEX_LUT: [[u32; 256]; 5] = index_luts(&vlc::FIRST_INDEX_CODES, &vlc::FIRST_INDEX_DELTA);
+
+/// See [`FIRST_INDEX_LUT`].
+static INDEX_LUT: [[u32; 256]; 4] = index_luts(&vlc::INDEX_CODES, &vlc::INDEX_DELTA);
+
+/// Every table of [`FIRST_INDEX_LUT`] or [`INDEX_LUT`].
+const fn index_luts<const N: usize, const T: usize>(codes: &[[&str; N]; T], deltas: &[[i32; N]]) -> [[u32; 256]; T] {
+    let mut t = [[0; 256]; T];
+    let mut table = 0;
+    while table < T {
+        t[table] = index_lut(&codes[table], deltas, table, T - 1);
+        table += 1;
+    }
+    t
+}
+
+/// The delta tables (first and second discriminant) that table `table` of `max + 1` selects.
+const fn index_deltas(table: usize, max: usize) -> (usize, usize) {
+    if table == max {
+        (table - 1, table - 1)
+    } else if table == 0 {
+        (0, 0)
+    } else {
+        (table - 1, table)
+    }
+}
+
+const fn index_lut<const N: usize>(codes: &[&str; N], deltas: &[[i32; N]], table: usize, max: usize) -> [u32; 256] {
+    let lut = vlc::lut(codes);
+    let (d1, d2) = index_deltas(table, max);
+    let mut t = [0u32; 256];
+    let mut w = 0;
+    while w < 256 {
+        let (sym, len) = ((lut[w] >> 4) as usize, (lut[w] & 15) as u32);
+        let (a, b) = (deltas[d1][sym] as i8 as u8 as u32, deltas[d2][sym] as i8 as u8 as u32);
+        t[w] = sym as u32 | (len << 4) | (a << 8) | (b << 16);
+        w += 1;
+    }
+    t
+}
+
+/// One symbol of [`FIRST_INDEX_LUT`] or [`INDEX_LUT`] (`table`, at least 8 bits buffered),
+/// counted in `ctx`.
+#[inline(always)]
+fn index_symbol(ctx: &mut AdaptiveVlc, r: &mut BitReader, table: &[u32; 256], max: u8) -> usize {
+    debug_assert_eq!(
+        (usize::from(ctx.delta), usize::from(ctx.delta2)),
+        index_deltas(usize::from(ctx.table), usize::from(max))
+    );
+    let e = table[r.peek_buffered(8) as usize];
+    r.skip((e >> 4) & 15);
+    ctx.disc += i32::from((e >> 8) as u8 as i8);
+    ctx.disc2 += i32::from((e >> 16) as u8 as i8);
+    (e & 15) as usize
+}
+
+/// Bits a run-level symbol, its sign, run and level take at most, unless its level escapes
+/// (8 + 1 + 8 + 8).
+const SYMBOL_BITS: u32 = 25;
+
 /// NUM_BLKCBP's luma classes (`_jxr_r_MB_CBP`): class `val` codes `FLC[val]` raw bits that
 /// select `OUT[OFF[val] + bits]`.
 const CBP_FLC: [u32; 6] = [0, 2, 1, 2, 2, 0];
@@ -332,43 +465,45 @@ impl PlaneDecoder {
     /// ABSLEVEL_INDEX and the level it codes (`r_DECODE_ABS_LEVEL`).
     #[inline(always)]
     fn abs_level(&mut self, r: &mut BitReader, v: V) -> u32 {
-        let ctx = &mut self.st.vlc[v as usize];
-        let index = vlc::decode(r, &vlc::ABS_LEVEL[ctx.table as usize]);
-        ctx.count(&vlc::ABS_LEVEL_DELTA, index);
-        if index < 6 {
-            ABS_REMAP[index] + r.read(ABS_FIXED[index])
-        } else {
-            let mut fixed = 4 + r.read(4);
-            if fixed == 19 {
-                fixed += r.read(2);
-                if fixed == 22 {
-                    fixed += r.read(3);
-                }
-            }
-            2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed))
-        }
+        r.fill();
+        Self::abs_level_buffered(&mut self.st.vlc[v as usize], r)
     }
 
-    /// A run of zeros when at most `max_run` positions remain (`r_DECODE_RUN`).
+    /// [`abs_level`](Self::abs_level) with at least 8 bits buffered; the buffer is topped up
+    /// again after an escape.
+    #[inline(always)]
+    fn abs_level_buffered(ctx: &mut AdaptiveVlc, r: &mut BitReader) -> u32 {
+        let e = ABS_LEVEL_LUT[usize::from(ctx.table & 1)][r.peek_buffered(8) as usize];
+        let index = usize::from((e >> 4) & 7);
+        ctx.disc += ABS_LEVEL_DELTA8[index];
+        r.skip(u32::from(e & 15));
+        if index < 6 {
+            return u32::from(e >> 8);
+        }
+        let mut fixed = 4 + r.read(4);
+        if fixed == 19 {
+            fixed += r.read(2);
+            if fixed == 22 {
+                fixed += r.read(3);
+            }
+        }
+        let level = 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed));
+        r.fill();
+        level
+    }
+
+    /// A run of zeros when at most `max_run` positions remain (`r_DECODE_RUN`), with at least
+    /// 8 bits buffered.
     #[inline(always)]
     fn run(r: &mut BitReader, max_run: i32) -> u32 {
-        if max_run < 5 {
-            // 1, 01, 001, ... with the last code of max_run - 1 zeros.
-            if max_run <= 1 {
-                return max_run.max(0) as u32;
-            }
-            let bits = (max_run - 1) as u32;
-            let zeros = (r.peek(bits) << (32 - bits)).leading_zeros().min(bits);
-            r.skip((zeros + 1).min(bits));
-            return zeros + 1;
-        }
-        let index = vlc::decode(r, &vlc::RUN_INDEX) + 5 * RUN_BIN[max_run.min(14) as usize];
-        RUN_REMAP[index] + r.read(RUN_FIXED[index])
+        let e = RUN_LUT[max_run.clamp(0, 14) as usize][r.peek_buffered(8) as usize];
+        r.skip(u32::from(e & 15));
+        u32::from(e >> 4)
     }
 
     /// One block of run-level symbols (`r_DECODE_BLOCK`), starting at coefficient position
     /// `location` (1 for LP and HP, 10 for 420 chroma LP, 2 for 422 chroma LP). Returns the
-    /// number of pairs written to `out`.
+    /// number of pairs written to `out`. The bit buffer is topped up once per symbol.
     #[inline(always)]
     fn block(
         &mut self,
@@ -379,14 +514,17 @@ impl PlaneDecoder {
         out: &mut [RunLevel; 16],
     ) -> Result<usize> {
         let (first_v, ind_v, abs_v) = block_contexts(band, chroma);
-        let ctx = &mut self.st.vlc[first_v as usize];
-        let index = vlc::decode(r, &vlc::FIRST_INDEX[ctx.table as usize]);
-        ctx.count2(&vlc::FIRST_INDEX_DELTA, index);
+        let vlc = &mut self.st.vlc;
+        r.ensure(SYMBOL_BITS);
+        let ctx = &mut vlc[first_v as usize];
+        let index = index_symbol(ctx, r, &FIRST_INDEX_LUT[usize::from(ctx.table)], 4);
         let mut srn = index >> 2;
         let mut context = (index & 1) & srn;
-        let sign = r.bit();
-        let mut level = if index & 2 != 0 { self.abs_level(r, abs_v[context]) as i32 } else { 1 };
-        if sign {
+        let sign = r.peek_buffered(1);
+        r.skip(1);
+        let mut level =
+            if index & 2 != 0 { Self::abs_level_buffered(&mut vlc[abs_v[context] as usize], r) as i32 } else { 1 };
+        if sign != 0 {
             level = level.wrapping_neg();
         }
         let run = if index & 1 != 0 {
@@ -404,26 +542,31 @@ impl PlaneDecoder {
             if n >= 16 {
                 return Err(corrupt("more than 16 coefficients in a block"));
             }
+            r.ensure(SYMBOL_BITS);
             let run = if srn & 1 != 0 { 0 } else { Self::run(r, 15 - location as i32) };
             location += run + 1;
             if location > 16 {
                 return Err(corrupt("a coefficient past the end of a block"));
             }
             let index = if location > 15 {
-                r.read(1) as usize
+                let bit = r.peek_buffered(1) as usize;
+                r.skip(1);
+                bit
             } else if location == 15 {
-                vlc::decode(r, &vlc::INDEX2)
+                let e = vlc::INDEX2[r.peek_buffered(8) as usize];
+                r.skip(u32::from(e & 15));
+                usize::from(e >> 4)
             } else {
-                let ctx = &mut self.st.vlc[ind_v[context] as usize];
-                let index = vlc::decode(r, &vlc::INDEX[ctx.table as usize]);
-                ctx.count2(&vlc::INDEX_DELTA, index);
-                index
+                let ctx = &mut vlc[ind_v[context] as usize];
+                index_symbol(ctx, r, &INDEX_LUT[usize::from(ctx.table)], 3)
             };
             srn = index >> 1;
             context &= srn;
-            let sign = r.bit();
-            let mut level = if index & 1 != 0 { self.abs_level(r, abs_v[context]) as i32 } else { 1 };
-            if sign {
+            let sign = r.peek_buffered(1);
+            r.skip(1);
+            let mut level =
+                if index & 1 != 0 { Self::abs_level_buffered(&mut vlc[abs_v[context] as usize], r) as i32 } else { 1 };
+            if sign != 0 {
                 level = level.wrapping_neg();
             }
             out[n] = RunLevel { run, level };
@@ -1415,12 +1558,13 @@ pub fn block_flex_encode(w: &mut BitWriter, c: &[i32], ch: usize, b: usize, mode
     Ok(())
 }
 
-/// [`FLEX_ORDER`] as one list.
+/// The HP coefficients of a block in refinement order ([`TRANSPOSE444`] without the DC), as
+/// indices into the block's 15 coefficients.
 const FLEX_ORDER_FLAT: [u8; 15] = {
     let mut order = [0; 15];
     let mut i = 0;
     while i < 15 {
-        order[i] = FLEX_ORDER[i / 3][i % 3];
+        order[i] = (TRANSPOSE444[i + 1] - 1) as u8;
         i += 1;
     }
     order
@@ -1462,43 +1606,79 @@ pub fn flex_mb_encode(
 /// `b` of channel `ch`, coded or not, `model_bits − trim` each (none when trim ≥ model bits).
 #[inline(always)]
 pub fn block_flex(r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32, trim: u32) {
+    let c: &mut [i32; MB_COEFFS] = (&mut c[ch * MB_COEFFS..(ch + 1) * MB_COEFFS]).try_into().expect("a channel");
+    flex_channel(r, c, &[b as u8], model_bits, trim);
+}
+
+/// The flexbits of the blocks `blocks` (in that order) of one channel's coefficients `c`, with
+/// the channel's model bits: the block loop of [`flex_block`], chosen once for the number of
+/// bits per coefficient.
+#[inline(always)]
+fn flex_channel(r: &mut BitReader, c: &mut [i32; MB_COEFFS], blocks: &[u8], model_bits: u32, trim: u32) {
     if trim >= model_bits {
         return;
     }
-    // Model bits are at most 15: a coefficient takes at most 16 bits (15 and a sign), so one
-    // refill to 56 bits serves three coefficients.
+    // Model bits are at most 15: a coefficient takes at most 16 bits (15 and a sign).
     let n = (model_bits - trim).min(15);
-    let base = ch * MB_COEFFS + hp(b, 1);
-    let block: &mut [i32; 15] = (&mut c[base..base + 15]).try_into().expect("a block is 15 coefficients");
-    for group in &FLEX_ORDER {
-        r.fill();
-        for &i in group {
-            let cur = block[usize::from(i)];
+    macro_rules! each_block {
+        ($trim:literal, $group:literal) => {
+            for &b in blocks {
+                let at = hp(usize::from(b & 15), 1);
+                let block: &mut [i32; 15] = (&mut c[at..at + 15]).try_into().expect("a block");
+                flex_block::<$trim, $group>(r, block, n, trim);
+            }
+        };
+    }
+    match (trim, n) {
+        (0, ..=2) => each_block!(false, 15),
+        (0, ..=6) => each_block!(false, 8),
+        (0, ..=10) => each_block!(false, 5),
+        (0, _) => each_block!(false, 3),
+        _ => each_block!(true, 3),
+    }
+}
+
+/// The flexbits of one block, `n` (1..=15) bits per coefficient above the `trim` lowest
+/// (`TRIM` false: `trim` is 0), in refinement order ([`FLEX_ORDER_FLAT`], unrolled so that
+/// every index is a constant), the bit buffer topped up before every `GROUP` coefficients
+/// (`GROUP × (n + 1)` ≤ 56).
+#[inline(always)]
+fn flex_block<const TRIM: bool, const GROUP: usize>(r: &mut BitReader, block: &mut [i32; 15], n: u32, trim: u32) {
+    debug_assert!(GROUP * (n as usize + 1) <= 56);
+    macro_rules! coefficients {
+        ($($k:literal $i:literal),*) => {$({
+            if $k % GROUP == 0 {
+                r.fill();
+            }
+            let cur = block[$i];
             // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
             // sign bit: peek both, consume what is there.
             let v = r.peek_buffered(n + 1);
             let fine = (v >> 1) as i32;
             let signed = u32::from(cur == 0) & u32::from(fine != 0);
             r.skip(n + signed);
-            // The sign to apply, as a mask: the coefficient's own (zero for a zero coefficient),
-            // or the bit read (only read for a zero coefficient).
+            // The sign to apply, as a mask: the coefficient's own (zero for a zero
+            // coefficient), or the bit read (only read for a zero coefficient).
             let mask = (cur >> 31) | -((signed & v & 1) as i32);
-            let f = fine.wrapping_shl(trim);
-            block[usize::from(i)] = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
-        }
+            let f = if TRIM { fine.wrapping_shl(trim) } else { fine };
+            block[$i] = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
+        })*};
     }
+    // Position in refinement order, and FLEX_ORDER_FLAT's index there.
+    coefficients!(0 3, 1 7, 2 11, 3 0, 4 4, 5 8, 6 12, 7 1, 8 5, 9 9, 10 13, 11 2, 12 6, 13 10, 14 14);
 }
 
-/// The HP coefficients of a block in refinement order ([`TRANSPOSE444`] without the DC), as
-/// indices into the block's 15 coefficients, in groups of three (one refill each).
-const FLEX_ORDER: [[u8; 3]; 5] = {
-    let mut order = [[0; 3]; 5];
+/// The order of a luma macroblock's blocks in the bitstream ([`HP_BLOCK_ORDER`]), and that of
+/// 420 (the first 4) and 422 (the first 8) chroma.
+const FLEX_BLOCKS: [[u8; 16]; 2] = {
+    let mut t = [[0; 16]; 2];
     let mut i = 0;
-    while i < 15 {
-        order[i / 3][i % 3] = (TRANSPOSE444[i + 1] - 1) as u8;
+    while i < 16 {
+        t[0][i] = HP_BLOCK_ORDER[i] as u8;
+        t[1][i] = i as u8;
         i += 1;
     }
-    order
+    t
 };
 
 /// MB_FLEXBITS (`_jxr_r_MB_FLEXBITS`): the flexbits of every block of a macroblock (`c`, all
@@ -1507,12 +1687,11 @@ pub fn flex_mb(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: usi
     // A local copy of the reader stays in registers.
     let mut local = reader.clone();
     let r = &mut local;
-    for ch in 0..channels {
+    for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).take(channels).enumerate() {
+        let cc: &mut [i32; MB_COEFFS] = cc.try_into().expect("a channel");
         let blocks = predict_blocks(fmt, ch);
-        for block in 0..blocks {
-            let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
-            block_flex(r, c, ch, b, model_bits[usize::from(ch > 0)], trim);
-        }
+        let order = &FLEX_BLOCKS[usize::from(blocks != 16)][..blocks];
+        flex_channel(r, cc, order, model_bits[usize::from(ch > 0)], trim);
     }
     *reader = local;
 }
@@ -1902,11 +2081,70 @@ mod tests {
         let mut dec = PlaneDecoder::new(ClrFmt::YOnly, 1);
         for (max_run, v) in want {
             match max_run {
-                Some(m) => assert_eq!(PlaneDecoder::run(&mut r, m), v, "run {v} of at most {m}"),
+                Some(m) => {
+                    r.fill();
+                    assert_eq!(PlaneDecoder::run(&mut r, m), v, "run {v} of at most {m}");
+                }
                 None => assert_eq!(dec.abs_level(&mut r, V::AbsLevelHp1), v),
             }
         }
         assert_eq!(dec.st.vlc, enc.st.vlc);
+    }
+
+    #[test]
+    fn run_and_level_tables_decode_as_the_symbols_do() {
+        // RUN_INDEX, its bits and the unary codes, read symbol by symbol (`r_DECODE_RUN`).
+        let run = |r: &mut BitReader, max_run: i32| -> u32 {
+            if max_run <= 1 {
+                return max_run.max(0) as u32;
+            }
+            if max_run < 5 {
+                let mut zeros = 0;
+                while zeros < max_run as u32 - 1 && !r.bit() {
+                    zeros += 1;
+                }
+                return zeros + 1;
+            }
+            let index = vlc::decode(r, &vlc::lut(&vlc::RUN_INDEX_CODES)) + 5 * RUN_BIN[max_run.min(14) as usize];
+            RUN_REMAP[index] + r.read(RUN_FIXED[index])
+        };
+        for max_run in -1..=16i32 {
+            for w in 0..256usize {
+                let bytes = [w as u8, 0x5A];
+                let mut r = BitReader::new(&bytes);
+                let want = run(&mut r, max_run);
+                let mut t = BitReader::new(&bytes);
+                t.fill();
+                assert_eq!(PlaneDecoder::run(&mut t, max_run), want, "max_run {max_run}, window {w:08b}");
+                assert_eq!(t.bit_pos(), r.bit_pos(), "max_run {max_run}, window {w:08b}");
+            }
+        }
+        // ABSLEVEL_INDEX and its bits, escapes included, for both tables.
+        for table in 0..2u8 {
+            for w in 0..1u32 << 16 {
+                let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
+                let mut r = BitReader::new(&bytes);
+                let index = vlc::decode(&mut r, &vlc::lut(&vlc::ABS_LEVEL_CODES[usize::from(table)]));
+                let want = if index < 6 {
+                    ABS_REMAP[index] + r.read(ABS_FIXED[index])
+                } else {
+                    let mut fixed = 4 + r.read(4);
+                    if fixed == 19 {
+                        fixed += r.read(2);
+                        if fixed == 22 {
+                            fixed += r.read(3);
+                        }
+                    }
+                    2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed))
+                };
+                let mut ctx = AdaptiveVlc { table, ..AdaptiveVlc::ONE };
+                let mut t = BitReader::new(&bytes);
+                t.fill();
+                assert_eq!(PlaneDecoder::abs_level_buffered(&mut ctx, &mut t), want, "table {table}, {w:016b}");
+                assert_eq!(t.bit_pos(), r.bit_pos(), "table {table}, {w:016b}");
+                assert_eq!(ctx.disc, vlc::ABS_LEVEL_DELTA[index]);
+            }
+        }
     }
 
     #[test]

@@ -165,19 +165,23 @@ pub fn int_to_float_bits(h: i32, exp_bias: i8, len_mantissa: u32) -> u32 {
     let normal = sign | (e_norm as u32).wrapping_shl(23) | ((m0 as u32) << (23 - lm));
     // A denormal mini-float (exponent field 0, read as 1): jxrlib shifts the mantissa up one
     // bit at a time while the exponent stays above 1 (`while (m < lmshift && e > 1 && m > 0)
-    // { e--; m <<= 1; }`), which is one shift by at most e − 1. Whatever is below the hidden
-    // bit after that is an IEEE denormal (exponent 0). The shift is found and done in single
-    // precision, exactly (m0 < 2^23, and the shifted mantissa stays below 2^24), so that a
-    // loop of these vectorises: floor(log2 m0) is the exponent of m0 as a float (−127 for 0,
-    // whose shift is then cut to 24 and changes nothing).
+    // { e--; m <<= 1; }`), which is one shift by k = min(lm − floor(log2 m0), e − 1). If
+    // that reaches the hidden bit, the result is normal: exponent e − k, and below the hidden
+    // bit the bits of m0 under its leading one, which are the mantissa field of m0 as an f32
+    // (exact: m0 < 2^23). Else it is an IEEE denormal, m0 << k placed at bit 23 − lm: an
+    // integer below 2^23, made by scaling m0 as an f32 (exactly, by a power of two) and read
+    // from the mantissa of its sum with 2^23. No shift by a per-sample count, no float to int
+    // conversion (with its saturation), so that a loop of these vectorises; floor(log2 m0) is
+    // the exponent of m0 as a float (−127 for 0, whose shift is then cut and changes nothing).
     let e_den = 128 - i32::from(exp_bias);
-    let log2 = ((m0 as f32).to_bits() >> 23) as i32 - 127;
+    let fm = m0 as f32;
+    let log2 = (fm.to_bits() >> 23) as i32 - 127;
     let k = (lm as i32 - log2).min(e_den - 1).clamp(0, 24);
-    let m = ((m0 as f32) * f32::from_bits(((k + 127) as u32) << 23)) as i32;
-    let reached = m >= lmshift;
-    let e = if reached { e_den - k } else { 0 };
-    let m = if reached { m ^ lmshift } else { m };
-    let denormal = sign | (e as u32).wrapping_shl(23) | ((m as u32) << (23 - lm));
+    let reached = log2 + k >= lm as i32;
+    let full = ((e_den - k) as u32).wrapping_shl(23) | (fm.to_bits() & 0x7f_ffff);
+    let scaled = fm * f32::from_bits(((k + 23 - lm as i32 + 127) as u32) << 23);
+    let part = (scaled + 8_388_608.0).to_bits() - 0x4b00_0000;
+    let denormal = sign | if reached { full } else { part };
     if e0 == 0 {
         denormal
     } else {

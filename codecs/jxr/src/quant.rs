@@ -93,26 +93,6 @@ pub fn dequantize(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32, hp: i3
     }
 }
 
-/// [`dequantize`] from `src` into `dst` (one macroblock channel each): one pass where a
-/// copy and a dequantization in place would make two.
-pub fn dequantize_into(
-    src: &[i32; mb::MB_COEFFS],
-    dst: &mut [i32; mb::MB_COEFFS],
-    shape: (usize, usize),
-    dc: i32,
-    lp: i32,
-    hp: i32,
-) {
-    let lp_end = shape.0.clamp(1, 16);
-    let hp_end = 16 + 15 * shape.1.min(16);
-    let scale = |d: &mut [i32], s: &[i32], k: i32| d.iter_mut().zip(s).for_each(|(d, &v)| *d = v.wrapping_mul(k));
-    dst[mb::DC] = src[mb::DC].wrapping_mul(dc);
-    scale(&mut dst[1..lp_end], &src[1..lp_end], lp);
-    dst[lp_end..16].copy_from_slice(&src[lp_end..16]);
-    scale(&mut dst[16..hp_end], &src[16..hp_end], hp);
-    dst[hp_end..].copy_from_slice(&src[hp_end..]);
-}
-
 /// The encoder's quantization of one value: sign and magnitude, the magnitude divided by
 /// `step` after adding `offset` (jxrlib `strPredQuantEnc.c: quantizeMacroblock` uses
 /// ⌊step/2⌋ for DC and ⌊(3·step + 1)/8⌋ for LP and HP, a dead zone that favours zero for the
@@ -235,18 +215,6 @@ fn is_marginal(unquantized: &[i32], q: &[i32], step: i32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn dequantize_into_is_a_copy_and_dequantize() {
-        let src: [i32; mb::MB_COEFFS] = std::array::from_fn(|i| i as i32 * 7 - 900);
-        for shape in [(16, 16), (4, 4), (8, 8), (1, 0)] {
-            let mut want = src;
-            dequantize(&mut want, shape, 3, 5, 11);
-            let mut got = [0; mb::MB_COEFFS];
-            dequantize_into(&src, &mut got, shape, 3, 5, 11);
-            assert_eq!(got, want, "{shape:?}");
-        }
-    }
 
     #[test]
     fn quantizers_divide_exactly() {

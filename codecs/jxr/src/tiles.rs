@@ -26,16 +26,18 @@ pub(crate) struct MbSide {
     hp_bits: [u32; 2],
 }
 
-/// One plane of a tile being decoded: its adaptive state, quantizers, and the two macroblock
-/// rows prediction needs (the current one and the one above), quantized.
+/// One plane of a tile being decoded: its adaptive state, quantizers, and what prediction
+/// needs of the row above. The row being decoded is the caller's (the plane's part of the
+/// output row): macroblocks are decoded straight into it.
 struct PlaneWork<'h> {
     hdr: &'h PlaneHeader,
     dec: PlaneDecoder,
     qp: TileQp,
     /// Macroblocks per row.
     w: usize,
-    /// Coefficient rows, the row `my` in slot `my % 2`.
-    rows: [Vec<i32>; 2],
+    /// The DC and LP coefficients (indices 0..16 of each channel), quantized, of the row
+    /// above, in the layout of a row (the rest is zero and never read).
+    top: Vec<i32>,
     side: [Vec<MbSide>; 2],
     cbp: [Vec<u32>; 2],
 }
@@ -59,7 +61,7 @@ impl<'h> PlaneWork<'h> {
             dec: PlaneDecoder::new(hdr.clr_fmt, hdr.channels),
             qp,
             w,
-            rows: [row(), row()],
+            top: row(),
             side: [vec![MbSide::default(); w], vec![MbSide::default(); w]],
             cbp: [vec![0; w * hdr.channels], vec![0; w * hdr.channels]],
         }
@@ -77,26 +79,27 @@ impl<'h> PlaneWork<'h> {
         self.cbp[s].fill(0);
     }
 
-    /// The coefficients of macroblock `mx` of row `my` (all channels).
-    fn mb(&mut self, mx: usize, my: usize) -> &mut [i32] {
+    /// The coefficients of macroblock `mx` (all channels) in `row`.
+    fn mb<'r>(&self, row: &'r mut [i32], mx: usize) -> &'r mut [i32] {
         let stride = self.stride();
-        &mut self.rows[my % 2][mx * stride..(mx + 1) * stride]
+        &mut row[mx * stride..(mx + 1) * stride]
     }
 
-    /// MB_DC of macroblock (`mx`, `my`), the first syntax element of a macroblock in either
+    /// MB_DC of macroblock `mx` of `row`, the first syntax element of a macroblock in either
     /// bitstream order: clears the macroblock's coefficients first (the later bands write only
     /// their non-zero values).
-    fn dc(&mut self, r: &mut BitReader, mx: usize, my: usize) {
-        let (stride, w) = (self.stride(), self.w as u32);
-        let c = &mut self.rows[my % 2][mx * stride..(mx + 1) * stride];
+    fn dc(&mut self, row: &mut [i32], r: &mut BitReader, mx: usize) {
+        let w = self.w as u32;
+        let c = self.mb(row, mx);
         c.fill(0);
         self.dec.dc(r, c, mx as u32, w);
     }
 
-    /// MB_LP of macroblock (`mx`, `my`).
-    fn lp(&mut self, r: &mut BitReader, mx: usize, my: usize) -> Result<()> {
-        let (stride, w) = (self.stride(), self.w as u32);
-        self.dec.lp(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], mx as u32, w)
+    /// MB_LP of macroblock `mx` of `row`.
+    fn lp(&mut self, row: &mut [i32], r: &mut BitReader, mx: usize) -> Result<()> {
+        let w = self.w as u32;
+        let c = self.mb(row, mx);
+        self.dec.lp(r, c, mx as u32, w)
     }
 
     /// TILE_HEADER_DC.
@@ -147,13 +150,12 @@ impl<'h> PlaneWork<'h> {
         Ok(())
     }
 
-    /// DC and LP prediction of macroblock (`mx`, `my`).
-    fn predict_dclp(&mut self, mx: usize, my: usize) {
+    /// DC and LP prediction of macroblock (`mx`, `my`) of `row`.
+    fn predict_dclp(&mut self, row: &mut [i32], mx: usize, my: usize) {
         let stride = self.stride();
         let (s, t) = (my % 2, 1 - my % 2);
-        let [r0, r1] = &mut self.rows;
-        let (cur_row, prev_row) = if s == 0 { (r0, &*r1) } else { (r1, &*r0) };
-        let (before, rest) = cur_row.split_at_mut(mx * stride);
+        let prev_row = &self.top;
+        let (before, rest) = row.split_at_mut(mx * stride);
         let cur = &mut rest[..stride];
         let left = (mx > 0).then(|| &before[(mx - 1) * stride..]);
         let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
@@ -164,9 +166,9 @@ impl<'h> PlaneWork<'h> {
         predict::predict_dclp(self.hdr.clr_fmt, self.hdr.channels, cur, left, top, top_left, same_left, same_top);
     }
 
-    /// MB_CBP and MB_HP of macroblock (`mx`, `my`); with `flex_inline` the flexbits follow
-    /// each block.
-    fn cbp_hp(&mut self, r: &mut BitReader, mx: usize, my: usize, flex_inline: bool) -> Result<()> {
+    /// MB_CBP and MB_HP of macroblock (`mx`, `my`) of `row`; with `flex_inline` the flexbits
+    /// follow each block.
+    fn cbp_hp(&mut self, row: &mut [i32], r: &mut BitReader, mx: usize, my: usize, flex_inline: bool) -> Result<()> {
         let ch = self.hdr.channels;
         let s = my % 2;
         let [c0, c1] = &mut self.cbp;
@@ -177,7 +179,7 @@ impl<'h> PlaneWork<'h> {
         let cur_cbp = &mut rest[..ch];
         self.dec.cbp(r, left, top, cur_cbp)?;
         let stride = ch * MB_COEFFS;
-        let c = &mut self.rows[s][mx * stride..(mx + 1) * stride];
+        let c = &mut row[mx * stride..(mx + 1) * stride];
         let mode = predict::hp_mode(self.hdr.clr_fmt, c);
         let bits = self.dec.hp(r, c, cur_cbp, mode, mx as u32, self.w as u32, flex_inline)?;
         self.side[s][mx].hp_mode = mode;
@@ -185,45 +187,33 @@ impl<'h> PlaneWork<'h> {
         Ok(())
     }
 
-    /// FLEXBITS of macroblock (`mx`, `my`) from a FLEXBITS packet.
-    fn flex(&mut self, r: &mut BitReader, mx: usize, my: usize) {
-        let stride = self.stride();
+    /// FLEXBITS of macroblock (`mx`, `my`) of `row` from a FLEXBITS packet.
+    fn flex(&mut self, row: &mut [i32], r: &mut BitReader, mx: usize, my: usize) {
         let bits = self.side[my % 2][mx].hp_bits;
         let (fmt, channels, trim) = (self.hdr.clr_fmt, self.hdr.channels, self.dec.trim);
-        macroblock::flex_mb(r, &mut self.rows[my % 2][mx * stride..(mx + 1) * stride], fmt, channels, trim, bits);
+        macroblock::flex_mb(r, self.mb(row, mx), fmt, channels, trim, bits);
     }
 
-    /// HP prediction of macroblock (`mx`, `my`) (after its flexbits).
-    fn predict_hp(&mut self, mx: usize, my: usize) {
+    /// HP prediction of macroblock (`mx`, `my`) of `row` (after its flexbits).
+    fn predict_hp(&mut self, row: &mut [i32], mx: usize, my: usize) {
         let (fmt, channels) = (self.hdr.clr_fmt, self.hdr.channels);
         let mode = self.side[my % 2][mx].hp_mode;
-        predict_hp_mb(fmt, channels, self.mb(mx, my), mode);
+        predict_hp_mb(fmt, channels, self.mb(row, mx), mode);
     }
 
-    /// Row `my` into `out` (exactly a row long): dequantized, or (`quantized`) as it is, for
-    /// a FLEXBITS stage to complete.
-    fn output_row(&self, my: usize, out: &mut [i32], quantized: bool) -> Result<()> {
-        let s = my % 2;
-        let out = out
-            .get_mut(..self.rows[s].len())
-            .ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?;
+    /// The end of row `my` (decoded into `row`): keeps its DC and LP coefficients for the
+    /// next row's prediction, then dequantizes it in place, unless (`quantized`) a FLEXBITS
+    /// stage completes it.
+    fn finish_row(&mut self, row: &mut [i32], my: usize, quantized: bool) -> Result<()> {
+        for (top, cur) in self.top.chunks_exact_mut(MB_COEFFS).zip(row.chunks_exact(MB_COEFFS)) {
+            top[..16].copy_from_slice(&cur[..16]);
+        }
         if quantized {
-            out.copy_from_slice(&self.rows[s]);
             return Ok(());
         }
-        // Copied and dequantized in one pass.
         let stride = self.stride();
-        for ((dst, src), side) in out.chunks_exact_mut(stride).zip(self.rows[s].chunks_exact(stride)).zip(&self.side[s])
-        {
-            let (dc, lp, hp) = mb_steps(side, &self.qp)?;
-            let channels = dst.chunks_exact_mut(MB_COEFFS).zip(src.chunks_exact(MB_COEFFS));
-            for (ch, (d, s)) in channels.enumerate() {
-                let (d, s) = (d.try_into().expect("a channel"), s.try_into().expect("a channel"));
-                let luma = ch == 0;
-                let steps = (quant::step(dc[ch], self.hdr.scaled, luma), quant::step(lp[ch], self.hdr.scaled, luma));
-                let shape = quant::channel_shape(self.hdr.clr_fmt, ch);
-                quant::dequantize_into(s, d, shape, steps.0, steps.1, quant::step(hp[ch], self.hdr.scaled, true));
-            }
+        for (c, side) in row.chunks_exact_mut(stride).zip(&self.side[my % 2]) {
+            dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
         }
         Ok(())
     }
@@ -262,14 +252,22 @@ fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled:
 }
 
 /// Runs `f` on every macroblock of row `my` (`w` wide), each plane in turn (primary, then
-/// alpha), then checks that the packet did not run out.
-fn each_mb<F>(planes: &mut [PlaneWork], r: &mut BitReader, w: usize, my: usize, what: &str, mut f: F) -> Result<()>
+/// alpha, with that plane's row), then checks that the packet did not run out.
+fn each_mb<F>(
+    planes: &mut [PlaneWork],
+    rows: &mut [&mut [i32]],
+    r: &mut BitReader,
+    w: usize,
+    my: usize,
+    what: &str,
+    mut f: F,
+) -> Result<()>
 where
-    F: FnMut(&mut PlaneWork, &mut BitReader, usize, usize) -> Result<()>,
+    F: FnMut(&mut PlaneWork, &mut [i32], &mut BitReader, usize, usize) -> Result<()>,
 {
     for mx in 0..w {
-        for p in planes.iter_mut() {
-            f(p, r, mx, my)?;
+        for (p, row) in planes.iter_mut().zip(rows.iter_mut()) {
+            f(p, row, r, mx, my)?;
         }
     }
     r.check(what)
@@ -413,20 +411,31 @@ impl<'a> TileDecoder<'a> {
         for p in &mut self.planes {
             p.start_row(my);
         }
+        if out.len() < self.planes.len() {
+            return Err(Error::invalid("JPEG XR: too few row buffers (a bug in the decoder)"));
+        }
+        let mut rows = Vec::with_capacity(self.planes.len());
+        for (p, o) in self.planes.iter().zip(out.iter_mut()) {
+            let len = w * p.stride();
+            rows.push(
+                o.get_mut(..len).ok_or_else(|| Error::invalid("JPEG XR: a short row buffer (a bug in the decoder)"))?,
+            );
+        }
+        let rows = &mut rows[..];
         let planes = &mut self.planes;
         if !self.frequency {
             let r = &mut self.readers[0];
-            each_mb(planes, r, w, my, "a JPEG XR tile", |p, r, mx, my| {
+            each_mb(planes, rows, r, w, my, "a JPEG XR tile", |p, row, r, mx, my| {
                 p.read_lp_index(r, mx, my)?;
                 p.read_hp_index(r, mx, my)?;
-                p.dc(r, mx, my);
+                p.dc(row, r, mx);
                 if p.hdr.bands.has_lp() {
-                    p.lp(r, mx, my)?;
+                    p.lp(row, r, mx)?;
                 }
-                p.predict_dclp(mx, my);
+                p.predict_dclp(row, mx, my);
                 if p.hdr.bands.has_hp() {
-                    p.cbp_hp(r, mx, my, p.hdr.bands.has_flex())?;
-                    p.predict_hp(mx, my);
+                    p.cbp_hp(row, r, mx, my, p.hdr.bands.has_flex())?;
+                    p.predict_hp(row, mx, my);
                 }
                 Ok(())
             })?;
@@ -435,41 +444,41 @@ impl<'a> TileDecoder<'a> {
             let r = dc;
             // Without an LP packet (coded but not read), DC prediction runs here.
             let lp_read = !rest.is_empty();
-            each_mb(planes, r, w, my, "a JPEG XR DC packet", |p, r, mx, my| {
-                p.dc(r, mx, my);
+            each_mb(planes, rows, r, w, my, "a JPEG XR DC packet", |p, row, r, mx, my| {
+                p.dc(row, r, mx);
                 if !p.hdr.bands.has_lp() || !lp_read {
-                    p.predict_dclp(mx, my);
+                    p.predict_dclp(row, mx, my);
                 }
                 Ok(())
             })?;
             if let Some(r) = rest.get_mut(0) {
-                each_mb(planes, r, w, my, "a JPEG XR LP packet", |p, r, mx, my| {
+                each_mb(planes, rows, r, w, my, "a JPEG XR LP packet", |p, row, r, mx, my| {
                     p.read_lp_index(r, mx, my)?;
-                    p.lp(r, mx, my)?;
-                    p.predict_dclp(mx, my);
+                    p.lp(row, r, mx)?;
+                    p.predict_dclp(row, mx, my);
                     Ok(())
                 })?;
             }
             if let Some(r) = rest.get_mut(1) {
-                each_mb(planes, r, w, my, "a JPEG XR HP packet", |p, r, mx, my| {
+                each_mb(planes, rows, r, w, my, "a JPEG XR HP packet", |p, row, r, mx, my| {
                     p.read_hp_index(r, mx, my)?;
-                    p.cbp_hp(r, mx, my, false)?;
+                    p.cbp_hp(row, r, mx, my, false)?;
                     if bands == Bands::NoFlexbits {
-                        p.predict_hp(mx, my);
+                        p.predict_hp(row, mx, my);
                     }
                     Ok(())
                 })?;
             }
             if let Some(r) = rest.get_mut(2).filter(|_| !self.defer_flex) {
-                each_mb(planes, r, w, my, "a JPEG XR FLEXBITS packet", |p, r, mx, my| {
-                    p.flex(r, mx, my);
-                    p.predict_hp(mx, my);
+                each_mb(planes, rows, r, w, my, "a JPEG XR FLEXBITS packet", |p, row, r, mx, my| {
+                    p.flex(row, r, mx, my);
+                    p.predict_hp(row, mx, my);
                     Ok(())
                 })?;
             }
         }
-        for (p, o) in self.planes.iter().zip(out.iter_mut()) {
-            p.output_row(my, o, self.defer_flex)?;
+        for (p, row) in self.planes.iter_mut().zip(rows.iter_mut()) {
+            p.finish_row(row, my, self.defer_flex)?;
         }
         if let Some(side) = side {
             for (p, s) in self.planes.iter().zip(side.iter_mut()) {

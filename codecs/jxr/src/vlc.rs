@@ -22,7 +22,7 @@ pub type Lut = [u8; 256];
 /// Builds the lookup table of a prefix code given as one bit string per symbol. A window no
 /// code matches (none for the complete codes here) reads as symbol 0 of length 8, so that
 /// every entry has a length.
-const fn lut(codes: &[&str]) -> Lut {
+pub(crate) const fn lut(codes: &[&str]) -> Lut {
     let mut t = [8u8; 256];
     let mut sym = 0;
     while sym < codes.len() {
@@ -101,22 +101,8 @@ pub const REFINE_CBP2_VALUES: [u32; 6] = [3, 5, 6, 9, 10, 12];
 
 /// Lookup tables of the codes above.
 pub static DC_YUV: Lut = lut(&DC_YUV_CODES);
-/// See [`ABS_LEVEL_CODES`].
-pub static ABS_LEVEL: [Lut; 2] = [lut(&ABS_LEVEL_CODES[0]), lut(&ABS_LEVEL_CODES[1])];
-/// See [`FIRST_INDEX_CODES`].
-pub static FIRST_INDEX: [Lut; 5] = [
-    lut(&FIRST_INDEX_CODES[0]),
-    lut(&FIRST_INDEX_CODES[1]),
-    lut(&FIRST_INDEX_CODES[2]),
-    lut(&FIRST_INDEX_CODES[3]),
-    lut(&FIRST_INDEX_CODES[4]),
-];
-/// See [`INDEX_CODES`].
-pub static INDEX: [Lut; 4] = [lut(&INDEX_CODES[0]), lut(&INDEX_CODES[1]), lut(&INDEX_CODES[2]), lut(&INDEX_CODES[3])];
 /// See [`INDEX2_CODES`].
 pub static INDEX2: Lut = lut(&INDEX2_CODES);
-/// See [`RUN_INDEX_CODES`].
-pub static RUN_INDEX: Lut = lut(&RUN_INDEX_CODES);
 /// See [`NUM_CBP_CODES`].
 pub static NUM_CBP: [Lut; 2] = [lut(&NUM_CBP_CODES[0]), lut(&NUM_CBP_CODES[1])];
 /// See [`NUM_BLKCBP_YUV_CODES`].
@@ -517,12 +503,13 @@ mod tests {
 
     #[test]
     fn lookup_tables_decode_every_code() {
+        let (first4, first0, index3) = (lut(&FIRST_INDEX_CODES[4]), lut(&FIRST_INDEX_CODES[0]), lut(&INDEX_CODES[3]));
         let cases: Vec<(&[&str], &Lut)> = vec![
-            (&FIRST_INDEX_CODES[4], &FIRST_INDEX[4]),
-            (&FIRST_INDEX_CODES[0], &FIRST_INDEX[0]),
+            (&FIRST_INDEX_CODES[4], &first4),
+            (&FIRST_INDEX_CODES[0], &first0),
             (&NUM_BLKCBP_YUV_CODES[1], &NUM_BLKCBP_YUV[1]),
             (&DC_YUV_CODES, &DC_YUV),
-            (&INDEX_CODES[3], &INDEX[3]),
+            (&INDEX_CODES[3], &index3),
         ];
         for (codes, table) in cases {
             for (sym, code) in codes.iter().enumerate() {
@@ -589,19 +576,24 @@ mod tests {
 
     #[test]
     fn every_encoding_table_round_trips_through_its_decoding_table() {
+        // The decoder reads these through combined tables (`macroblock`), built from these.
+        let run_index = lut(&RUN_INDEX_CODES);
+        let abs_level = [lut(&ABS_LEVEL_CODES[0]), lut(&ABS_LEVEL_CODES[1])];
+        let first_index = FIRST_INDEX_CODES.map(|c| lut(&c));
+        let index = INDEX_CODES.map(|c| lut(&c));
         let mut cases: Vec<(&[Code], &Lut)> = vec![
             (&DC_YUV_ENC, &DC_YUV),
             (&INDEX2_ENC, &INDEX2),
-            (&RUN_INDEX_ENC, &RUN_INDEX),
+            (&RUN_INDEX_ENC, &run_index),
             (&NUM_CH_BLK_ENC, &NUM_CH_BLK),
             (&VALUE_012_ENC, &VALUE_012),
             (&CBPLP_444_ENC, &CBPLP_444),
             (&CBPLP_42X_ENC, &CBPLP_42X),
             (&REFINE_CBP2_ENC, &REFINE_CBP2),
         ];
-        cases.extend(ABS_LEVEL_ENC.iter().map(|t| &t[..]).zip(ABS_LEVEL.iter()));
-        cases.extend(FIRST_INDEX_ENC.iter().map(|t| &t[..]).zip(FIRST_INDEX.iter()));
-        cases.extend(INDEX_ENC.iter().map(|t| &t[..]).zip(INDEX.iter()));
+        cases.extend(ABS_LEVEL_ENC.iter().map(|t| &t[..]).zip(abs_level.iter()));
+        cases.extend(FIRST_INDEX_ENC.iter().map(|t| &t[..]).zip(first_index.iter()));
+        cases.extend(INDEX_ENC.iter().map(|t| &t[..]).zip(index.iter()));
         cases.extend(NUM_CBP_ENC.iter().map(|t| &t[..]).zip(NUM_CBP.iter()));
         cases.extend(NUM_BLKCBP_YUV_ENC.iter().map(|t| &t[..]).zip(NUM_BLKCBP_YUV.iter()));
         assert_eq!(cases.len(), 8 + 2 + 5 + 4 + 2 + 2);
