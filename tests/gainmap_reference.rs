@@ -211,7 +211,7 @@ fn our_files_decode_in_libultrahdr_as_in_ours() {
         // And against the image we encoded (the codec's own loss).
         let (median, p99, pu21) = compare(&ours, image.samples().to_vec(), None);
         eprintln!("ours ({channels}-channel map, {} bytes) against the source: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB", file.len());
-        assert!(pu21 >= 34.0, "{channels}: {pu21}");
+        assert!(pu21 >= 36.0, "{channels}: {pu21}");
     }
 }
 

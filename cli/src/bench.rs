@@ -104,6 +104,11 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     for effort in [0, 2] {
         add("bc6h", format!("bc6h:effort{effort}"), EncodeSettings::default().with_effort(effort));
     }
+    // Gain-map JPEG at three qualities of its base (the map's quality and scale at their
+    // defaults).
+    for q in [95, 85, 70] {
+        add("ultrahdr", format!("ultrahdr:q{q}"), EncodeSettings::default().with_quality(q));
+    }
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
     // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer
