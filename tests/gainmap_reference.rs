@@ -237,3 +237,18 @@ open(sys.argv[2], 'wb').write(imagecodecs.ultrahdr_encode(rgba, level=90))
     eprintln!("libultrahdr's file in ours: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
     assert!(median <= 0.01 && p99 <= 0.06 && pu21 >= 50.0, "{median} {p99} {pu21}");
 }
+
+#[test]
+fn our_base_opens_in_openimageio_with_its_icc_profile() {
+    let Some(oiiotool) = require(common::tool("oiiotool"), "OpenImageIO's oiiotool") else { return };
+    let Some(mut image) = corpus_crop("GoldenGate.exr") else { return };
+    image.color.primaries = hdrcodec::core::ColorPrimaries::DisplayP3;
+    let (file, _) = hdrcodec::jpeghdr::encode(&image, &Default::default()).unwrap();
+    let path = temp_dir("gainmap-oiio").join("p3.jpg");
+    std::fs::write(&path, &file).unwrap();
+    let out = common::run_ok(std::process::Command::new(oiiotool).args(["--info", "-v"]).arg(&path));
+    let info = String::from_utf8_lossy(&out.stdout);
+    assert!(info.contains("384, 3 channel, uint8 jpeg"), "{info}");
+    assert!(info.contains("ICCProfile:profile_description: \"Display P3\""), "{info}");
+    assert!(info.contains("ICCProfile:profile_version: \"4.3.0\""), "{info}");
+}

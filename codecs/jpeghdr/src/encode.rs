@@ -12,7 +12,7 @@
 use crate::gainmap::SDR_WHITE_NITS;
 use crate::markers::{self, APP1, APP2};
 use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
-use crate::{mpf, xmp};
+use crate::{icc, mpf, xmp};
 use hdrcodec_core::color::{convert_primaries, luminance_weights};
 use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Result, SrgbTransfer};
 
@@ -77,23 +77,29 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
     }
     // The base is sRGB (BT.709 primaries): other primaries are converted (linearly, before
     // tone mapping; the gain map restores what the base's gamut cut).
+    // The base is sRGB, or Display P3 with its ICC profile (what phones write); other
+    // primaries are converted to BT.709 (linearly, before tone mapping).
     let converted;
-    let image = match image.color.primaries {
-        ColorPrimaries::Bt709 => image,
+    let (image, base_primaries) = match image.color.primaries {
+        ColorPrimaries::Bt709 | ColorPrimaries::DisplayP3 => (image, image.color.primaries),
         ColorPrimaries::Unspecified => {
             report.note("the image records no primaries: its samples are written as BT.709 (sRGB)");
-            image
+            (image, ColorPrimaries::Bt709)
         }
         ref p => {
             report.note(format!("converted from {} to BT.709 primaries (the base is sRGB)", p.name()));
             converted = convert_primaries(image, ColorPrimaries::Bt709);
-            &converted
+            (&converted, ColorPrimaries::Bt709)
         }
+    };
+    let profile = match base_primaries {
+        ColorPrimaries::DisplayP3 => icc::rgb_profile(&base_primaries, "Display P3"),
+        _ => None,
     };
     if image.channels().count() == 4 {
         report.note("JPEG has no alpha: the alpha channel was dropped");
     }
-    let weights = luminance_weights(&ColorPrimaries::Bt709);
+    let weights = luminance_weights(&base_primaries);
     let scale = f64::from(image.color.nits_per_unit) / f64::from(SDR_WHITE_NITS);
     let channels = image.channels().count();
     let curve = GtToneCurve::default();
@@ -183,7 +189,7 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
         ));
     }
     let map_jpeg = gain_map_image(&map_codes, mw, mh, map_channels, options.map_quality, &meta)?;
-    let file = primary_image(&base, w, h, options.base_quality, &map_jpeg)?;
+    let file = primary_image(&base, w, h, options.base_quality, profile.as_deref(), &map_jpeg)?;
     Ok((file, report))
 }
 
@@ -334,10 +340,13 @@ fn gain_map_image(
 
 /// The primary image with the gain map appended: XMP (hdrgm version and GContainer with the
 /// map's length), the ISO version record and an MPF index, patched once the sizes are known.
-fn primary_image(base: &[u8], w: usize, h: usize, quality: u8, map: &[u8]) -> Result<Vec<u8>> {
+fn primary_image(base: &[u8], w: usize, h: usize, quality: u8, profile: Option<&[u8]>, map: &[u8]) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
     encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
+    if let Some(profile) = profile {
+        encoder.add_icc_profile(profile).map_err(|e| jpeg_error("base image", e))?;
+    }
     let app = |e: &mut jpeg_encoder::Encoder<&mut Vec<u8>>, n: u8, sig: &[u8], body: &[u8]| {
         e.add_app_segment(n, &[sig, body].concat()).map_err(|e| jpeg_error("base image", e))
     };
@@ -455,6 +464,17 @@ mod tests {
             let (median, p99) = (errors[errors.len() / 2], errors[errors.len() * 99 / 100]);
             assert!(median < 0.03 && p99 < 0.2, "channels {channels}: {median} {p99}");
         }
+    }
+
+    #[test]
+    fn display_p3_images_keep_their_primaries() {
+        let mut image = scene();
+        image.color.primaries = ColorPrimaries::DisplayP3;
+        let (file, report) = encode(&image, &GainMapEncodeOptions::default()).unwrap();
+        assert!(report.notes.iter().all(|n| !n.contains("converted")), "{:?}", report.notes);
+        let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+        assert_eq!(back.color.primaries, ColorPrimaries::DisplayP3);
+        assert!(back.metadata_value("jpeg.colour_note").is_none());
     }
 
     #[test]

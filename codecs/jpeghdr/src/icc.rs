@@ -69,6 +69,74 @@ pub fn primaries(profile: &[u8]) -> Option<ColorPrimaries> {
         })
 }
 
+/// A display profile (ICC.1:2022, version 4.3) for RGB in `primaries` with a D65 white and the
+/// sRGB transfer curve: what a base image in Display P3 carries so that viewers and our
+/// [`primaries`] know its colours. `None` for primaries without chromaticities.
+pub fn rgb_profile(primaries: &ColorPrimaries, description: &str) -> Option<Vec<u8>> {
+    let to_xyz = primaries.chromaticities().try_rgb_to_xyz()?;
+    let d65_to_d50 = bradford([0.3127, 0.3290], [0.3457, 0.3585]);
+    let s15 = |v: f64| ((v * 65536.0).round() as i32).to_be_bytes();
+    let xyz = |v: [f64; 3]| [b"XYZ \0\0\0\0".to_vec(), v.iter().flat_map(|&x| s15(x)).collect()].concat();
+    let mluc = |text: &str| {
+        let utf16: Vec<u8> = text.encode_utf16().flat_map(u16::to_be_bytes).collect();
+        let mut t = b"mluc\0\0\0\0".to_vec();
+        t.extend(1u32.to_be_bytes());
+        t.extend(12u32.to_be_bytes());
+        t.extend(b"enUS");
+        t.extend((utf16.len() as u32).to_be_bytes());
+        t.extend(28u32.to_be_bytes());
+        t.extend(utf16);
+        t
+    };
+    // sRGB's curve as parametric function 3: Y = (aX + b)^g for X ≥ d, else cX.
+    let mut para = b"para\0\0\0\0".to_vec();
+    para.extend(3u16.to_be_bytes());
+    para.extend(0u16.to_be_bytes());
+    for v in [2.4, 1.0 / 1.055, 0.055 / 1.055, 1.0 / 12.92, 0.04045] {
+        para.extend(s15(v));
+    }
+    let chad = [b"sf32\0\0\0\0".to_vec(), d65_to_d50.iter().flatten().flat_map(|&x| s15(x)).collect()].concat();
+    let colorant = |k: usize| xyz(mat_apply(&d65_to_d50, [to_xyz[0][k], to_xyz[1][k], to_xyz[2][k]]));
+    let d50 = [0.9642, 1.0, 0.8249];
+    let tags: Vec<(&[u8; 4], Vec<u8>)> = vec![
+        (b"desc", mluc(description)),
+        (b"cprt", mluc("No copyright, use freely")),
+        (b"wtpt", xyz(d50)),
+        (b"chad", chad),
+        (b"rXYZ", colorant(0)),
+        (b"gXYZ", colorant(1)),
+        (b"bXYZ", colorant(2)),
+        (b"rTRC", para.clone()),
+        (b"gTRC", para.clone()),
+        (b"bTRC", para),
+    ];
+    let mut data = Vec::new();
+    let mut table = (tags.len() as u32).to_be_bytes().to_vec();
+    let data_start = 128 + 4 + 12 * tags.len();
+    for (sig, body) in &tags {
+        table.extend(*sig);
+        table.extend(((data_start + data.len()) as u32).to_be_bytes());
+        table.extend((body.len() as u32).to_be_bytes());
+        data.extend(body);
+        data.resize(data.len().next_multiple_of(4), 0);
+    }
+    let size = (data_start + data.len()) as u32;
+    let mut header = Vec::with_capacity(128);
+    header.extend(size.to_be_bytes());
+    header.extend([0u8; 4]); // preferred CMM
+    header.extend(0x0430_0000u32.to_be_bytes());
+    header.extend(b"mntrRGB XYZ ");
+    for v in [2026u16, 1, 1, 0, 0, 0] {
+        header.extend(v.to_be_bytes());
+    }
+    header.extend(b"acsp");
+    header.resize(64, 0); // platform, flags, device manufacturer, model, attributes
+    header.extend(0u32.to_be_bytes()); // perceptual intent
+    header.extend(d50.iter().flat_map(|&x| s15(x)));
+    header.resize(128, 0); // creator, profile ID (not computed), reserved
+    Some([header, table, data].concat())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,6 +171,15 @@ mod tests {
         let p = profile(srgb);
         for n in 0..p.len() {
             assert_eq!(primaries(&p[..n]), None);
+        }
+    }
+
+    #[test]
+    fn written_profiles_name_their_primaries() {
+        for p in [ColorPrimaries::Bt709, ColorPrimaries::DisplayP3, ColorPrimaries::Bt2020] {
+            let profile = rgb_profile(&p, "test").unwrap();
+            assert_eq!(u32::from_be_bytes(profile[..4].try_into().unwrap()) as usize, profile.len());
+            assert_eq!(primaries(&profile), Some(p));
         }
     }
 
