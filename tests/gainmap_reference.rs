@@ -1,4 +1,4 @@
-//! Gain-map JPEG decoding against references nobody here wrote.
+//! HDR JPEG (gain-map JPEG and Ward & Simmons JPEG-HDR) against references nobody here wrote.
 //!
 //! - The corpus's Ultra HDR files (Pixel: one-channel map, ¼ size, Display P3; hdrify: a
 //!   three-channel full-size map whose MPF offset is wrong) decode as libultrahdr 1.4
@@ -80,7 +80,7 @@ out_rgb.astype(np.float32).tofile(out)
 "#;
 
 fn image(width: u32, height: u32, samples: Vec<f32>, like: &HdrImage) -> HdrImage {
-    let color = ColorInfo { primaries: like.color.primaries, nits_per_unit: 203.0, hdr10: None };
+    let color = ColorInfo { primaries: like.color.primaries, nits_per_unit: like.color.nits_per_unit, hdr10: None };
     HdrImage::new(width, height, Channels::Rgb, samples, color).unwrap()
 }
 
@@ -251,4 +251,27 @@ fn our_base_opens_in_openimageio_with_its_icc_profile() {
     assert!(info.contains("384, 3 channel, uint8 jpeg"), "{info}");
     assert!(info.contains("ICCProfile:profile_description: \"Display P3\""), "{info}");
     assert!(info.contains("ICCProfile:profile_version: \"4.3.0\""), "{info}");
+}
+
+/// JPEG-HDR files the format's author's library wrote, against that library's own decode
+/// (`.ref.exr` beside each; its JPEG library is libjpeg-turbo, ours zune-jpeg, and its ratio
+/// upsampler dithers, so the comparison has a tolerance).
+#[test]
+fn jpeg_hdr_files_decode_as_the_reference_library_decodes_them() {
+    let Some(dir) = require(corpus_dir(), "the shared HDR corpus") else { return };
+    for (name, bounds) in
+        [("hall_jpeghdr_q90_precorr", (0.006, 0.04, 50.0)), ("atrium_jpeghdr_q80_postcorr", (0.002, 0.05, 50.0))]
+    {
+        let data = std::fs::read(dir.join("jpeghdr").join(format!("{name}.jpg"))).unwrap();
+        let ours = decode(&data, &Limits::default(), Rendering::default()).unwrap();
+        assert!(ours.metadata_value("jpeg.ratio_image").is_some(), "{name}: {:?}", ours.metadata);
+        let reference = std::fs::read(dir.join("jpeghdr").join(format!("{name}.ref.exr"))).unwrap();
+        let reference = hdrcodec::exr::ExrCodec.decode(&reference, &Limits::default()).unwrap();
+        // The reference holds samples in the file's units (× s2n for cd/m², as ours).
+        let theirs: Vec<f32> =
+            reference.samples().chunks_exact(reference.channels().count()).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let (median, p99, pu21) = compare(&ours, theirs, None);
+        eprintln!("{name}: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
+        assert!(median <= bounds.0 && p99 <= bounds.1 && pu21 >= bounds.2, "{name}: {median} {p99} {pu21}");
+    }
 }

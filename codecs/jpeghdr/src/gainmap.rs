@@ -10,7 +10,7 @@
 use crate::markers::{self, JpegImage, APP1, APP2};
 use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::xmp::{self, Xmp};
-use crate::{icc, mpf};
+use crate::{icc, mpf, ratio};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer};
 
 /// The luminance of the base's (SDR) white, cd/m²: ITU-R BT.2408's reference white, which
@@ -195,10 +195,19 @@ fn jpeg_header(bytes: &[u8], limits: &Limits, what: &str) -> Result<(usize, usiz
 
 /// Decodes one JPEG image to grey (one-component files) or RGB, within `limits`.
 pub(crate) fn decode_jpeg(bytes: &[u8], limits: &Limits, what: &str) -> Result<Pixels> {
+    decode_jpeg_as(bytes, limits, what, false)
+}
+
+/// [`decode_jpeg`], colour images as Y'CbCr instead of RGB when `ycc`.
+pub(crate) fn decode_jpeg_as(bytes: &[u8], limits: &Limits, what: &str, ycc: bool) -> Result<Pixels> {
     use zune_jpeg::zune_core::colorspace::ColorSpace;
     let (width, height, channels) = jpeg_header(bytes, limits, what)?;
     let _charge = limits.charge((width * height * channels) as u64, what)?;
-    let out = if channels == 1 { ColorSpace::Luma } else { ColorSpace::RGB };
+    let out = match (channels, ycc) {
+        (1, _) => ColorSpace::Luma,
+        (_, true) => ColorSpace::YCbCr,
+        _ => ColorSpace::RGB,
+    };
     let mut decoder =
         zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits).jpeg_set_out_colorspace(out));
     let samples = decoder.decode().map_err(|e| Error::invalid(format!("{what}: {e}")))?;
@@ -220,6 +229,35 @@ pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
 /// [`probe`] of a file already taken apart.
 fn describe(file: &GainMapFile<'_>, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     let (width, height, _) = jpeg_header(file.primary.bytes(data), limits, "primary image")?;
+    match ratio::ratio_image(&file.primary).and_then(|r| match r {
+        Some((header, jpeg)) => jpeg_header(&jpeg, limits, "JPEG-HDR ratio image").map(|_| Some(header)),
+        None => Ok(None),
+    }) {
+        Ok(Some(header)) => {
+            let nits_per_unit = if header.samples_to_nits > 0.0 {
+                header.samples_to_nits as f32
+            } else {
+                ColorInfo::default().nits_per_unit
+            };
+            let color = ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit, hdr10: None };
+            let mut info = ImageInfo::new(width as u32, height as u32, Channels::Rgb, color);
+            info.format =
+                format!("JPEG-HDR (Ward & Simmons ratio image, ver={}, cor={:?})", header.version, header.correction);
+            return Ok(info);
+        }
+        Ok(None) => {}
+        Err(e) => {
+            let mut info = ImageInfo::new(
+                width as u32,
+                height as u32,
+                Channels::Rgb,
+                ColorInfo { nits_per_unit: SDR_WHITE_NITS, ..ColorInfo::default() },
+            );
+            info.format = "JPEG-HDR with a damaged ratio image (SDR base)".into();
+            info.metadata.push(("jpeg.warning".into(), format!("ratio image unusable, decoded as SDR: {e}")));
+            return Ok(info);
+        }
+    }
     let (primaries, mut metadata) = primaries_of(&file.primary);
     match &file.gain_map {
         Some((map, meta, flavour)) => {
@@ -278,7 +316,18 @@ pub struct Rendering {
 /// primaries, 1.0 = SDR white = [`SDR_WHITE_NITS`]. Notes what it found in the metadata.
 pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrImage> {
     let file = GainMapFile::parse(data)?;
-    let info = describe(&file, data, limits)?;
+    let mut info = describe(&file, data, limits)?;
+    if let Ok(Some((header, ratio_jpeg))) = ratio::ratio_image(&file.primary) {
+        match ratio::decode(data, &file.primary, &header, &ratio_jpeg, limits) {
+            Ok(image) => return Ok(image),
+            Err(e @ Error::LimitExceeded { .. }) => return Err(e),
+            // A damaged ratio image: the base, as SDR, with a warning.
+            Err(e) => {
+                info.color = ColorInfo { nits_per_unit: SDR_WHITE_NITS, ..ColorInfo::default() };
+                info.metadata.push(("jpeg.warning".into(), format!("ratio image unusable, decoded as SDR: {e}")));
+            }
+        }
+    }
     let base = decode_jpeg(file.primary.bytes(data), limits, "primary image")?;
     let pixels = base.width * base.height;
     let _charge = limits.charge_image(base.width as u64, base.height as u64, Channels::Rgb)?;

@@ -15,6 +15,7 @@ pub mod icc;
 pub mod markers;
 pub mod metadata;
 pub mod mpf;
+pub mod ratio;
 pub mod xmp;
 
 use hdrcodec_core::{
