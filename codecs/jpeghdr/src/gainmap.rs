@@ -11,6 +11,7 @@ use crate::markers::{self, JpegImage, APP1, APP2};
 use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::xmp::{self, Xmp};
 use crate::{icc, mpf, ratio};
+use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer};
 
 /// The luminance of the base's (SDR) white, cd/m²: ITU-R BT.2408's reference white, which
@@ -315,11 +316,22 @@ pub struct Rendering {
 /// Decodes a gain-map JPEG (or a plain JPEG, as SDR) to linear samples in the base image's
 /// primaries, 1.0 = SDR white = [`SDR_WHITE_NITS`]. Notes what it found in the metadata.
 pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrImage> {
+    let mut sink = ImageSink::new(limits);
+    decode_rows(data, limits, rendering, &mut sink)?;
+    sink.finish()
+}
+
+/// [`decode`] into `sink`, a band of rows at a time: besides the sink, the decode holds the two
+/// JPEGs' 8-bit samples and a band of output rows (JPEG-HDR files: the whole image, for now).
+pub fn decode_rows(data: &[u8], limits: &Limits, rendering: Rendering, sink: &mut dyn RowSink) -> Result<()> {
     let file = GainMapFile::parse(data)?;
     let mut info = describe(&file, data, limits)?;
     if let Ok(Some((header, ratio_jpeg))) = ratio::ratio_image(&file.primary) {
         match ratio::decode(data, &file.primary, &header, &ratio_jpeg, limits) {
-            Ok(image) => return Ok(image),
+            Ok(image) => {
+                sink.start(&ImageInfo::of(&image))?;
+                return sink.put_rows(0, image.samples());
+            }
             Err(e @ Error::LimitExceeded { .. }) => return Err(e),
             // A damaged ratio image: the base, as SDR, with a warning.
             Err(e) => {
@@ -329,18 +341,8 @@ pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrI
         }
     }
     let base = decode_jpeg(file.primary.bytes(data), limits, "primary image")?;
-    let pixels = base.width * base.height;
-    let _charge = limits.charge_image(base.width as u64, base.height as u64, Channels::Rgb)?;
-    let mut out = Vec::new();
-    out.try_reserve_exact(pixels * 3).map_err(|_| Error::limit("gain-map JPEG: output buffer"))?;
-    // The sRGB EOTF of every code, once (the base is always sRGB-encoded, ISO 21496-1 6.2).
-    let eotf: [f32; 256] = std::array::from_fn(|c| SrgbTransfer::decode(c as f64 / 255.0) as f32);
-    match &file.gain_map {
-        None => out.extend(
-            base.samples
-                .chunks_exact(base.channels)
-                .flat_map(|p| (0..3).map(|c| eotf[usize::from(p[c.min(p.len() - 1)])])),
-        ),
+    let gain = match &file.gain_map {
+        None => None,
         Some((map_image, meta, _)) => {
             let map = decode_jpeg(map_image.bytes(data), limits, "gain-map image")?;
             let weight = match rendering.headroom {
@@ -348,12 +350,36 @@ pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrI
                 Some(h) if h >= 1.0 && h.is_finite() => meta.weight(h.log2()),
                 Some(h) => return Err(Error::invalid(format!("display headroom {h} (must be at least 1)"))),
             };
-            apply_gain(&base, &map, meta, weight, &eotf, &mut out);
+            Some(GainApplier::new(&base, map, meta, weight))
         }
+    };
+    sink.start(&info)?;
+    // The sRGB EOTF of every code, once (the base is always sRGB-encoded, ISO 21496-1 6.2).
+    let eotf: [f32; 256] = std::array::from_fn(|c| SrgbTransfer::decode(c as f64 / 255.0) as f32);
+    let row_len = base.width * 3;
+    let band = band_rows(row_len, 1 << 20) as usize;
+    let mut scratch = Scratch::new(limits);
+    for y0 in (0..base.height).step_by(band) {
+        let rows = band.min(base.height - y0);
+        fill_rows(sink, y0 as u32, rows as u32, row_len, &mut scratch, |out| {
+            for (r, out_row) in out.chunks_exact_mut(row_len).enumerate() {
+                let y = y0 + r;
+                let base_row = &base.samples[y * base.width * base.channels..(y + 1) * base.width * base.channels];
+                match &gain {
+                    None => {
+                        for (o, p) in out_row.chunks_exact_mut(3).zip(base_row.chunks_exact(base.channels)) {
+                            for c in 0..3 {
+                                o[c] = eotf[usize::from(p[c.min(base.channels - 1)])];
+                            }
+                        }
+                    }
+                    Some(g) => g.row(y, base_row, base.channels, &eotf, out_row),
+                }
+            }
+            Ok(())
+        })?;
     }
-    let mut image = HdrImage::new(info.width, info.height, Channels::Rgb, out, info.color)?;
-    image.metadata = info.metadata;
-    Ok(image)
+    Ok(())
 }
 
 /// One axis of the map's bilinear upsampling: for each output coordinate, the two map
@@ -372,26 +398,47 @@ pub(crate) fn axis(out_len: usize, map_len: usize) -> Vec<(usize, usize, f32)> {
         .collect()
 }
 
-fn apply_gain(base: &Pixels, map: &Pixels, meta: &GainMapMetadata, weight: f64, eotf: &[f32; 256], out: &mut Vec<f32>) {
-    let (xs, ys) = (axis(base.width, map.width), axis(base.height, map.height));
-    let inv_gamma: [f32; 3] = std::array::from_fn(|c| (1.0 / meta.gamma[c]) as f32);
-    let lo: [f32; 3] = std::array::from_fn(|c| (weight * meta.gain_min[c]) as f32);
-    let span: [f32; 3] = std::array::from_fn(|c| (weight * (meta.gain_max[c] - meta.gain_min[c])) as f32);
-    let k_base: [f32; 3] = std::array::from_fn(|c| meta.base_offset[c] as f32);
-    let k_alt: [f32; 3] = std::array::from_fn(|c| meta.alternate_offset[c] as f32);
-    let code = |x: usize, y: usize, c: usize| {
-        f32::from(map.samples[(y * map.width + x) * map.channels + c.min(map.channels - 1)])
-    };
-    for (row, &(y0, y1, fy)) in ys.iter().enumerate() {
-        for (x, &(x0, x1, fx)) in xs.iter().enumerate() {
-            let i = row * base.width + x;
+/// The gain map, upsampled and applied a row at a time.
+struct GainApplier {
+    map: Pixels,
+    xs: Vec<(usize, usize, f32)>,
+    ys: Vec<(usize, usize, f32)>,
+    inv_gamma: [f32; 3],
+    lo: [f32; 3],
+    span: [f32; 3],
+    k_base: [f32; 3],
+    k_alt: [f32; 3],
+}
+
+impl GainApplier {
+    fn new(base: &Pixels, map: Pixels, meta: &GainMapMetadata, weight: f64) -> Self {
+        GainApplier {
+            xs: axis(base.width, map.width),
+            ys: axis(base.height, map.height),
+            map,
+            inv_gamma: std::array::from_fn(|c| (1.0 / meta.gamma[c]) as f32),
+            lo: std::array::from_fn(|c| (weight * meta.gain_min[c]) as f32),
+            span: std::array::from_fn(|c| (weight * (meta.gain_max[c] - meta.gain_min[c])) as f32),
+            k_base: std::array::from_fn(|c| meta.base_offset[c] as f32),
+            k_alt: std::array::from_fn(|c| meta.alternate_offset[c] as f32),
+        }
+    }
+
+    /// Output row `y` from the base's row (`channels` samples per pixel).
+    fn row(&self, y: usize, base_row: &[u8], channels: usize, eotf: &[f32; 256], out: &mut [f32]) {
+        let map = &self.map;
+        let code = |x: usize, y: usize, c: usize| {
+            f32::from(map.samples[(y * map.width + x) * map.channels + c.min(map.channels - 1)])
+        };
+        let (y0, y1, fy) = self.ys[y];
+        for ((o, p), &(x0, x1, fx)) in out.chunks_exact_mut(3).zip(base_row.chunks_exact(channels)).zip(&self.xs) {
             for c in 0..3 {
                 let top = code(x0, y0, c) * (1.0 - fx) + code(x1, y0, c) * fx;
                 let bottom = code(x0, y1, c) * (1.0 - fx) + code(x1, y1, c) * fx;
                 let g = (top * (1.0 - fy) + bottom * fy) / 255.0;
-                let g = if inv_gamma[c] == 1.0 { g } else { g.powf(inv_gamma[c]) };
-                let b = eotf[usize::from(base.samples[i * base.channels + if base.channels == 3 { c } else { 0 }])];
-                out.push((b + k_base[c]) * (lo[c] + span[c] * g).exp2() - k_alt[c]);
+                let g = if self.inv_gamma[c] == 1.0 { g } else { g.powf(self.inv_gamma[c]) };
+                let b = eotf[usize::from(p[c.min(channels - 1)])];
+                o[c] = (b + self.k_base[c]) * (self.lo[c] + self.span[c] * g).exp2() - self.k_alt[c];
             }
         }
     }

@@ -53,7 +53,15 @@ impl ImageCodec for GainMapJpegCodec {
     }
     /// The full HDR rendition (see [`decode`] for a display's headroom).
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
-        decode(data, &options.limits, Rendering::default())
+        hdrcodec_core::decode_image(self, data, options)
+    }
+    fn decode_rows(
+        &self,
+        data: &[u8],
+        options: &DecodeOptions,
+        sink: &mut dyn hdrcodec_core::sink::RowSink,
+    ) -> Result<()> {
+        gainmap::decode_rows(data, &options.limits, Rendering::default(), sink)
     }
     /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
     /// `map_scale`, `map_channels`.
