@@ -138,6 +138,17 @@ pub fn pfm(data: &[u8]) {
 /// Gain-map JPEG: the file's structure and metadata (MPF, XMP, ISO 21496-1, ICC), `probe`
 /// against the full HDR decode, and a decode for a display of headroom 2.
 pub fn gainmap_jpeg(data: &[u8]) {
+    // zune-jpeg 0.4 panics on some malformed streams; the codec catches those calls and
+    // returns an error, which is its contract. libfuzzer-sys's panic hook aborts on every
+    // panic, caught or not, so under the fuzzer this target keeps the default hook: a panic
+    // that leaves the codec still reaches libfuzzer-sys's own catch and aborts.
+    #[cfg(fuzzing)]
+    {
+        static HOOK: std::sync::Once = std::sync::Once::new();
+        HOOK.call_once(|| {
+            let _ = std::panic::take_hook();
+        });
+    }
     let limits = Limits::fuzzing();
     let _ = probe_and_decode(&GainMapJpegCodec, data, &limits);
     let _ = hdrcodec_jpeghdr::decode(data, &limits, Rendering { headroom: Some(2.0) });

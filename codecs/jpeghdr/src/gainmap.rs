@@ -176,8 +176,42 @@ fn jpeg_options(limits: &Limits) -> zune_jpeg::zune_core::options::DecoderOption
         .set_strict_mode(false)
 }
 
+/// Refuses frame layouts outside what cameras and encoders write (every component sampled
+/// 1 or 2 times per axis, chroma at 1×1 or at the luma's rate): `zune-jpeg` 0.4 panics on some
+/// others (a Cb component with four vertical samples, found by fuzzing).
+fn check_sampling(bytes: &[u8], what: &str) -> Result<()> {
+    let image = markers::parse_image(bytes, 0)?;
+    let Some(sof) = image.segments.iter().find(|s| matches!(s.marker, 0xC0..=0xC2)) else {
+        return Err(Error::unsupported(format!("{what}: not a baseline, extended or progressive JPEG")));
+    };
+    let p = sof.payload;
+    let n = usize::from(*p.get(5).ok_or_else(|| Error::invalid(format!("{what}: short frame header")))?);
+    let factors: Vec<(u8, u8)> = (0..n)
+        .map(|k| p.get(7 + 3 * k).map(|&f| (f >> 4, f & 15)))
+        .collect::<Option<_>>()
+        .ok_or_else(|| Error::invalid(format!("{what}: short frame header")))?;
+    let usual = factors.iter().all(|&(h, v)| (1..=2).contains(&h) && (1..=2).contains(&v))
+        && factors.iter().skip(1).all(|&f| f == (1, 1) || f == factors[0]);
+    if !usual || !(n == 1 || n == 3) {
+        return Err(Error::unsupported(format!("{what}: {n} components sampled {factors:?}")));
+    }
+    Ok(())
+}
+
+/// Runs a call into `zune-jpeg`, turning a panic into an error (the fuzz-found layouts are
+/// refused before; this is for the ones not found yet).
+fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
+        .unwrap_or_else(|_| Err(Error::invalid(format!("{what}: the JPEG decoder failed on malformed data"))))
+}
+
 /// The size and channels (1: grey, 3: colour) of one JPEG image, from its headers.
 fn jpeg_header(bytes: &[u8], limits: &Limits, what: &str) -> Result<(usize, usize, usize)> {
+    check_sampling(bytes, what)?;
+    guarded(what, || jpeg_header_unchecked(bytes, limits, what))
+}
+
+fn jpeg_header_unchecked(bytes: &[u8], limits: &Limits, what: &str) -> Result<(usize, usize, usize)> {
     use zune_jpeg::zune_core::colorspace::ColorSpace;
     let mut decoder = zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits));
     decoder.decode_headers().map_err(|e| Error::invalid(format!("{what}: {e}")))?;
@@ -209,9 +243,11 @@ pub(crate) fn decode_jpeg_as(bytes: &[u8], limits: &Limits, what: &str, ycc: boo
         (_, true) => ColorSpace::YCbCr,
         _ => ColorSpace::RGB,
     };
-    let mut decoder =
-        zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits).jpeg_set_out_colorspace(out));
-    let samples = decoder.decode().map_err(|e| Error::invalid(format!("{what}: {e}")))?;
+    let samples = guarded(what, || {
+        let mut decoder =
+            zune_jpeg::JpegDecoder::new_with_options(bytes, jpeg_options(limits).jpeg_set_out_colorspace(out));
+        decoder.decode().map_err(|e| Error::invalid(format!("{what}: {e}")))
+    })?;
     if samples.len() != width * height * channels {
         return Err(Error::invalid(format!(
             "{what}: the JPEG decoder gave {} samples for {width}x{height}",
@@ -333,9 +369,9 @@ pub fn decode_rows(data: &[u8], limits: &Limits, rendering: Rendering, sink: &mu
                 return sink.put_rows(0, image.samples());
             }
             Err(e @ Error::LimitExceeded { .. }) => return Err(e),
-            // A damaged ratio image: the base, as SDR, with a warning.
+            // Ratio pixels that do not decode (headers that do: `probe` has promised this
+            // file's colour): the base, as SDR in the file's units, with a warning.
             Err(e) => {
-                info.color = ColorInfo { nits_per_unit: SDR_WHITE_NITS, ..ColorInfo::default() };
                 info.metadata.push(("jpeg.warning".into(), format!("ratio image unusable, decoded as SDR: {e}")));
             }
         }
