@@ -121,12 +121,16 @@ pub fn convert(
     }
     // One pool for the whole command, decoding and encoding alike.
     settings.pool = ThreadPool::new(threads.unwrap_or(0))?;
-    for kv in opts {
-        settings.push_option_str(kv)?;
-    }
+    let pairs = opts.iter().map(|kv| hdrcodec::core::split_option(kv)).collect::<Result<Vec<_>>>()?;
     let data = hdrcodec::read_file(input)?;
-    let options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
+    let mut options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
     let in_codec = reg.for_input(input, &data)?;
+    // The keys IN's decoder knows are its own (a gain-map JPEG's `headroom`); the encoder
+    // checks the rest.
+    let (decode, encode): (Vec<_>, Vec<_>) =
+        pairs.into_iter().partition(|(k, _)| in_codec.decode_option_keys().contains(&k.as_str()));
+    options.options = decode;
+    settings.options = encode;
     // Band by band when the output format allows it: neither the decoded image nor the encoded
     // file is held whole.
     let notes = hdrcodec::convert_file(in_codec.as_ref(), &data, &options, out_codec.as_ref(), &settings, output)?;
@@ -250,8 +254,9 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         println!("metadata:      none");
     }
     for (k, v) in &metadata {
-        let short: String = v.chars().take(60).collect();
-        let more = if v.chars().count() > 60 { "..." } else { "" };
+        // Long values (XMP packets) are cut; a codec's one-line descriptions fit.
+        let short: String = v.chars().take(140).collect();
+        let more = if v.chars().count() > 140 { "..." } else { "" };
         println!("metadata:      {k} = {}{more}", short.replace(['\n', '\r'], " "));
     }
     Ok(())
@@ -407,7 +412,10 @@ pub fn codecs(json: bool) -> Result<()> {
         .codecs()
         .iter()
         .map(|c| {
-            json!({"name": c.name(), "extensions": c.extensions(), "id": String::from_utf8_lossy(&c.id()), "encodes": c.can_encode()})
+            json!({
+                "name": c.name(), "extensions": c.extensions(), "id": String::from_utf8_lossy(&c.id()),
+                "encodes": c.can_encode(), "decode_options": c.decode_option_keys(),
+            })
         })
         .collect();
     if json {
@@ -415,7 +423,14 @@ pub fn codecs(json: bool) -> Result<()> {
     }
     for c in reg.codecs() {
         let only = if c.can_encode() { "" } else { "  (decodes only)" };
-        println!("{:<10} {:<6} .{}{only}", c.name(), String::from_utf8_lossy(&c.id()), c.extensions().join(" ."));
+        let keys = c.decode_option_keys();
+        let decode = if keys.is_empty() { String::new() } else { format!("  (decode options: {})", keys.join(", ")) };
+        println!(
+            "{:<10} {:<6} .{}{only}{decode}",
+            c.name(),
+            String::from_utf8_lossy(&c.id()),
+            c.extensions().join(" .")
+        );
     }
     Ok(())
 }

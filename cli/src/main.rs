@@ -92,6 +92,8 @@ struct ConvertArgs {
     /// Codec-specific option key=value (repeatable). JPEG XR: format=half|float|rgbe|fixed|half4|
     /// rgb8|rgb16|rgb101010 (the stored pixel format), transfer=srgb|pq|linear (integer formats),
     /// lossless, overlap, tile, adaptive, alpha_quality, target_bpp (see codecs/jxr/README.md).
+    /// Keys IN's decoder knows go to the decoder: a gain-map JPEG's headroom=H renders for a
+    /// display whose HDR white is H times its SDR white (`hdrcodec codecs` lists each codec's).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
 }

@@ -571,3 +571,31 @@ fn convert_to_a_format_without_primaries_keeps_the_samples() {
     // Unknown primaries are an error naming the known ones.
     must_fail(&[&"convert", &src, &dir.join("x.pfm"), &"--opt", &"primaries=bt999"], &dir, "unknown primaries");
 }
+
+#[test]
+fn convert_renders_a_gain_map_jpeg_for_a_display_headroom() {
+    let Some(corpus) = common::require(common::corpus_dir(), "the shared corpus") else { return };
+    let input = corpus.join("jpeg/moonless_golf_1k.ultrahdr.jpg");
+    let dir = common::temp_dir("cli-headroom");
+    let codecs = json(&hdrcodec(&[&"codecs", &"--json"]));
+    let ultrahdr = codecs["codecs"].as_array().unwrap().iter().find(|c| c["name"] == "ultrahdr").unwrap();
+    assert_eq!(ultrahdr["decode_options"], serde_json::json!(["headroom"]));
+    // The largest sample of each rendition: full HDR, a display with 2x headroom, an SDR one.
+    let peak = |args: &[&str]| {
+        let out = dir.join(format!("out{}.exr", args.len()));
+        let mut all: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"convert", &input, &out];
+        all.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
+        ok(&hdrcodec(&all));
+        decode(&out).samples().iter().fold(0f32, |m, &v| m.max(v))
+    };
+    let full = peak(&[]);
+    let two = peak(&["--opt", "headroom=2"]);
+    let sdr = peak(&["--opt", "headroom=1", "--opt", "compression=zip"]);
+    // The file's HDR capacity is 13.4 stops: full HDR goes far above 2x SDR white.
+    assert!(full > 8.0, "full HDR peak {full}");
+    // (SDR white + the file's offset of 1/64) x 2 - 1/64 = 2.015625 at most.
+    assert!(two > 1.5 && two <= 2.0157, "peak {two} for a display of headroom 2");
+    assert!(sdr <= 1.0 * 1.001, "peak {sdr} for an SDR display");
+    must_fail(&[&"convert", &input, &dir.join("bad.exr"), &"--opt", &"headroom=0.5"], &dir, "at least 1");
+    must_fail(&[&"convert", &input, &dir.join("bad.exr"), &"--opt", &"headroom=x"], &dir, "headroom=x");
+}

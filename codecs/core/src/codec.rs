@@ -36,6 +36,11 @@ pub trait ImageCodec: Send + Sync {
     fn can_encode(&self) -> bool {
         true
     }
+    /// The `key=value` options its decoder understands (see [`DecodeOptions::options`]), for
+    /// tools that split one list of options between a decoder and an encoder. Default: none.
+    fn decode_option_keys(&self) -> &'static [&'static str] {
+        &[]
+    }
     /// Size, channels and colour of an encoded image, read from its header without decoding
     /// the pixels (for `info` and for planning the memory of a batch). Never panics.
     ///
@@ -264,7 +269,10 @@ impl ColorSignalling {
     }
 }
 
-/// What a decoder is given besides the data: the caller's [`Limits`] and threads.
+/// What a decoder is given besides the data: the caller's [`Limits`] and threads, and
+/// codec-specific `key=value` options that the codec parses itself (a gain-map JPEG's display
+/// `headroom`); a codec ignores options it does not know, since one list may serve the decoders
+/// of several formats ([`ImageCodec::decode_option_keys`] names each codec's).
 #[derive(Clone, Debug, Default, PartialEq)]
 #[non_exhaustive]
 pub struct DecodeOptions {
@@ -272,18 +280,37 @@ pub struct DecodeOptions {
     pub limits: Limits,
     /// Worker threads the decoder may use (default: the calling thread only).
     pub pool: ThreadPool,
+    /// Codec-specific options in the order given.
+    pub options: Vec<(String, String)>,
 }
 
 impl DecodeOptions {
     /// These limits, on the calling thread.
     pub fn new(limits: Limits) -> Self {
-        DecodeOptions { limits, pool: ThreadPool::single() }
+        DecodeOptions { limits, pool: ThreadPool::single(), options: Vec::new() }
     }
 
     /// The same options with the threads of `pool`.
     pub fn with_pool(mut self, pool: ThreadPool) -> Self {
         self.pool = pool;
         self
+    }
+
+    /// Adds a codec-specific option.
+    pub fn with_option(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {
+        self.options.push((key.into(), value.into()));
+        self
+    }
+
+    /// The last value given for `key`, if any.
+    pub fn option(&self, key: &str) -> Option<&str> {
+        options::last(&self.options, key)
+    }
+
+    /// The value of `key` parsed as `T` (the last one given), with a clear error if it does
+    /// not parse.
+    pub fn parse_option<T: FromStr>(&self, key: &str) -> Result<Option<T>> {
+        options::parse(&self.options, key)
     }
 }
 
@@ -479,9 +506,7 @@ impl EncodeSettings {
 
     /// Parses `key=value` as given on a command line.
     pub fn push_option_str(&mut self, kv: &str) -> Result<()> {
-        let (k, v) =
-            kv.split_once('=').ok_or_else(|| Error::invalid(format!("option '{kv}' is not of the form key=value")))?;
-        self.options.push((k.trim().to_string(), v.trim().to_string()));
+        self.options.push(split_option(kv)?);
         Ok(())
     }
 
@@ -498,17 +523,12 @@ impl EncodeSettings {
 
     /// The last value given for `key`, if any.
     pub fn option(&self, key: &str) -> Option<&str> {
-        self.options.iter().rev().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+        options::last(&self.options, key)
     }
 
     /// The value of `key` parsed as `T`, with a clear error if it does not parse.
     pub fn parse_option<T: FromStr>(&self, key: &str) -> Result<Option<T>> {
-        match self.option(key) {
-            None => Ok(None),
-            Some(v) => {
-                v.parse().map(Some).map_err(|_| Error::invalid(format!("option {key}={v}: cannot parse the value")))
-            }
-        }
+        options::parse(&self.options, key)
     }
 
     /// A boolean option: `true/false`, `yes/no`, `on/off`, `1/0`.
@@ -520,6 +540,35 @@ impl EncodeSettings {
                 "false" | "no" | "off" | "0" => Ok(Some(false)),
                 _ => Err(Error::invalid(format!("option {key}={v}: expected true or false"))),
             },
+        }
+    }
+}
+
+/// Splits `key=value` as given on a command line (both sides trimmed).
+pub fn split_option(kv: &str) -> Result<(String, String)> {
+    let (k, v) =
+        kv.split_once('=').ok_or_else(|| Error::invalid(format!("option '{kv}' is not of the form key=value")))?;
+    Ok((k.trim().to_string(), v.trim().to_string()))
+}
+
+/// Lookups over a list of `key=value` options, shared by [`EncodeSettings`] and
+/// [`DecodeOptions`].
+mod options {
+    use crate::{Error, Result};
+    use std::str::FromStr;
+
+    /// The last value given for `key`, if any.
+    pub(super) fn last<'a>(options: &'a [(String, String)], key: &str) -> Option<&'a str> {
+        options.iter().rev().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    /// The last value of `key` parsed as `T`.
+    pub(super) fn parse<T: FromStr>(options: &[(String, String)], key: &str) -> Result<Option<T>> {
+        match last(options, key) {
+            None => Ok(None),
+            Some(v) => {
+                v.parse().map(Some).map_err(|_| Error::invalid(format!("option {key}={v}: cannot parse the value")))
+            }
         }
     }
 }

@@ -12,7 +12,9 @@ use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::xmp::{self, Xmp};
 use crate::{icc, mpf, ratio};
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer,
+};
 
 /// The luminance of the base's (SDR) white, cd/m²: ITU-R BT.2408's reference white, which
 /// libultrahdr and the Ultra HDR format use when they give gain-map output absolute units.
@@ -300,6 +302,9 @@ fn describe(file: &GainMapFile<'_>, data: &[u8], limits: &Limits) -> Result<Imag
         Some((map, meta, flavour)) => {
             let (w, h, c) = jpeg_header(map.bytes(data), limits, "gain-map image")?;
             metadata.push(("jpeg.gain_map".into(), format!("{} ({w}x{h}, {c} channel(s))", flavour.name())));
+            let (headroom, gain) = meta.describe();
+            metadata.push(("jpeg.headroom".into(), headroom));
+            metadata.push(("jpeg.gain_range".into(), gain));
             if !meta.use_base_colour_space {
                 metadata.push((
                     "jpeg.colour_note".into(),
@@ -347,6 +352,27 @@ pub struct Rendering {
     /// The display's headroom (linear ratio of HDR white to SDR white, ≥ 1); `None` for the
     /// full HDR rendition the file describes.
     pub headroom: Option<f64>,
+}
+
+impl Rendering {
+    /// The decode option that sets [`Rendering::headroom`] (`--opt headroom=2.0`).
+    pub const OPTION_KEYS: &'static [&'static str] = &["headroom"];
+
+    /// The rendering asked for in a decoder's options: `headroom=H`, a linear ratio ≥ 1, or
+    /// `headroom=full` (the default).
+    pub fn from_options(options: &DecodeOptions) -> Result<Self> {
+        match options.option("headroom") {
+            None | Some("full") => Ok(Rendering::default()),
+            Some(_) => {
+                let h: f64 = options.parse_option("headroom")?.unwrap_or(1.0);
+                if h >= 1.0 && h.is_finite() {
+                    Ok(Rendering { headroom: Some(h) })
+                } else {
+                    Err(Error::invalid(format!("option headroom={h}: the display headroom must be at least 1")))
+                }
+            }
+        }
+    }
 }
 
 /// Decodes a gain-map JPEG (or a plain JPEG, as SDR) to linear samples in the base image's

@@ -43,6 +43,11 @@ impl ImageCodec for GainMapJpegCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.starts_with(&[0xFF, 0xD8, 0xFF])
     }
+    /// `headroom=H`: render for a display whose HDR white is `H` times its SDR white
+    /// ([`Rendering`]); the full HDR rendition by default.
+    fn decode_option_keys(&self) -> &'static [&'static str] {
+        Rendering::OPTION_KEYS
+    }
     /// The base image's ICC profile: sRGB or Display P3, the spaces gain-map writers use.
     fn color_signalling(&self) -> ColorSignalling {
         ColorSignalling::Only(&[ColorPrimaries::Bt709, ColorPrimaries::DisplayP3])
@@ -61,7 +66,7 @@ impl ImageCodec for GainMapJpegCodec {
         options: &DecodeOptions,
         sink: &mut dyn hdrcodec_core::sink::RowSink,
     ) -> Result<()> {
-        gainmap::decode_rows(data, &options.limits, Rendering::default(), sink)
+        gainmap::decode_rows(data, &options.limits, Rendering::from_options(options)?, sink)
     }
     /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
     /// `map_scale`, `map_channels`.

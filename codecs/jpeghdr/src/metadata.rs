@@ -63,6 +63,32 @@ impl GainMapMetadata {
         }
     }
 
+    /// The headrooms and ranges in words, for `hdrcodec info`: (headroom, gain) lines.
+    pub fn describe(&self) -> (String, String) {
+        let stops = |s: f64| format!("{s:.3} stops (x{:.2})", s.exp2());
+        let headroom = match (self.base_headroom, self.alternate_headroom) {
+            (0.0, alt) => format!("HDR rendition {} above an SDR base", stops(alt)),
+            (base, alt) => format!("base {}, alternate rendition {}", stops(base), stops(alt)),
+        };
+        // One value when the channels agree, else R/G/B.
+        let per_channel = |v: &[f64; 3]| {
+            if v.iter().all(|&x| x == v[0]) {
+                format!("{:.4}", v[0])
+            } else {
+                v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join("/")
+            }
+        };
+        let gain = format!(
+            "log2 gain {} to {}, gamma {}, offsets {} (base) {} (alternate)",
+            per_channel(&self.gain_min),
+            per_channel(&self.gain_max),
+            per_channel(&self.gamma),
+            per_channel(&self.base_offset),
+            per_channel(&self.alternate_offset)
+        );
+        (headroom, gain)
+    }
+
     pub(crate) fn check(&self) -> Result<()> {
         let finite = [self.base_headroom, self.alternate_headroom]
             .iter()
@@ -238,6 +264,17 @@ fn fraction(n: f64, d: u32) -> Result<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn describe_names_headrooms_and_per_channel_ranges() {
+        let (headroom, gain) = sample(false).describe();
+        assert_eq!(headroom, "HDR rendition 2.500 stops (x5.66) above an SDR base");
+        assert_eq!(gain, "log2 gain -0.2500 to 2.5000, gamma 1.0000, offsets 0.0156 (base) 0.0156 (alternate)");
+        let (_, gain) = sample(true).describe();
+        assert!(gain.starts_with("log2 gain -0.2500/-0.5000/-0.2500 to 2.5000/2.0000/2.5000,"), "{gain}");
+        let hdr_base = GainMapMetadata { base_headroom: 3.0, alternate_headroom: 0.0, ..sample(false) };
+        assert_eq!(hdr_base.describe().0, "base 3.000 stops (x8.00), alternate rendition 0.000 stops (x1.00)");
+    }
 
     fn sample(multichannel: bool) -> GainMapMetadata {
         GainMapMetadata {
