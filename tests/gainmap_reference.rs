@@ -160,18 +160,42 @@ fn adobe_and_apple_gain_maps_follow_the_formula() {
     let apple = format!(
         r#"{{"min": [0, 0, 0], "max": [{stops}, {stops}, {stops}], "gamma": [1, 1, 1], "k_base": [0, 0, 0], "k_alt": [0, 0, 0], "weight": 1}}"#
     );
-    for (name, headroom, meta) in [
-        ("seine_sdr_gainmap_srgb.jpg", None, seine(1.0)),
-        ("seine_sdr_gainmap_srgb.jpg", Some(2.0), seine(1.0 / 1.3)),
-        ("apple_gainmap_new.jpg", None, apple),
+    // An older Apple file has no HDRGainMapHeadroom in its XMP: the same photograph with the
+    // element renamed (same length) must take the headroom from the EXIF maker note, where
+    // tag 33 = 82317/54194 (>= 1) and tag 48 = 0 give 3 stops by Apple's formula.
+    let maker_note = r#"{"min": [0, 0, 0], "max": [3, 3, 3], "gamma": [1, 1, 1], "k_base": [0, 0, 0], "k_alt": [0, 0, 0], "weight": 1}"#;
+    let Some(apple_path) = corpus_jpeg("apple_gainmap_new.jpg") else { return };
+    let mut old_apple = std::fs::read(&apple_path).unwrap();
+    let renamed = rename_all(&mut old_apple, b"HDRGainMapHeadroom", b"HDRGainMapHeadroOm");
+    assert_eq!(renamed, 2, "the opening and closing tags");
+    let old_apple_path = temp_dir("gainmap-apple").join("apple_maker_note_only.jpg");
+    std::fs::write(&old_apple_path, &old_apple).unwrap();
+    for (name, path, headroom, meta) in [
+        ("seine", corpus_jpeg("seine_sdr_gainmap_srgb.jpg"), None, seine(1.0)),
+        ("seine", corpus_jpeg("seine_sdr_gainmap_srgb.jpg"), Some(2.0), seine(1.0 / 1.3)),
+        ("apple", Some(apple_path), None, apple),
+        ("apple, maker note", Some(old_apple_path), None, maker_note.to_string()),
     ] {
-        let Some(path) = corpus_jpeg(name) else { return };
+        let Some(path) = path else { return };
         let data = std::fs::read(&path).unwrap();
         let ours = decode(&data, &Limits::default(), Rendering { headroom }).unwrap();
         let (median, p99, pu21) = compare(&ours, reference(&py, &path, "formula", Some(&meta)), None);
         eprintln!("{name} headroom {headroom:?}: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
         assert!(median <= 0.002 && p99 <= 0.06 && pu21 >= 58.0, "{name}: {median} {p99} {pu21}");
     }
+}
+
+/// Replaces every `from` in `data` by `to` (of the same length); returns how many.
+fn rename_all(data: &mut [u8], from: &[u8], to: &[u8]) -> usize {
+    assert_eq!(from.len(), to.len());
+    let mut n = 0;
+    let mut i = 0;
+    while let Some(at) = data[i..].windows(from.len()).position(|w| w == from) {
+        data[i + at..i + at + to.len()].copy_from_slice(to);
+        i += at + to.len();
+        n += 1;
+    }
+    n
 }
 
 /// A 512x384 crop of a corpus photograph (our EXR decode), 1.0 = 203 cd/m².
@@ -239,10 +263,15 @@ open(sys.argv[2], 'wb').write(imagecodecs.ultrahdr_encode(rgba, level=90))
 }
 
 #[test]
-fn our_base_opens_in_openimageio_with_its_icc_profile() {
+fn our_base_opens_in_openimageio_with_its_icc_profile_and_exif() {
     let Some(oiiotool) = require(common::tool("oiiotool"), "OpenImageIO's oiiotool") else { return };
     let Some(mut image) = corpus_crop("GoldenGate.exr") else { return };
     image.color.primaries = hdrcodec::core::ColorPrimaries::DisplayP3;
+    // The EXIF of an iPhone photograph, as our decoder keeps it, travels into our base.
+    let Some(apple) = corpus_jpeg("apple_gainmap_new.jpg") else { return };
+    let apple = decode(&std::fs::read(apple).unwrap(), &Limits::default(), Rendering::default()).unwrap();
+    let exif = apple.metadata_value("exif").expect("the decoder keeps EXIF").to_string();
+    image.metadata.push(("exif".into(), exif));
     let (file, _) = hdrcodec::jpeghdr::encode(&image, &Default::default()).unwrap();
     let path = temp_dir("gainmap-oiio").join("p3.jpg");
     std::fs::write(&path, &file).unwrap();
@@ -251,6 +280,7 @@ fn our_base_opens_in_openimageio_with_its_icc_profile() {
     assert!(info.contains("384, 3 channel, uint8 jpeg"), "{info}");
     assert!(info.contains("ICCProfile:profile_description: \"Display P3\""), "{info}");
     assert!(info.contains("ICCProfile:profile_version: \"4.3.0\""), "{info}");
+    assert!(info.contains("Make: \"Apple\""), "{info}");
 }
 
 /// JPEG-HDR files the format's author's library wrote, against that library's own decode

@@ -254,6 +254,11 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         println!("metadata:      none");
     }
     for (k, v) in &metadata {
+        if k == "exif" {
+            // Binary metadata travels as hexadecimal (see hdrcodec_jpeghdr::exif).
+            println!("metadata:      exif = {} bytes", v.len() / 2);
+            continue;
+        }
         // Long values (XMP packets) are cut; a codec's one-line descriptions fit.
         let short: String = v.chars().take(140).collect();
         let more = if v.chars().count() > 140 { "..." } else { "" };

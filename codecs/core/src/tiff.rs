@@ -277,6 +277,13 @@ impl<'a> Tiff<'a> {
         Ok(Tiff { data, order, magic, first_ifd })
     }
 
+    /// A region laid out as TIFF but without the image file header, in byte order `order`,
+    /// whose offsets count from its own start: an EXIF maker note such as Apple's (its IFD
+    /// offset is the caller's to know; [`first_ifd_offset`](Self::first_ifd_offset) is 0).
+    pub fn without_header(data: &'a [u8], order: ByteOrder) -> Self {
+        Tiff { data, order, magic: 0, first_ifd: 0 }
+    }
+
     /// The whole file.
     pub fn data(&self) -> &'a [u8] {
         self.data
@@ -584,6 +591,26 @@ impl Entry {
         }
     }
 
+    /// The first value of a RATIONAL, SRATIONAL, FLOAT or DOUBLE entry as an `f64`; an error if
+    /// it has none or a rational's denominator is 0.
+    pub fn first_real(&self, tiff: &Tiff) -> Result<f64> {
+        use FieldType::*;
+        let mut r = self.values(tiff, &[Rational, SRational, Float, Double])?;
+        if self.count == 0 {
+            return Err(Error::invalid(format!("TIFF tag {} has no value", self.tag)));
+        }
+        let (num, den) = match self.field_type() {
+            Some(Rational) => (f64::from(r.u32("")?), f64::from(r.u32("")?)),
+            Some(SRational) => (f64::from(r.i32("")?), f64::from(r.i32("")?)),
+            Some(Double) => return r.f64(""),
+            _ => return r.f32("").map(f64::from),
+        };
+        if den == 0.0 {
+            return Err(Error::invalid(format!("TIFF tag {}: a rational with denominator 0", self.tag)));
+        }
+        Ok(num / den)
+    }
+
     /// The first string of an ASCII entry: the bytes up to the first NUL (or all of them if the
     /// writer forgot the NUL Section 2 requires), non-ASCII bytes replaced by U+FFFD.
     pub fn ascii(&self, tiff: &Tiff, limits: &Limits) -> Result<String> {
@@ -847,6 +874,34 @@ mod tests {
         b.long(tag::NEW_SUBFILE_TYPE, 1);
         b.write(&mut w, next).unwrap();
         w.into_vec()
+    }
+
+    #[test]
+    fn reals_of_a_headerless_region() {
+        // A maker-note-like region: a prefix, then an IFD whose offsets count from the start.
+        let mut w = ByteWriter::new(ByteOrder::Big);
+        w.bytes(b"Maker\0");
+        let ifd_at = w.len() as u32;
+        w.u16(4);
+        for (tag, typ, at) in [(33u16, 10u16, 60u32), (48, 5, 68), (50, 11, 0), (51, 10, 76)] {
+            w.u16(tag);
+            w.u16(typ);
+            w.u32(1);
+            w.u32(if typ == 11 { 0.25f32.to_bits() } else { at });
+        }
+        w.u32(0);
+        w.zeros(60 - w.len());
+        for v in [-3i32, 2, 1, 4, 7, 0] {
+            w.i32(v);
+        }
+        let data = w.into_vec();
+        let tiff = Tiff::without_header(&data, ByteOrder::Big);
+        let ifd = tiff.read_ifd(u64::from(ifd_at)).unwrap();
+        let real = |tag| ifd.get(tag).unwrap().first_real(&tiff);
+        assert_eq!(real(33).unwrap(), -1.5);
+        assert_eq!(real(48).unwrap(), 0.25);
+        assert_eq!(real(50).unwrap(), 0.25);
+        assert!(real(51).unwrap_err().to_string().contains("denominator 0"));
     }
 
     #[test]

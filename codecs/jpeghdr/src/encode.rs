@@ -12,7 +12,7 @@
 use crate::gainmap::SDR_WHITE_NITS;
 use crate::markers::{self, APP1, APP2};
 use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
-use crate::{icc, mpf, xmp};
+use crate::{exif, icc, mpf, xmp};
 use hdrcodec_core::color::{convert_primaries, luminance_weights};
 use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Result, SrgbTransfer};
 
@@ -189,7 +189,16 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
         ));
     }
     let map_jpeg = gain_map_image(&map_codes, mw, mh, map_channels, options.map_quality, &meta)?;
-    let file = primary_image(&base, w, h, options.base_quality, profile.as_deref(), &map_jpeg)?;
+    // EXIF that came with the image (a gain-map JPEG decoded by us keeps it) goes back into the
+    // base; a block that is not hexadecimal or too long for one segment is left out, and said.
+    let exif_block = image.metadata_value(exif::METADATA_KEY).and_then(|hex| {
+        let block = exif::from_hex(hex).filter(|b| b.len() <= exif::MAX_BLOCK);
+        if block.is_none() {
+            report.note("the image's EXIF metadata was not written (not hexadecimal, or over 64 KB)");
+        }
+        block
+    });
+    let file = primary_image(&base, w, h, options.base_quality, profile.as_deref(), exif_block.as_deref(), &map_jpeg)?;
     Ok((file, report))
 }
 
@@ -340,7 +349,15 @@ fn gain_map_image(
 
 /// The primary image with the gain map appended: XMP (hdrgm version and GContainer with the
 /// map's length), the ISO version record and an MPF index, patched once the sizes are known.
-fn primary_image(base: &[u8], w: usize, h: usize, quality: u8, profile: Option<&[u8]>, map: &[u8]) -> Result<Vec<u8>> {
+fn primary_image(
+    base: &[u8],
+    w: usize,
+    h: usize,
+    quality: u8,
+    profile: Option<&[u8]>,
+    exif_block: Option<&[u8]>,
+    map: &[u8],
+) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
     encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
@@ -350,6 +367,9 @@ fn primary_image(base: &[u8], w: usize, h: usize, quality: u8, profile: Option<&
     let app = |e: &mut jpeg_encoder::Encoder<&mut Vec<u8>>, n: u8, sig: &[u8], body: &[u8]| {
         e.add_app_segment(n, &[sig, body].concat()).map_err(|e| jpeg_error("base image", e))
     };
+    if let Some(block) = exif_block {
+        app(&mut encoder, 1, exif::SIGNATURE, block)?;
+    }
     app(&mut encoder, 1, xmp::SIGNATURE, container_xmp(map.len()).as_bytes())?;
     app(&mut encoder, 2, ISO_SIGNATURE, &GainMapMetadata::iso_version_record())?;
     // A placeholder of the final size; the offsets are patched below.
@@ -437,6 +457,33 @@ mod tests {
             }
         }
         HdrImage::new(w, h, Channels::Rgb, s, ColorInfo { nits_per_unit: 100.0, ..ColorInfo::default() }).unwrap()
+    }
+
+    #[test]
+    fn exif_travels_through_encode_and_decode() {
+        use hdrcodec_core::bytes::{ByteOrder, ByteWriter};
+        use hdrcodec_core::tiff::{tag, write_header, IfdWriter, MAGIC_TIFF};
+        let mut w = ByteWriter::new(ByteOrder::Little);
+        let link = write_header(&mut w, MAGIC_TIFF);
+        let mut ifd = IfdWriter::new();
+        ifd.ascii(tag::MAKE, "hdrcodec");
+        ifd.short(tag::ORIENTATION, 6);
+        ifd.write(&mut w, link).unwrap();
+        let block = w.into_vec();
+        let mut image = scene();
+        image.metadata.push((exif::METADATA_KEY.into(), exif::to_hex(&block)));
+        let (file, report) = encode(&image, &GainMapEncodeOptions::default()).unwrap();
+        assert!(report.notes.iter().all(|n| !n.contains("EXIF")), "{:?}", report.notes);
+        let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+        assert_eq!(back.metadata_value(exif::METADATA_KEY), Some(exif::to_hex(&block).as_str()));
+        assert!(back.metadata_value("jpeg.orientation_note").unwrap().contains("orientation 6"));
+        // Not hexadecimal: left out, and said.
+        image.metadata.retain(|(k, _)| k != exif::METADATA_KEY);
+        image.metadata.push((exif::METADATA_KEY.into(), "not hex".into()));
+        let (file, report) = encode(&image, &GainMapEncodeOptions::default()).unwrap();
+        assert!(report.notes.iter().any(|n| n.contains("EXIF")), "{:?}", report.notes);
+        let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+        assert_eq!(back.metadata_value(exif::METADATA_KEY), None);
     }
 
     #[test]

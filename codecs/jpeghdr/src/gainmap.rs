@@ -10,7 +10,7 @@
 use crate::markers::{self, JpegImage, APP1, APP2};
 use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::xmp::{self, Xmp};
-use crate::{icc, mpf, ratio};
+use crate::{exif, icc, mpf, ratio};
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer,
@@ -108,7 +108,7 @@ fn find_gain_map<'a>(
         }
         seen.push(start);
         let Ok(image) = markers::parse_image(data, start) else { continue };
-        match metadata_of(&image) {
+        match metadata_of(&image, primary) {
             Ok(Some((meta, flavour))) => return Ok(Some((image, meta, flavour))),
             Ok(None) => {}
             Err(e) => {
@@ -127,7 +127,7 @@ fn find_gain_map<'a>(
 
 /// The gain-map metadata an image carries, if it is a gain map: its ISO 21496-1 record first
 /// (what libultrahdr and Skia prefer), else its hdrgm XMP, else Apple's.
-fn metadata_of(image: &JpegImage<'_>) -> Result<Option<(GainMapMetadata, Flavour)>> {
+fn metadata_of(image: &JpegImage<'_>, primary: &JpegImage<'_>) -> Result<Option<(GainMapMetadata, Flavour)>> {
     if let Some((_, record)) = image.app_payload(APP2, ISO_SIGNATURE) {
         if let Some(m) = GainMapMetadata::from_iso(record)? {
             return Ok(Some((m, Flavour::Iso21496)));
@@ -138,15 +138,17 @@ fn metadata_of(image: &JpegImage<'_>) -> Result<Option<(GainMapMetadata, Flavour
         return Ok(Some((m, Flavour::AdobeXmp)));
     }
     if x.is_apple_gain_map() {
-        let headroom = x.apple_headroom()?.ok_or_else(|| {
-            Error::unsupported("Apple HDR gain map without HDRGainMapHeadroom (its headroom is in the maker note)")
-        })?;
-        if !(headroom >= 1.0 && headroom.is_finite()) {
-            return Err(Error::invalid(format!("Apple HDRGainMapHeadroom {headroom}")));
-        }
-        // Read as a linear ratio (Skia, libavif); mapped to ISO terms as libavif does: a
-        // log-domain gain from 0 to log2(headroom), gamma 1, no offsets.
-        let stops = headroom.log2();
+        // The XMP's HDRGainMapHeadroom, read as a linear ratio (Skia, libavif), else (older
+        // files) the headroom in stops from the primary's EXIF maker note, as Apple documents.
+        let stops = match x.apple_headroom()? {
+            Some(headroom) if headroom >= 1.0 && headroom.is_finite() => headroom.log2(),
+            Some(headroom) => return Err(Error::invalid(format!("Apple HDRGainMapHeadroom {headroom}"))),
+            None => exif::apple_headroom_stops(primary)?.ok_or_else(|| {
+                Error::invalid("Apple HDR gain map without a headroom (neither in its XMP nor in a maker note)")
+            })?,
+        };
+        // Mapped to ISO terms as libavif does: a log-domain gain from 0 to `stops`, gamma 1,
+        // no offsets.
         let m = GainMapMetadata {
             base_headroom: 0.0,
             alternate_headroom: stops,
@@ -298,6 +300,17 @@ fn describe(file: &GainMapFile<'_>, data: &[u8], limits: &Limits) -> Result<Imag
         }
     }
     let (primaries, mut metadata) = primaries_of(&file.primary);
+    if let Some(block) = exif::exif_block(&file.primary) {
+        // Kept for an encoder to write back. The samples are as stored: a rotation EXIF asks
+        // for is not applied (the gain map shares the base's orientation, so both agree).
+        metadata.push((exif::METADATA_KEY.into(), exif::to_hex(block)));
+        if let Some(o @ 2..) = exif::orientation(block) {
+            metadata.push((
+                "jpeg.orientation_note".into(),
+                format!("EXIF orientation {o}: the samples are as stored, not rotated or mirrored"),
+            ));
+        }
+    }
     match &file.gain_map {
         Some((map, meta, flavour)) => {
             let (w, h, c) = jpeg_header(map.bytes(data), limits, "gain-map image")?;

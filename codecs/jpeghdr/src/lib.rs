@@ -10,6 +10,7 @@
 //! and GContainer. Ward & Simmons' ratio-image JPEG-HDR is not written yet.
 
 pub mod encode;
+pub mod exif;
 pub mod gainmap;
 pub mod icc;
 pub mod markers;
