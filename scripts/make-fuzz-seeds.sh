@@ -25,8 +25,12 @@ seed container hdrc
 seed rgbe hdr
 seed logluv tif --codec logluv32
 seed bc6h_files dds --effort 0
-# JPEG XR: no encoder yet; the crate's small test streams (JxrEncApp and T.835 wrote them).
-mkdir -p "$out/jxr" && cp codecs/jxr/testdata/*.jxr "$out/jxr/"
-# Gain-map JPEG: no encoder yet; a small file libultrahdr wrote.
-mkdir -p "$out/gainmap_jpeg" && cp codecs/jpeghdr/testdata/*.jpg "$out/gainmap_jpeg/"
+# JPEG XR: our encoder's files (one tiled, one lossless) and the crate's test streams, which
+# JxrEncApp and T.835 wrote (other writers, other choices).
+seed jxr q60.jxr --quality 60 --opt tile=64
+seed jxr lossless.jxr --opt lossless=true
+cp codecs/jxr/testdata/*.jxr "$out/jxr/"
+# Gain-map JPEG: our encoder's files and a small file libultrahdr wrote.
+seed gainmap_jpeg jpg --quality 70 --opt map_scale=4
+cp codecs/jpeghdr/testdata/*.jpg "$out/gainmap_jpeg/"
 echo "seeds: $(find "$out" -type f | wc -l) files in $out" >&2
