@@ -16,6 +16,7 @@ pub mod markers;
 pub mod metadata;
 pub mod mpf;
 pub mod ratio;
+pub mod ratio_encode;
 pub mod xmp;
 
 use hdrcodec_core::{
@@ -25,6 +26,16 @@ use hdrcodec_core::{
 pub use encode::{encode, GainMapEncodeOptions};
 pub use gainmap::{decode, probe, Flavour, GainMapFile, Rendering};
 pub use metadata::GainMapMetadata;
+pub use ratio_encode::{encode_jpeg_hdr, RatioEncodeOptions};
+
+/// The file extensions of both JPEG codecs.
+const JPEG_EXTENSIONS: &[&str] = &["jpg", "jpeg"];
+
+/// Writes an encoder's file to `out` and passes its report on.
+fn write_encoded((file, report): (Vec<u8>, EncodeReport), out: &mut dyn std::io::Write) -> Result<EncodeReport> {
+    out.write_all(&file)?;
+    Ok(report)
+}
 
 /// The gain-map JPEG codec: `.jpg` files with or without a gain map.
 #[derive(Clone, Copy, Debug, Default)]
@@ -38,7 +49,7 @@ impl ImageCodec for GainMapJpegCodec {
         *b"UHDR"
     }
     fn extensions(&self) -> &'static [&'static str] {
-        &["jpg", "jpeg"]
+        JPEG_EXTENSIONS
     }
     fn sniff(&self, head: &[u8]) -> bool {
         head.starts_with(&[0xFF, 0xD8, 0xFF])
@@ -71,8 +82,51 @@ impl ImageCodec for GainMapJpegCodec {
         settings: &EncodeSettings,
         out: &mut dyn std::io::Write,
     ) -> Result<EncodeReport> {
-        let (file, report) = encode(image, &GainMapEncodeOptions::from_settings(settings)?)?;
-        out.write_all(&file)?;
-        Ok(report)
+        write_encoded(encode(image, &GainMapEncodeOptions::from_settings(settings)?)?, out)
+    }
+}
+
+/// Ward & Simmons' JPEG-HDR, for writing (`--codec jpeg-hdr`; see [`encode_jpeg_hdr`]). Reading
+/// any `.jpg`, JPEG-HDR included, is the [`GainMapJpegCodec`]'s: this codec sniffs nothing, so
+/// that extension and byte dispatch pick that one, but decodes the same way when named.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct JpegHdrCodec;
+
+impl ImageCodec for JpegHdrCodec {
+    fn name(&self) -> &'static str {
+        "jpeg-hdr"
+    }
+    fn id(&self) -> [u8; 4] {
+        *b"JHDR"
+    }
+    fn extensions(&self) -> &'static [&'static str] {
+        JPEG_EXTENSIONS
+    }
+    fn sniff(&self, _head: &[u8]) -> bool {
+        false
+    }
+    /// BT.709 only (colours outside it travel in the unclamped Y'CbCr).
+    fn color_signalling(&self) -> ColorSignalling {
+        ColorSignalling::Only(&[ColorPrimaries::Bt709])
+    }
+    /// `s2n` records the image's `nits_per_unit`.
+    fn records_nits_per_unit(&self) -> bool {
+        true
+    }
+    fn probe(&self, data: &[u8], limits: &hdrcodec_core::Limits) -> Result<hdrcodec_core::ImageInfo> {
+        GainMapJpegCodec.probe(data, limits)
+    }
+    fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
+        GainMapJpegCodec.decode_with(data, options)
+    }
+    /// A GT-tone-mapped sRGB base with a ratio image in APP11 (see [`encode_jpeg_hdr`]);
+    /// options `ratio_quality`, `ratio_scale`, `correction=pre|post`, `alpha`.
+    fn encode_to(
+        &self,
+        image: &HdrImage,
+        settings: &EncodeSettings,
+        out: &mut dyn std::io::Write,
+    ) -> Result<EncodeReport> {
+        write_encoded(encode_jpeg_hdr(image, &RatioEncodeOptions::from_settings(settings)?)?, out)
     }
 }

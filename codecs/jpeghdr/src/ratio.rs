@@ -128,7 +128,7 @@ pub fn ratio_image(image: &JpegImage<'_>) -> Result<Option<(RatioHeader, Vec<u8>
 
 /// Catmull-Rom upsampling of an 8-bit plane, pixel centres aligned, edges clamped; values in
 /// code units (not rounded).
-fn upsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Vec<f32> {
+pub(crate) fn upsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Vec<f32> {
     let taps = |d: usize, s: usize| -> Vec<([usize; 4], [f32; 4])> {
         (0..d)
             .map(|x| {
@@ -159,9 +159,13 @@ fn upsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> V
     out
 }
 
-/// Gaussian downsampling of an 8-bit plane (the reference's: weight exp(−(r / 0.6)²) at
-/// distance r in destination pixels, out to 1.5 of them), truncated to codes.
-fn downsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Vec<u8> {
+/// Gaussian downsampling of a plane (the reference's filter: weight exp(−(r / 0.6)²) at
+/// distance r in destination pixels, out to 1.5 of them), unrounded.
+pub(crate) fn gaussian_downsample<T: Copy + Into<f64>>(
+    src: &[T],
+    (sw, sh): (usize, usize),
+    (dw, dh): (usize, usize),
+) -> Vec<f64> {
     let taps = |d: usize, s: usize| -> Vec<Vec<(usize, f64)>> {
         let density = d as f64 / s as f64;
         let radius = (1.5 / density + 0.5) as i64;
@@ -186,11 +190,17 @@ fn downsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) ->
     let mut out = Vec::with_capacity(dw * dh);
     for yw in &ys {
         for (x, r) in rows.iter_mut().enumerate() {
-            *r = yw.iter().map(|&(y, w)| w * f64::from(src[y * sw + x])).sum();
+            *r = yw.iter().map(|&(y, w)| w * src[y * sw + x].into()).sum();
         }
-        out.extend(xs.iter().map(|xw| xw.iter().map(|&(x, w)| w * rows[x]).sum::<f64>().clamp(0.0, 255.0) as u8));
+        out.extend(xs.iter().map(|xw| xw.iter().map(|&(x, w)| w * rows[x]).sum::<f64>()));
     }
     out
+}
+
+/// [`gaussian_downsample`] of an 8-bit plane truncated to codes, as the reference's
+/// post-correction does it.
+fn downsample(src: &[u8], from: (usize, usize), to: (usize, usize)) -> Vec<u8> {
+    gaussian_downsample(src, from, to).iter().map(|&v| v.clamp(0.0, 255.0) as u8).collect()
 }
 
 /// Post-correction (CIC 2005; the reference decoder's `cor=2`, done on 8-bit codes): where the
