@@ -310,3 +310,74 @@ fn our_jpeg_hdr_files_round_trip() {
         }
     }
 }
+
+/// The JPEG-HDR files of `codecs/jpeghdr/testdata/panlib/` (made by `scripts/panlib-jpeghdr.sh`):
+/// our encoder's file `NAME.jpg` of a 256x192 crop of a corpus image, and `NAME.panlib.exr`,
+/// Greg Ward's panlib's decode of it.
+const PANLIB_FILES: [(&str, &str, bool); 4] = [
+    ("mttamwest_pre", "MtTamWest.exr", false),
+    ("mttamwest_post", "MtTamWest.exr", true),
+    ("stilllife_pre", "StillLife.exr", false),
+    ("stilllife_post", "StillLife.exr", true),
+];
+
+fn panlib_dir() -> std::path::PathBuf {
+    common::workspace_root().join("codecs/jpeghdr/testdata/panlib")
+}
+
+/// The options the files were written with: the defaults, with `correction=post` or not.
+fn panlib_options(post: bool) -> hdrcodec::jpeghdr::RatioEncodeOptions {
+    use hdrcodec::jpeghdr::ratio::Correction;
+    let correction = if post { Correction::Post } else { Correction::Pre };
+    hdrcodec::jpeghdr::RatioEncodeOptions { correction, ..Default::default() }
+}
+
+/// panlib's decode of `name` (samples in the file's units, as ours).
+fn panlib_decode(name: &str) -> Vec<f32> {
+    let data = std::fs::read(panlib_dir().join(format!("{name}.panlib.exr"))).unwrap();
+    let image = hdrcodec::exr::ExrCodec.decode(&data, &Limits::default()).unwrap();
+    image.samples().chunks_exact(image.channels().count()).flat_map(|p| [p[0], p[1], p[2]]).collect()
+}
+
+/// Writes the JPEG-HDR files for panlib to `$HDRCODEC_JPEGHDR_OUT` (run by the script).
+#[test]
+#[ignore = "run by scripts/panlib-jpeghdr.sh"]
+fn write_jpeg_hdr_files_for_panlib() {
+    let out = std::path::PathBuf::from(std::env::var_os("HDRCODEC_JPEGHDR_OUT").expect("HDRCODEC_JPEGHDR_OUT"));
+    for (name, source, post) in PANLIB_FILES {
+        let image = corpus_crop_sized(source, 256, 192).expect("the corpus");
+        let (file, _) = hdrcodec::jpeghdr::encode_jpeg_hdr(&image, &panlib_options(post)).unwrap();
+        std::fs::write(out.join(format!("{name}.jpg")), file).unwrap();
+    }
+}
+
+/// Our files as panlib decodes them and as ours does (no corpus needed).
+#[test]
+fn our_jpeg_hdr_files_decode_in_panlib_as_in_ours() {
+    for (name, _, _) in PANLIB_FILES {
+        let data = std::fs::read(panlib_dir().join(format!("{name}.jpg"))).unwrap();
+        let ours = decode(&data, &Limits::default(), Rendering::default()).unwrap();
+        let (median, p99, pu21) = compare(&ours, panlib_decode(name), None);
+        eprintln!("{name} in panlib and in ours: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
+        // (One ratio code is 0.09 stops on the wide StillLife range; panlib's upsampler dithers.)
+        assert!(median <= 0.02 && p99 <= 0.25 && pu21 >= 50.0, "{name}: {median} {p99} {pu21}");
+    }
+}
+
+/// What our encoder writes today, decoded by ours, against panlib's decode of what it wrote
+/// when the files were made: a change of the encoder that panlib would read differently, or
+/// that loses quality, shows here.
+#[test]
+fn our_current_jpeg_hdr_files_stay_near_panlibs_decode() {
+    for (name, source, post) in PANLIB_FILES {
+        let Some(image) = corpus_crop_sized(source, 256, 192) else { return };
+        let (file, _) = hdrcodec::jpeghdr::encode_jpeg_hdr(&image, &panlib_options(post)).unwrap();
+        let ours = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+        let (median, p99, pu21) = compare(&ours, panlib_decode(name), None);
+        eprintln!("{name} today in ours against panlib's decode: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
+        let (_, _, theirs_to_source) = compare(&ours, image.samples().to_vec(), None);
+        let (_, _, panlib_to_source) = compare(&image, panlib_decode(name), None);
+        eprintln!("{name} against the source: ours {theirs_to_source:.2} dB, panlib's decode {panlib_to_source:.2} dB");
+        assert!(median <= 0.03 && p99 <= 0.3 && pu21 >= 45.0, "{name}: {median} {p99} {pu21}");
+    }
+}
