@@ -1,13 +1,18 @@
 //! Backward-compatible HDR JPEG: an ordinary JPEG every viewer shows as SDR, carrying what
 //! rebuilds the HDR image.
 //!
-//! This first part decodes gain-map JPEGs in every flavour found in the wild: ISO 21496-1
-//! (binary metadata), Android Ultra HDR and Adobe's gain map (`hdrgm` XMP, one or three
-//! channels, MPF or GContainer), and Apple's HDR gain map; a plain JPEG decodes as SDR. The
-//! output is linear, in the base image's primaries (read from its ICC profile; sRGB without
-//! one), with SDR white = 1.0 = 203 cd/m² ([`gainmap::SDR_WHITE_NITS`]). The encoder writes
-//! a GT-tone-mapped sRGB base and a gain map with ISO 21496-1 and hdrgm metadata together, MPF
-//! and GContainer. Ward & Simmons' ratio-image JPEG-HDR is not written yet.
+//! Decoding reads gain-map JPEGs in every flavour found in the wild: ISO 21496-1 (binary
+//! metadata), Android Ultra HDR and Adobe's gain map (`hdrgm` XMP, one or three channels, MPF
+//! or GContainer), and Apple's HDR gain map; and Ward & Simmons' ratio-image JPEG-HDR
+//! ([`ratio`]); a plain JPEG decodes as SDR. The output is linear, in the base image's
+//! primaries (read from its ICC profile; sRGB without one), with SDR white = 1.0 = 203 cd/m²
+//! ([`gainmap::SDR_WHITE_NITS`]) for gain maps, and 1.0 = `s2n` cd/m² for JPEG-HDR.
+//!
+//! Two encoders: [`encode`] writes a GT-tone-mapped sRGB (or Display P3) base and a gain map
+//! with ISO 21496-1 and hdrgm metadata together, MPF and GContainer (codec `ultrahdr`);
+//! [`encode_jpeg_hdr`] writes Ward & Simmons' JPEG-HDR, a GT-tone-mapped base and a log ratio
+//! image in `HDR_RI` APP11 segments, pre- or post-corrected, which the format's author's
+//! library (panlib) reads (codec `jpeg-hdr`, [`ratio_encode`]).
 
 pub mod encode;
 pub mod gainmap;
