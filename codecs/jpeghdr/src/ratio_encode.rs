@@ -343,7 +343,8 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     let decoded = if correction == Correction::Post {
         None
     } else {
-        let got = decode_jpeg_as(&ratio_jpeg, &Limits::default(), "JPEG-HDR ratio image", false)?;
+        // (Our own JPEG, no larger than the image being encoded: trusted.)
+        let got = decode_jpeg_as(&ratio_jpeg, &Limits::none(), "JPEG-HDR ratio image", false)?;
         Some(if correction == Correction::FullResolution {
             got.samples.iter().map(|&c| f32::from(c)).collect::<Vec<f32>>()
         } else {
@@ -575,6 +576,30 @@ mod tests {
         let parsed = markers::parse_image(&mixed, 0).unwrap();
         let kept: Vec<&[u8]> = parsed.app_payloads(APP11, b"JP").map(|(_, p)| p).collect();
         assert_eq!(kept, [&jumbf(1)[2..], &jumbf(2)[2..]]);
+    }
+
+    #[test]
+    fn odd_images_encode_and_decode() {
+        let odd = |w: u32, h: u32, f: &dyn Fn(u32) -> f32| {
+            let s: Vec<f32> = (0..w * h * 3).map(f).collect();
+            HdrImage::new(w, h, Channels::Rgb, s, ColorInfo::default()).unwrap()
+        };
+        let images = [
+            odd(1, 1, &|_| 0.5),
+            odd(3, 5, &|i| i as f32),
+            odd(17, 9, &|_| 0.0),
+            odd(17, 9, &|i| [f32::NAN, f32::INFINITY, -1.0, 1e30, 1e-30][i as usize % 5]),
+            odd(40, 2, &|i| if i % 7 == 0 { -5.0 } else { 1e4 }),
+        ];
+        for image in &images {
+            for correction in [Correction::Pre, Correction::Post] {
+                let options = RatioEncodeOptions { correction, ..Default::default() };
+                let (file, _) = encode_jpeg_hdr(image, &options).unwrap();
+                let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+                assert_eq!((back.width(), back.height()), (image.width(), image.height()));
+                assert!(back.metadata_value("jpeg.ratio_image").is_some(), "{:?}", back.metadata);
+            }
+        }
     }
 
     #[test]
