@@ -239,8 +239,8 @@ fn alpha_needed(rgb: [f64; 3], y: f64) -> f64 {
 /// most) until the colour fits the base's Y'CbCr undesaturated: near the base's white, the luma
 /// of a saturated colour exceeds the cube; the ratio then carries the difference, and the colour
 /// stays (on a 128x96 test scene with saturated highlights, 3627 pixels clipped without this).
-fn fitting(rgb: [f64; 3], y: f64, t: f64) -> f64 {
-    let at = |l: f64| base_ycc(rgb.map(|c| c * l / y), l, 1.0).1;
+fn fitting(rgb: [f64; 3], y: f64, t: f64, alpha: f64) -> f64 {
+    let at = |l: f64| base_ycc(rgb.map(|c| c * l / y), l, alpha).1;
     let (mut lo, mut hi) = (t / 4.0, t);
     if at(hi) || !at(lo) {
         return t;
@@ -291,7 +291,7 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
             let rgb = pixel(i);
             let y = luminance(rgb);
             if y > BLACK {
-                (y / fitting(rgb, y, tone_map(y))).ln() as f32
+                (y / fitting(rgb, y, tone_map(y), 1.0)).ln() as f32
             } else {
                 f32::NAN
             }
@@ -361,7 +361,7 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
         }
         let yb = match &decoded {
             Some(r) => (y / ratio_of(r[i])).min(white),
-            None => fitting(rgb, y, tone_map(y)),
+            None => fitting(rgb, y, tone_map(y), 1.0),
         };
         (rgb.map(|c| c * yb / y), yb)
     };
@@ -391,17 +391,29 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     let alpha = (alpha * 1e6).floor() / 1e6;
 
     let mut base = Vec::with_capacity(w * h * 3);
-    let mut clipped = 0usize;
+    let (mut clipped, mut darkened) = (0usize, 0usize);
     for i in 0..w * h {
         let (rgb, y) = base_linear(i);
-        let (v, fits) = base_ycc(rgb, y, alpha);
+        let (mut v, fits) = base_ycc(rgb, y, alpha);
         if !fits {
-            clipped += 1;
+            // Darker (a luminance error) rather than clipped (a colour error too), where a
+            // quarter of the luminance suffices.
+            let l = fitting(rgb, y, y, alpha);
+            let (w, fits) = base_ycc(rgb.map(|c| c * l / y), l, alpha);
+            if fits {
+                darkened += 1;
+            } else {
+                clipped += 1;
+            }
+            v = w;
         }
         base.extend(v.map(|c| c.round().clamp(0.0, 255.0) as u8));
     }
     if alpha < 1.0 {
         report.note(format!("colours desaturated by alp={alpha:.3} in the base (decoders resaturate them)"));
+    }
+    if darkened > 0 {
+        report.note(format!("{darkened} pixels were darkened (at most to a quarter) to fit the base's Y'CbCr"));
     }
     if clipped > 0 {
         report.note(format!("{clipped} pixels outside what the base's Y'CbCr holds were clipped"));
