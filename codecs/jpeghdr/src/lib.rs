@@ -124,6 +124,14 @@ impl ImageCodec for JpegHdrCodec {
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
         GainMapJpegCodec.decode_with(data, options)
     }
+    fn decode_rows(
+        &self,
+        data: &[u8],
+        options: &DecodeOptions,
+        sink: &mut dyn hdrcodec_core::sink::RowSink,
+    ) -> Result<()> {
+        GainMapJpegCodec.decode_rows(data, options, sink)
+    }
     /// A GT-tone-mapped sRGB base with a ratio image in APP11 (see [`encode_jpeg_hdr`]);
     /// options `ratio_quality`, `ratio_scale`, `correction=pre|post`, `alpha`.
     fn encode_to(
