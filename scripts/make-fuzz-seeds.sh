@@ -30,7 +30,9 @@ seed bc6h_files dds --effort 0
 seed jxr q60.jxr --quality 60 --opt tile=64
 seed jxr lossless.jxr --opt lossless=true
 cp codecs/jxr/testdata/*.jxr "$out/jxr/"
-# Gain-map JPEG: our encoder's files and a small file libultrahdr wrote.
+# Gain-map JPEG (the target reads JPEG-HDR too): our two encoders' files and a small file
+# libultrahdr wrote.
 seed gainmap_jpeg jpg --quality 70 --opt map_scale=4
+seed gainmap_jpeg jpeg-hdr.jpg --codec jpeg-hdr --quality 70 --opt correction=post
 cp codecs/jpeghdr/testdata/*.jpg "$out/gainmap_jpeg/"
 echo "seeds: $(find "$out" -type f | wc -l) files in $out" >&2

@@ -51,6 +51,8 @@ fn standard_codecs() -> Vec<Arc<dyn ImageCodec>> {
         Arc::new(bc6h::Bc6hKtx2Codec),
         Arc::new(jxr::JxrCodec),
         Arc::new(jpeghdr::GainMapJpegCodec),
+        // Writes Ward & Simmons' JPEG-HDR when named; reading .jpg stays with the line above.
+        Arc::new(jpeghdr::JpegHdrCodec),
     ]
 }
 

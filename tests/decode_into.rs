@@ -65,7 +65,20 @@ fn every_decoder_fills_a_strided_f32_or_f16_buffer_within_a_small_budget() {
         assert!(codec.decode(&file, &limits).is_err(), "{name}: decode should not fit the budget");
         checked.push(name);
     }
-    for name in ["exr", "pfm", "rgbe", "logluv32", "logluv24", "logl16", "bc6h", "bc6h-ktx2", "hdrc", "jxr"] {
+    for name in [
+        "exr",
+        "pfm",
+        "rgbe",
+        "logluv32",
+        "logluv24",
+        "logl16",
+        "bc6h",
+        "bc6h-ktx2",
+        "hdrc",
+        "jxr",
+        "ultrahdr",
+        "jpeg-hdr",
+    ] {
         assert!(checked.contains(&name), "{name} not checked: {checked:?}");
     }
 }

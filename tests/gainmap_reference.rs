@@ -200,10 +200,15 @@ fn rename_all(data: &mut [u8], from: &[u8], to: &[u8]) -> usize {
 
 /// A 512x384 crop of a corpus photograph (our EXR decode), 1.0 = 203 cd/m².
 fn corpus_crop(name: &str) -> Option<HdrImage> {
+    corpus_crop_sized(name, 512, 384)
+}
+
+/// A centred `w` x `h` crop of a corpus EXR (our decode), 1.0 = 203 cd/m².
+fn corpus_crop_sized(name: &str, w: usize, h: usize) -> Option<HdrImage> {
     let dir = require(corpus_dir(), "the shared HDR corpus")?;
     let data = std::fs::read(dir.join("exr").join(name)).unwrap();
     let full = hdrcodec::exr::ExrCodec.decode(&data, &Limits::default()).unwrap();
-    let (w, h, n) = (512usize, 384usize, full.channels().count());
+    let n = full.channels().count();
     let (x0, y0) = ((full.width() as usize - w) / 2, (full.height() as usize - h) / 2);
     let mut samples = Vec::with_capacity(w * h * 3);
     for y in y0..y0 + h {
@@ -303,5 +308,106 @@ fn jpeg_hdr_files_decode_as_the_reference_library_decodes_them() {
         let (median, p99, pu21) = compare(&ours, theirs, None);
         eprintln!("{name}: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
         assert!(median <= bounds.0 && p99 <= bounds.1 && pu21 >= bounds.2, "{name}: {median} {p99} {pu21}");
+    }
+}
+
+/// Our JPEG-HDR encoder on corpus crops, decoded by our decoder, against the source (floors a
+/// little below what was measured: see the crate README's table).
+#[test]
+fn our_jpeg_hdr_files_round_trip() {
+    use hdrcodec::jpeghdr::{encode_jpeg_hdr, ratio::Correction, RatioEncodeOptions};
+    let crops = [
+        ("MtTamWest.exr", 512, 384, [36.5, 36.5, 33.0]),
+        ("StillLife.exr", 384, 256, [38.0, 36.5, 31.0]),
+        ("Desk.exr", 384, 256, [36.5, 34.0, 22.0]),
+    ];
+    for (name, w, h, floors) in crops {
+        let Some(image) = corpus_crop_sized(name, w, h) else { return };
+        for ((scale, correction), floor) in
+            [(1, Correction::Pre), (2, Correction::Pre), (2, Correction::Post)].into_iter().zip(floors)
+        {
+            let options = RatioEncodeOptions { ratio_scale: scale, correction, ..Default::default() };
+            let (file, report) = encode_jpeg_hdr(&image, &options).unwrap();
+            let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+            let (median, p99, pu21) = compare(&back, image.samples().to_vec(), None);
+            eprintln!(
+                "{name} {w}x{h} ratio 1/{scale} {correction:?}: {} bytes ({:.2} bpp), |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB {:?}",
+                file.len(),
+                file.len() as f64 * 8.0 / (w * h) as f64,
+                report.notes
+            );
+            assert!(pu21 >= floor, "{name} 1/{scale} {correction:?}: {pu21}");
+        }
+    }
+}
+
+/// The JPEG-HDR files of `codecs/jpeghdr/testdata/panlib/` (made by `scripts/panlib-jpeghdr.sh`):
+/// our encoder's file `NAME.jpg` of a 256x192 crop of a corpus image, and `NAME.panlib.exr`,
+/// Greg Ward's panlib's decode of it.
+const PANLIB_FILES: [(&str, &str, bool); 4] = [
+    ("mttamwest_pre", "MtTamWest.exr", false),
+    ("mttamwest_post", "MtTamWest.exr", true),
+    ("stilllife_pre", "StillLife.exr", false),
+    ("stilllife_post", "StillLife.exr", true),
+];
+
+fn panlib_dir() -> std::path::PathBuf {
+    common::workspace_root().join("codecs/jpeghdr/testdata/panlib")
+}
+
+/// The options the files were written with: the defaults, with `correction=post` or not.
+fn panlib_options(post: bool) -> hdrcodec::jpeghdr::RatioEncodeOptions {
+    use hdrcodec::jpeghdr::ratio::Correction;
+    let correction = if post { Correction::Post } else { Correction::Pre };
+    hdrcodec::jpeghdr::RatioEncodeOptions { correction, ..Default::default() }
+}
+
+/// panlib's decode of `name` (samples in the file's units, as ours).
+fn panlib_decode(name: &str) -> Vec<f32> {
+    let data = std::fs::read(panlib_dir().join(format!("{name}.panlib.exr"))).unwrap();
+    let image = hdrcodec::exr::ExrCodec.decode(&data, &Limits::default()).unwrap();
+    image.samples().chunks_exact(image.channels().count()).flat_map(|p| [p[0], p[1], p[2]]).collect()
+}
+
+/// Writes the JPEG-HDR files for panlib to `$HDRCODEC_JPEGHDR_OUT` (run by the script).
+#[test]
+#[ignore = "run by scripts/panlib-jpeghdr.sh"]
+fn write_jpeg_hdr_files_for_panlib() {
+    let out = std::path::PathBuf::from(std::env::var_os("HDRCODEC_JPEGHDR_OUT").expect("HDRCODEC_JPEGHDR_OUT"));
+    for (name, source, post) in PANLIB_FILES {
+        let image = corpus_crop_sized(source, 256, 192).expect("the corpus");
+        let (file, _) = hdrcodec::jpeghdr::encode_jpeg_hdr(&image, &panlib_options(post)).unwrap();
+        std::fs::write(out.join(format!("{name}.jpg")), file).unwrap();
+    }
+}
+
+/// Our files as panlib decodes them and as ours does (no corpus needed).
+#[test]
+fn our_jpeg_hdr_files_decode_in_panlib_as_in_ours() {
+    for (name, _, _) in PANLIB_FILES {
+        let data = std::fs::read(panlib_dir().join(format!("{name}.jpg"))).unwrap();
+        let ours = decode(&data, &Limits::default(), Rendering::default()).unwrap();
+        let (median, p99, pu21) = compare(&ours, panlib_decode(name), None);
+        eprintln!("{name} in panlib and in ours: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
+        // (One ratio code is 0.09 stops on the wide StillLife range; panlib's upsampler dithers.)
+        assert!(median <= 0.02 && p99 <= 0.25 && pu21 >= 50.0, "{name}: {median} {p99} {pu21}");
+    }
+}
+
+/// What our encoder writes today, decoded by ours, against panlib's decode of what it wrote
+/// when the files were made: a change of the encoder that panlib would read differently, or
+/// that loses quality, shows here.
+#[test]
+fn our_current_jpeg_hdr_files_stay_near_panlibs_decode() {
+    for (name, source, post) in PANLIB_FILES {
+        let Some(image) = corpus_crop_sized(source, 256, 192) else { return };
+        let (file, _) = hdrcodec::jpeghdr::encode_jpeg_hdr(&image, &panlib_options(post)).unwrap();
+        let ours = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+        let (median, p99, pu21) = compare(&ours, panlib_decode(name), None);
+        eprintln!("{name} today in ours against panlib's decode: |log2 Y| median {median:.4} p99 {p99:.4}, PU21-PSNR {pu21:.2} dB");
+        let (_, _, theirs_to_source) = compare(&ours, image.samples().to_vec(), None);
+        let (_, _, panlib_to_source) = compare(&image, panlib_decode(name), None);
+        eprintln!("{name} against the source: ours {theirs_to_source:.2} dB, panlib's decode {panlib_to_source:.2} dB");
+        assert!(median <= 0.03 && p99 <= 0.3 && pu21 >= 45.0, "{name}: {median} {p99} {pu21}");
     }
 }

@@ -109,6 +109,12 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     for q in [95, 85, 70] {
         add("ultrahdr", format!("ultrahdr:q{q}"), EncodeSettings::default().with_quality(q));
     }
+    // Ward & Simmons' JPEG-HDR beside it: the same base qualities (ratio image at its
+    // defaults: half size, pre-corrected), and post-correction at q85.
+    for q in [95, 85, 70] {
+        add("jpeg-hdr", format!("jpeg-hdr:q{q}"), EncodeSettings::default().with_quality(q));
+    }
+    add("jpeg-hdr", "jpeg-hdr:q85-post".into(), opts(&[("correction", "post")]).with_quality(85));
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
     // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer

@@ -599,3 +599,40 @@ fn convert_renders_a_gain_map_jpeg_for_a_display_headroom() {
     must_fail(&[&"convert", &input, &dir.join("bad.exr"), &"--opt", &"headroom=0.5"], &dir, "at least 1");
     must_fail(&[&"convert", &input, &dir.join("bad.exr"), &"--opt", &"headroom=x"], &dir, "headroom=x");
 }
+
+#[test]
+fn jpeg_hdr_is_written_by_name_and_read_back_as_a_jpg() {
+    let dir = common::temp_dir("cli-jpeg-hdr");
+    let src = corpus().join("specular.exr");
+    let jpg = dir.join("out.jpg");
+    let back = dir.join("back.exr");
+    ok(&hdrcodec(&[
+        &"convert",
+        &src,
+        &jpg,
+        &"--codec",
+        &"jpeg-hdr",
+        &"--quality",
+        &"85",
+        &"--opt",
+        &"correction=post",
+    ]));
+    assert!(std::fs::read(&jpg).unwrap().windows(7).any(|w| w == b"HDR_RI "));
+    // Reading dispatches .jpg to one codec (ultrahdr, which decodes JPEG-HDR too).
+    let v = json(&hdrcodec(&[&"info", &jpg, &"--json"]));
+    assert_eq!(v["codec"], "ultrahdr", "{v}");
+    ok(&hdrcodec(&[&"convert", &jpg, &back]));
+    let q = json(&hdrcodec(&[&"compare", &src, &back, &"--json"]));
+    assert!(q["pu21_psnr"].as_f64().unwrap() > 35.0, "{q}");
+    // Writing a .jpg without --codec stays the gain map; options of the other codec are refused.
+    let plain = dir.join("plain.jpg");
+    ok(&hdrcodec(&[&"convert", &src, &plain]));
+    assert!(!std::fs::read(&plain).unwrap().windows(7).any(|w| w == b"HDR_RI "));
+    let listed = ok(&hdrcodec(&[&"codecs"]));
+    assert!(listed.lines().any(|l| l.starts_with("jpeg-hdr")), "{listed}");
+    must_fail(
+        &[&"convert", &src, &dir.join("x.jpg"), &"--codec", &"jpeg-hdr", &"--opt", &"map_scale=2"],
+        &dir,
+        "map_scale",
+    );
+}

@@ -15,6 +15,7 @@ use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::{exif, icc, mpf, xmp};
 use hdrcodec_core::color::{convert_primaries, luminance_weights};
 use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Result, SrgbTransfer};
+use std::borrow::Cow;
 
 /// Options of the gain-map encoder (`--opt key=value`: `map_quality`, `map_scale`,
 /// `map_channels`; the base's quality is the settings' `quality`).
@@ -75,30 +76,13 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
     if w == 0 || h == 0 || w > 65535 || h > 65535 {
         return Err(Error::invalid(format!("a JPEG is 1 to 65535 pixels on a side, not {w}x{h}")));
     }
-    // The base is sRGB (BT.709 primaries): other primaries are converted (linearly, before
-    // tone mapping; the gain map restores what the base's gamut cut).
-    // The base is sRGB, or Display P3 with its ICC profile (what phones write); other
-    // primaries are converted to BT.709 (linearly, before tone mapping).
-    let converted;
-    let (image, base_primaries) = match image.color.primaries {
-        ColorPrimaries::Bt709 | ColorPrimaries::DisplayP3 => (image, image.color.primaries),
-        ColorPrimaries::Unspecified => {
-            report.note("the image records no primaries: its samples are written as BT.709 (sRGB)");
-            (image, ColorPrimaries::Bt709)
-        }
-        ref p => {
-            report.note(format!("converted from {} to BT.709 primaries (the base is sRGB)", p.name()));
-            converted = convert_primaries(image, ColorPrimaries::Bt709);
-            (&converted, ColorPrimaries::Bt709)
-        }
-    };
+    // The base is sRGB, or Display P3 with its ICC profile (what phones write).
+    let (image, base_primaries) = base_image(image, &[ColorPrimaries::Bt709, ColorPrimaries::DisplayP3], &mut report);
+    let image = image.as_ref();
     let profile = match base_primaries {
         ColorPrimaries::DisplayP3 => icc::rgb_profile(&base_primaries, "Display P3"),
         _ => None,
     };
-    if image.channels().count() == 4 {
-        report.note("JPEG has no alpha: the alpha channel was dropped");
-    }
     let weights = luminance_weights(&base_primaries);
     let scale = f64::from(image.color.nits_per_unit) / f64::from(SDR_WHITE_NITS);
     let channels = image.channels().count();
@@ -319,7 +303,31 @@ fn tone_map(
     (base, hdr, out_of_gamut)
 }
 
-fn jpeg_error(what: &str, e: jpeg_encoder::EncodingError) -> Error {
+/// `image` in primaries a JPEG base can carry (`allowed`, BT.709 first): other primaries are
+/// converted to BT.709 (linearly, before tone mapping), unspecified ones taken as BT.709; the
+/// report says so, and that the alpha channel (if any) is dropped.
+pub(crate) fn base_image<'a>(
+    image: &'a HdrImage,
+    allowed: &[ColorPrimaries],
+    report: &mut EncodeReport,
+) -> (Cow<'a, HdrImage>, ColorPrimaries) {
+    if image.channels().count() == 4 {
+        report.note("JPEG has no alpha: the alpha channel was dropped");
+    }
+    match image.color.primaries {
+        ref p if allowed.contains(p) => (Cow::Borrowed(image), *p),
+        ColorPrimaries::Unspecified => {
+            report.note("the image records no primaries: its samples are written as BT.709 (sRGB)");
+            (Cow::Borrowed(image), ColorPrimaries::Bt709)
+        }
+        ref p => {
+            report.note(format!("converted from {} to BT.709 primaries (the base is sRGB)", p.name()));
+            (Cow::Owned(convert_primaries(image, ColorPrimaries::Bt709)), ColorPrimaries::Bt709)
+        }
+    }
+}
+
+pub(crate) fn jpeg_error(what: &str, e: jpeg_encoder::EncodingError) -> Error {
     Error::invalid(format!("{what}: JPEG encoder: {e}"))
 }
 

@@ -397,16 +397,14 @@ pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrI
 }
 
 /// [`decode`] into `sink`, a band of rows at a time: besides the sink, the decode holds the two
-/// JPEGs' 8-bit samples and a band of output rows (JPEG-HDR files: the whole image, for now).
+/// JPEGs' 8-bit samples and a band of output rows (JPEG-HDR files with post-correction: also
+/// the whole image's corrected ratio codes).
 pub fn decode_rows(data: &[u8], limits: &Limits, rendering: Rendering, sink: &mut dyn RowSink) -> Result<()> {
     let file = GainMapFile::parse(data)?;
     let mut info = describe(&file, data, limits)?;
     if let Ok(Some((header, ratio_jpeg))) = ratio::ratio_image(&file.primary) {
-        match ratio::decode(data, &file.primary, &header, &ratio_jpeg, limits) {
-            Ok(image) => {
-                sink.start(&ImageInfo::of(&image))?;
-                return sink.put_rows(0, image.samples());
-            }
+        match ratio::prepare(data, &file.primary, &header, &ratio_jpeg, limits) {
+            Ok(prepared) => return prepared.deliver(limits, sink),
             Err(e @ Error::LimitExceeded { .. }) => return Err(e),
             // Ratio pixels that do not decode (headers that do: `probe` has promised this
             // file's colour): the base, as SDR in the file's units, with a warning.

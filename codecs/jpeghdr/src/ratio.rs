@@ -12,7 +12,8 @@
 
 use crate::gainmap::{decode_jpeg_as, Pixels};
 use crate::markers::{self, JpegImage, APP11};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result, SrgbTransfer};
+use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, ImageInfo, Limits, Result, SrgbTransfer};
 
 /// The APP11 payload signature of a JPEG-HDR segment (with its trailing space).
 pub const SIGNATURE: &[u8] = b"HDR_RI ";
@@ -126,42 +127,69 @@ pub fn ratio_image(image: &JpegImage<'_>) -> Result<Option<(RatioHeader, Vec<u8>
     Ok(Some((header, jpeg)))
 }
 
-/// Catmull-Rom upsampling of an 8-bit plane, pixel centres aligned, edges clamped; values in
-/// code units (not rounded).
-fn upsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Vec<f32> {
-    let taps = |d: usize, s: usize| -> Vec<([usize; 4], [f32; 4])> {
-        (0..d)
-            .map(|x| {
-                let u = (x as f64 + 0.5) * s as f64 / d as f64 - 0.5;
-                let i = u.floor();
-                let t = u - i;
-                let (t2, t3) = (t * t, t * t * t);
-                let w = [
-                    (-t3 + 2.0 * t2 - t) / 2.0,
-                    (3.0 * t3 - 5.0 * t2 + 2.0) / 2.0,
-                    (-3.0 * t3 + 4.0 * t2 + t) / 2.0,
-                    (t3 - t2) / 2.0,
-                ];
-                let at = |k: f64| (i + k).clamp(0.0, (s - 1) as f64) as usize;
-                ([at(-1.0), at(0.0), at(1.0), at(2.0)], w.map(|w| w as f32))
-            })
-            .collect()
-    };
-    let (xs, ys) = (taps(dw, sw), taps(dh, sh));
-    let mut rows = vec![0f32; sw];
-    let mut out = Vec::with_capacity(dw * dh);
-    for (yi, yw) in &ys {
-        for (x, r) in rows.iter_mut().enumerate() {
+/// Catmull-Rom upsampling of an 8-bit plane, pixel centres aligned, edges clamped, a row at a
+/// time; values in code units (not rounded).
+pub(crate) struct Upsampler {
+    xs: Vec<([usize; 4], [f32; 4])>,
+    ys: Vec<([usize; 4], [f32; 4])>,
+    source_width: usize,
+}
+
+impl Upsampler {
+    pub(crate) fn new((sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Self {
+        let taps = |d: usize, s: usize| -> Vec<([usize; 4], [f32; 4])> {
+            (0..d)
+                .map(|x| {
+                    let u = (x as f64 + 0.5) * s as f64 / d as f64 - 0.5;
+                    let i = u.floor();
+                    let t = u - i;
+                    let (t2, t3) = (t * t, t * t * t);
+                    let w = [
+                        (-t3 + 2.0 * t2 - t) / 2.0,
+                        (3.0 * t3 - 5.0 * t2 + 2.0) / 2.0,
+                        (-3.0 * t3 + 4.0 * t2 + t) / 2.0,
+                        (t3 - t2) / 2.0,
+                    ];
+                    let at = |k: f64| (i + k).clamp(0.0, (s - 1) as f64) as usize;
+                    ([at(-1.0), at(0.0), at(1.0), at(2.0)], w.map(|w| w as f32))
+                })
+                .collect()
+        };
+        Upsampler { xs: taps(dw, sw), ys: taps(dh, sh), source_width: sw }
+    }
+
+    /// Destination row `y` of `src` into `out` (the destination's width), using `column`
+    /// (the source's width) as scratch.
+    pub(crate) fn row(&self, src: &[u8], y: usize, column: &mut [f32], out: &mut [f32]) {
+        let (yi, yw) = &self.ys[y];
+        let sw = self.source_width;
+        for (x, r) in column.iter_mut().enumerate() {
             *r = (0..4).map(|k| yw[k] * f32::from(src[yi[k] * sw + x])).sum();
         }
-        out.extend(xs.iter().map(|(xi, xw)| (0..4).map(|k| xw[k] * rows[xi[k]]).sum::<f32>().clamp(0.0, 255.0)));
+        for (o, (xi, xw)) in out.iter_mut().zip(&self.xs) {
+            *o = (0..4).map(|k| xw[k] * column[xi[k]]).sum::<f32>().clamp(0.0, 255.0);
+        }
+    }
+}
+
+/// [`Upsampler`] over a whole plane.
+pub(crate) fn upsample(src: &[u8], from: (usize, usize), (dw, dh): (usize, usize)) -> Vec<f32> {
+    let up = Upsampler::new(from, (dw, dh));
+    let mut column = vec![0f32; from.0];
+    let mut out = vec![0f32; dw * dh];
+    for (y, row) in out.chunks_exact_mut(dw.max(1)).enumerate() {
+        up.row(src, y, &mut column, row);
     }
     out
 }
 
-/// Gaussian downsampling of an 8-bit plane (the reference's: weight exp(−(r / 0.6)²) at
-/// distance r in destination pixels, out to 1.5 of them), truncated to codes.
-fn downsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) -> Vec<u8> {
+/// Gaussian downsampling of a plane (the reference's filter: weight exp(−(r / 0.6)²) at
+/// distance r in destination pixels, out to 1.5 of them), unrounded.
+pub(crate) fn gaussian_downsample<T: Copy + Into<f64>>(
+    src: &[T],
+    (sw, sh): (usize, usize),
+    (dw, dh): (usize, usize),
+) -> Vec<f64> {
     let taps = |d: usize, s: usize| -> Vec<Vec<(usize, f64)>> {
         let density = d as f64 / s as f64;
         let radius = (1.5 / density + 0.5) as i64;
@@ -186,11 +214,17 @@ fn downsample(src: &[u8], (sw, sh): (usize, usize), (dw, dh): (usize, usize)) ->
     let mut out = Vec::with_capacity(dw * dh);
     for yw in &ys {
         for (x, r) in rows.iter_mut().enumerate() {
-            *r = yw.iter().map(|&(y, w)| w * f64::from(src[y * sw + x])).sum();
+            *r = yw.iter().map(|&(y, w)| w * src[y * sw + x].into()).sum();
         }
-        out.extend(xs.iter().map(|xw| xw.iter().map(|&(x, w)| w * rows[x]).sum::<f64>().clamp(0.0, 255.0) as u8));
+        out.extend(xs.iter().map(|xw| xw.iter().map(|&(x, w)| w * rows[x]).sum::<f64>()));
     }
     out
+}
+
+/// [`gaussian_downsample`] of an 8-bit plane truncated to codes, as the reference's
+/// post-correction does it.
+fn downsample(src: &[u8], from: (usize, usize), to: (usize, usize)) -> Vec<u8> {
+    gaussian_downsample(src, from, to).iter().map(|&v| v.clamp(0.0, 255.0) as u8).collect()
 }
 
 /// Post-correction (CIC 2005; the reference decoder's `cor=2`, done on 8-bit codes): where the
@@ -259,16 +293,37 @@ fn resaturate(rgb: &mut [f64; 3], alpha: f64, beta: f64) {
     }
 }
 
-/// Decodes a JPEG-HDR file whose primary image is `primary` and whose ratio image is
-/// `ratio_jpeg`. Samples are relative when `s2n` is 0 (then 1.0 is noted as unknown
-/// luminance and given the family's default scale), else 1.0 = `s2n` cd/m².
-pub fn decode(
+/// The ratio codes of every base pixel, as the decoder applies them.
+enum Codes {
+    /// A ratio image of the base's size: its own codes.
+    Same(Vec<u8>),
+    /// Upsampled a row at a time.
+    Upsampled(Upsampler, Vec<u8>),
+    /// Upsampled and post-corrected (`cor=2`), whole.
+    PostCorrected(Vec<u8>),
+}
+
+/// A JPEG-HDR file ready to deliver its rows: both JPEGs decoded (their 8-bit samples held),
+/// the ratio post-corrected if asked; what the rows will be described.
+pub struct Prepared {
+    base: crate::gainmap::Pixels,
+    codes: Codes,
+    header: RatioHeader,
+    info: ImageInfo,
+    _charge: Option<hdrcodec_core::Allocation>,
+}
+
+/// Decodes a JPEG-HDR file's two JPEGs (whose primary image is `primary` and ratio image
+/// `ratio_jpeg`), ready for [`Prepared::rows`]. Samples are relative when `s2n` is 0 (then 1.0
+/// is noted as unknown luminance and given the family's default scale), else 1.0 = `s2n`
+/// cd/m².
+pub fn prepare(
     data: &[u8],
     primary: &JpegImage<'_>,
     header: &RatioHeader,
     ratio_jpeg: &[u8],
     limits: &Limits,
-) -> Result<HdrImage> {
+) -> Result<Prepared> {
     markers::parse_image(ratio_jpeg, 0)?;
     let base = decode_jpeg_as(primary.bytes(data), limits, "JPEG-HDR base", true)?;
     if base.channels != 3 {
@@ -280,47 +335,93 @@ pub fn decode(
     }
     let Pixels { width: w, height: h, .. } = base;
     let (rw, rh) = (ratio.width, ratio.height);
-    let luma: Vec<u8> = base.samples.iter().step_by(3).copied().collect();
-    let codes: Vec<f32> = if (rw, rh) == (w, h) {
-        ratio.samples.iter().map(|&c| f32::from(c)).collect()
+    let mut charge = None;
+    let codes = if (rw, rh) == (w, h) {
+        Codes::Same(ratio.samples)
     } else if header.correction == Correction::Post && rw < w {
+        // The luma, its low-pass (as floats, then codes) and the corrected codes, whole.
+        charge = Some(limits.charge(w as u64 * h as u64 * 7, "JPEG-HDR post-correction")?);
         let mut up: Vec<u8> = upsample(&ratio.samples, (rw, rh), (w, h)).iter().map(|&v| (v + 0.5) as u8).collect();
+        let luma: Vec<u8> = base.samples.iter().step_by(3).copied().collect();
         post_correct(&mut up, &luma, (w, h), (rw, rh));
-        up.iter().map(|&c| f32::from(c)).collect()
+        Codes::PostCorrected(up)
     } else {
-        upsample(&ratio.samples, (rw, rh), (w, h))
+        Codes::Upsampled(Upsampler::new((rw, rh), (w, h)), ratio.samples)
     };
-    let _charge = limits.charge_image(w as u64, h as u64, Channels::Rgb)?;
-    let mut out = Vec::new();
-    out.try_reserve_exact(w * h * 3).map_err(|_| Error::limit("JPEG-HDR: output buffer"))?;
-    for (ycc, &code) in base.samples.chunks_exact(3).zip(&codes) {
-        // JFIF's Y'CbCr → R'G'B' (T.871 7) in 16-bit fixed point, rounded down as the
-        // reference's libjpeg arithmetic does (rounding to nearest decodes about 1% brighter
-        // on average), kept outside [0, 255]: the format's wide gamut.
-        let (y, cb, cr) = (i32::from(ycc[0]), i32::from(ycc[1]) - 128, i32::from(ycc[2]) - 128);
-        let srgb = [y + ((91881 * cr) >> 16), y + ((-22553 * cb - 46818 * cr) >> 16), y + ((116130 * cb) >> 16)];
-        let mut rgb = srgb.map(|v| SrgbTransfer::decode(f64::from(v) / 256.0));
-        resaturate(&mut rgb, header.alpha, header.beta);
-        let ratio = header.ratio(f64::from(code));
-        out.extend(rgb.map(|v| (v * ratio) as f32));
-    }
     let nits_per_unit =
         if header.samples_to_nits > 0.0 { header.samples_to_nits as f32 } else { ColorInfo::default().nits_per_unit };
     let color = ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit, hdr10: None };
-    let mut image = HdrImage::new(w as u32, h as u32, Channels::Rgb, out, color)?;
-    image.metadata.push((
-        "jpeg.ratio_image".into(),
+    let mut info = ImageInfo::new(w as u32, h as u32, Channels::Rgb, color).with_metadata(
+        "jpeg.ratio_image",
         format!(
             "JPEG-HDR ver={} ({rw}x{rh}, ln {:.4}..{:.4}, cor={:?}, alp={} bet={})",
             header.version, header.ln_range[0], header.ln_range[1], header.correction, header.alpha, header.beta
         ),
-    ));
+    );
     if header.samples_to_nits == 0.0 {
-        image
-            .metadata
-            .push(("jpeg.luminance_note".into(), "s2n=0: the file does not say how bright its samples are".into()));
+        info = info.with_metadata("jpeg.luminance_note", "s2n=0: the file does not say how bright its samples are");
     }
-    Ok(image)
+    Ok(Prepared { base, codes, header: header.clone(), info, _charge: charge })
+}
+
+impl Prepared {
+    /// What the rows will be.
+    pub fn info(&self) -> &ImageInfo {
+        &self.info
+    }
+
+    /// Rows `y0 ..` into `out` (whole RGB rows), `column` and `codes` being scratch of the
+    /// ratio image's width and of the base's.
+    fn rows(&self, y0: usize, out: &mut [f32], column: &mut [f32], codes: &mut [f32]) {
+        let w = self.base.width;
+        for (r, out_row) in out.chunks_exact_mut(w * 3).enumerate() {
+            let y = y0 + r;
+            match &self.codes {
+                Codes::Same(c) | Codes::PostCorrected(c) => {
+                    codes.iter_mut().zip(&c[y * w..(y + 1) * w]).for_each(|(o, &c)| *o = f32::from(c));
+                }
+                Codes::Upsampled(up, small) => up.row(small, y, column, codes),
+            }
+            let base_row = &self.base.samples[y * w * 3..(y + 1) * w * 3];
+            for ((o, ycc), &code) in out_row.chunks_exact_mut(3).zip(base_row.chunks_exact(3)).zip(codes.iter()) {
+                // JFIF's Y'CbCr → R'G'B' (T.871 7) in 16-bit fixed point, rounded down as the
+                // reference's libjpeg arithmetic does (rounding to nearest decodes about 1%
+                // brighter on average), kept outside [0, 255]: the format's wide gamut.
+                let (y, cb, cr) = (i32::from(ycc[0]), i32::from(ycc[1]) - 128, i32::from(ycc[2]) - 128);
+                let srgb =
+                    [y + ((91881 * cr) >> 16), y + ((-22553 * cb - 46818 * cr) >> 16), y + ((116130 * cb) >> 16)];
+                let mut rgb = srgb.map(|v| SrgbTransfer::decode(f64::from(v) / 256.0));
+                resaturate(&mut rgb, self.header.alpha, self.header.beta);
+                let ratio = self.header.ratio(f64::from(code));
+                for c in 0..3 {
+                    o[c] = (rgb[c] * ratio) as f32;
+                }
+            }
+        }
+    }
+
+    /// Delivers the image to `sink` a band of rows at a time.
+    pub fn deliver(&self, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
+        sink.start(&self.info)?;
+        let (w, h) = (self.base.width, self.base.height);
+        let row_len = w * 3;
+        let band = band_rows(row_len, 1 << 20) as usize;
+        let mut scratch = Scratch::new(limits);
+        let column_len = match &self.codes {
+            Codes::Upsampled(up, _) => up.source_width,
+            _ => 0,
+        };
+        let _charge = limits.charge((column_len + w) as u64 * 4, "JPEG-HDR ratio rows")?;
+        let (mut column, mut codes) = (vec![0f32; column_len], vec![0f32; w]);
+        for y0 in (0..h).step_by(band.max(1)) {
+            let rows = band.min(h - y0);
+            fill_rows(sink, y0 as u32, rows as u32, row_len, &mut scratch, |out| {
+                self.rows(y0, out, &mut column, &mut codes);
+                Ok(())
+            })?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
