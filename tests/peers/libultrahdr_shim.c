@@ -1,23 +1,19 @@
-/* The in-process libultrahdr 1.4 peer of benches/ultrahdr_decode.rs and of `hdrcodec bench`'s
- * libultrahdr rows is reached through this shim. The library comes from the reference venv
- * (imagecodecs' wheel bundles libuhdr 1.4.0 without its header), so the few declarations needed
- * are written here from the documented v1.4.0 public API (ultrahdr_api.h: enum values, struct
- * layouts and signatures); nothing else of the library is used.
+/* The in-process libultrahdr 1.4 peer of benches/ultrahdr_decode.rs is reached through this
+ * shim (`hdrcodec bench`'s libultrahdr rows use imagecodecs' Python instead: the CLI links no
+ * peer). The library comes from the reference venv (imagecodecs' wheel bundles libuhdr 1.4.0
+ * without its header), so the few declarations needed are written here from the documented
+ * v1.4.0 public API (ultrahdr_api.h: enum values, struct layouts and signatures); nothing else
+ * of the library is used.
  * - uhdr_shim_decode decodes an Ultra HDR JPEG held in memory to linear half-float RGBA
  *   (SDR white = 1.0), full HDR rendition, optionally copying the samples out. One call is one
- *   whole decode: decoder, set image, decode, (copy), release.
- * - uhdr_shim_encode encodes linear half-float RGBA (BT.709) into an Ultra HDR JPEG with the
- *   given base and gain-map qualities, map scale factor and channel count. */
+ *   whole decode: decoder, set image, decode, (copy), release. */
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
 
 /* ---- declarations of libultrahdr 1.4's public C API (the subset used) ---- */
 enum { FMT_64BPP_RGBA_HALF = 4 };
-enum { CG_BT709 = 0 };
 enum { CT_LINEAR = 0 };
-enum { CR_FULL = 1 };
-enum { LABEL_HDR = 0, LABEL_BASE = 2, LABEL_GAIN_MAP = 3 };
 enum { CODEC_OK = 0 };
 
 typedef struct {
@@ -49,15 +45,6 @@ extern shim_error_info uhdr_dec_set_out_img_format(shim_codec *dec, int fmt);
 extern shim_error_info uhdr_dec_set_out_color_transfer(shim_codec *dec, int ct);
 extern shim_error_info uhdr_decode(shim_codec *dec);
 extern shim_raw_image *uhdr_get_decoded_image(shim_codec *dec);
-
-extern shim_codec *uhdr_create_encoder(void);
-extern void uhdr_release_encoder(shim_codec *enc);
-extern shim_error_info uhdr_enc_set_raw_image(shim_codec *enc, shim_raw_image *img, int intent);
-extern shim_error_info uhdr_enc_set_quality(shim_codec *enc, int quality, int intent);
-extern shim_error_info uhdr_enc_set_using_multi_channel_gainmap(shim_codec *enc, int multi);
-extern shim_error_info uhdr_enc_set_gainmap_scale_factor(shim_codec *enc, int factor);
-extern shim_error_info uhdr_encode(shim_codec *enc);
-extern shim_compressed_image *uhdr_get_encoded_stream(shim_codec *enc);
 
 /* ---- the shim ---- */
 
@@ -114,38 +101,5 @@ int uhdr_shim_decode(const uint8_t *data, size_t len, uint16_t *out, size_t out_
     }
 done:
     uhdr_release_decoder(dec);
-    return rc;
-}
-
-/* Encodes `rgba` (width*height*4 linear BT.709 halves, rows packed) into an Ultra HDR JPEG in
- * `out` (capacity `out_cap`; *out_size gets the length, -1 if it does not fit). 0 on success. */
-int uhdr_shim_encode(const uint16_t *rgba, uint32_t width, uint32_t height, int base_quality, int map_quality,
-                     int map_scale, int multichannel, uint8_t *out, size_t out_cap, size_t *out_size, char *err,
-                     size_t err_len) {
-    int rc = 0;
-    shim_codec *enc = uhdr_create_encoder();
-    if (!enc)
-        return -2;
-    shim_raw_image img = {FMT_64BPP_RGBA_HALF, CG_BT709, CT_LINEAR, CR_FULL, width, height,
-                          {(void *)rgba, NULL, NULL}, {width, 0, 0}};
-    TRY(uhdr_enc_set_raw_image(enc, &img, LABEL_HDR));
-    TRY(uhdr_enc_set_quality(enc, base_quality, LABEL_BASE));
-    TRY(uhdr_enc_set_quality(enc, map_quality, LABEL_GAIN_MAP));
-    TRY(uhdr_enc_set_using_multi_channel_gainmap(enc, multichannel));
-    TRY(uhdr_enc_set_gainmap_scale_factor(enc, map_scale));
-    TRY(uhdr_encode(enc));
-    shim_compressed_image *stream = uhdr_get_encoded_stream(enc);
-    if (!stream) {
-        rc = -3;
-        goto done;
-    }
-    *out_size = stream->data_sz;
-    if (stream->data_sz > out_cap) {
-        rc = -1;
-        goto done;
-    }
-    memcpy(out, stream->data, stream->data_sz);
-done:
-    uhdr_release_encoder(enc);
     return rc;
 }
