@@ -13,9 +13,11 @@
 //! Single thread: libultrahdr 1.4 applies the gain map on up to four `std::thread`s of its own
 //! (it asks `hardware_concurrency`), so the like-for-like comparison is the whole bench pinned
 //! to one CPU (`taskset -c 0 cargo bench ... --bench ultrahdr_decode`); the crate README says
-//! how the numbers were taken. Criterion's throughput is in pixels: Melem/s = MP/s.
+//! how the numbers were taken. `hdrcodec_2threads` is ours on a pool of two threads (the gain's
+//! rows in parallel; meaningful unpinned, against libultrahdr's own threads). Criterion's
+//! throughput is in pixels: Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
-use hdrcodec_core::{DecodeOptions, ImageCodec, Limits};
+use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
 use hdrcodec_jpeghdr::GainMapJpegCodec;
 #[path = "jxr_common.rs"]
 #[allow(dead_code)] // the JPEG XR helpers besides `corpus_dir` and `missing`
@@ -91,6 +93,7 @@ fn bench(c: &mut Criterion) {
     #[cfg(not(libultrahdr))]
     missing("ultrahdr_decode", "libultrahdr 1.4 (imagecodecs in the reference venv; tests/build.rs links it if found)");
     let options = DecodeOptions::new(Limits::default());
+    let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
     let mut group = c.benchmark_group("ultrahdr_decode");
     group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for name in ["sky_ultrahdr.jpg", "moonless_golf_1k.ultrahdr.jpg"] {
@@ -113,6 +116,11 @@ fn bench(c: &mut Criterion) {
         }
         group.bench_with_input(BenchmarkId::new("hdrcodec", name), &data, |b, d| {
             b.iter(|| GainMapJpegCodec.decode_with(black_box(d), &options).unwrap())
+        });
+        let on_two = GainMapJpegCodec.decode_with(&data, &two).expect("our decode on two threads");
+        assert_eq!(on_two.samples(), ours.samples(), "{name}: 1 vs 2 threads");
+        group.bench_with_input(BenchmarkId::new("hdrcodec_2threads", name), &data, |b, d| {
+            b.iter(|| GainMapJpegCodec.decode_with(black_box(d), &two).unwrap())
         });
     }
     group.finish();

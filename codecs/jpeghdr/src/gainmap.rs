@@ -12,7 +12,9 @@ use crate::metadata::{GainMapMetadata, ISO_SIGNATURE};
 use crate::xmp::{self, Xmp};
 use crate::{icc, mpf, ratio};
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer};
+use hdrcodec_core::{
+    Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result, SrgbTransfer, ThreadPool,
+};
 
 /// The luminance of the base's (SDR) white, cd/m²: ITU-R BT.2408's reference white, which
 /// libultrahdr and the Ultra HDR format use when they give gain-map output absolute units.
@@ -360,6 +362,18 @@ pub fn decode(data: &[u8], limits: &Limits, rendering: Rendering) -> Result<HdrI
 /// [`decode`] into `sink`, a band of rows at a time: besides the sink, the decode holds the two
 /// JPEGs' 8-bit samples and a band of output rows (JPEG-HDR files: the whole image, for now).
 pub fn decode_rows(data: &[u8], limits: &Limits, rendering: Rendering, sink: &mut dyn RowSink) -> Result<()> {
+    decode_rows_on(data, limits, rendering, &ThreadPool::single(), sink)
+}
+
+/// [`decode_rows`] with the gain applied to the rows of each band in parallel on `pool` (the
+/// two JPEGs are decoded on the calling thread). The samples do not depend on the pool.
+pub fn decode_rows_on(
+    data: &[u8],
+    limits: &Limits,
+    rendering: Rendering,
+    pool: &ThreadPool,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
     let file = GainMapFile::parse(data)?;
     let mut info = describe(&file, data, limits)?;
     if let Ok(Some((header, ratio_jpeg))) = ratio::ratio_image(&file.primary) {
@@ -395,24 +409,28 @@ pub fn decode_rows(data: &[u8], limits: &Limits, rendering: Rendering, sink: &mu
     let row_len = base.width * 3;
     let band = band_rows(row_len, 1 << 20) as usize;
     let mut scratch = Scratch::new(limits);
-    let mut buffers = RowBuffers::default();
+    // Rows per task of the pool: enough to amortise a task's working rows.
+    const TASK_ROWS: usize = 16;
     for y0 in (0..base.height).step_by(band) {
         let rows = band.min(base.height - y0);
         fill_rows(sink, y0 as u32, rows as u32, row_len, &mut scratch, |out| {
-            for (r, out_row) in out.chunks_exact_mut(row_len).enumerate() {
-                let y = y0 + r;
-                let base_row = &base.samples[y * base.width * base.channels..(y + 1) * base.width * base.channels];
-                match &gain {
-                    None => {
-                        for (o, p) in out_row.chunks_exact_mut(3).zip(base_row.chunks_exact(base.channels)) {
-                            for c in 0..3 {
-                                o[c] = eotf[usize::from(p[c.min(base.channels - 1)])];
+            pool.for_each_chunk_mut(out, row_len * TASK_ROWS, |task, chunk| {
+                let mut buffers = RowBuffers::default();
+                for (r, out_row) in chunk.chunks_exact_mut(row_len).enumerate() {
+                    let y = y0 + task * TASK_ROWS + r;
+                    let base_row = &base.samples[y * base.width * base.channels..(y + 1) * base.width * base.channels];
+                    match &gain {
+                        None => {
+                            for (o, p) in out_row.chunks_exact_mut(3).zip(base_row.chunks_exact(base.channels)) {
+                                for c in 0..3 {
+                                    o[c] = eotf[usize::from(p[c.min(base.channels - 1)])];
+                                }
                             }
                         }
+                        Some(g) => g.row(y, base_row, base.channels, &eotf, out_row, &mut buffers),
                     }
-                    Some(g) => g.row(y, base_row, base.channels, &eotf, out_row, &mut buffers),
                 }
-            }
+            });
             Ok(())
         })?;
     }
@@ -497,15 +515,15 @@ impl GainApplier {
         buf.codes.extend(top.iter().zip(bottom).map(|(&t, &b)| f32::from(t) * (1.0 - fy) + f32::from(b) * fy));
         let n = if self.shared { 1 } else { 3 };
         let codes = &buf.codes;
-        buf.gains.clear();
-        buf.gains.extend(self.xs.iter().flat_map(|&(x0, x1, fx)| {
-            (0..n).map(move |c| {
+        buf.gains.resize(self.xs.len() * n, 0.0);
+        for (gains, &(x0, x1, fx)) in buf.gains.chunks_exact_mut(n).zip(&self.xs) {
+            for (c, gain) in gains.iter_mut().enumerate() {
                 let m = c.min(mc - 1);
                 let g = (codes[x0 * mc + m] * (1.0 - fx) + codes[x1 * mc + m] * fx) / 255.0;
                 let g = if self.inv_gamma[c] == 1.0 { g } else { g.powf(self.inv_gamma[c]) };
-                self.lo[c] + self.span[c] * g
-            })
-        }));
+                *gain = self.lo[c] + self.span[c] * g;
+            }
+        }
         exp2_all(&mut buf.gains);
         for ((o, p), gain) in
             out.chunks_exact_mut(3).zip(base_row.chunks_exact(channels)).zip(buf.gains.chunks_exact(n))
@@ -568,6 +586,10 @@ mod tests {
         let peak = |i: &HdrImage| i.samples().iter().copied().fold(0.0f32, f32::max);
         // The highlight goes well past SDR white only with the gain applied.
         assert!(peak(&hdr) > 4.0 && peak(&sdr) <= 1.1, "{} {}", peak(&hdr), peak(&sdr));
+        let mut on_two = ImageSink::new(&Limits::default());
+        let pool = ThreadPool::new(2).unwrap();
+        decode_rows_on(RAMP, &Limits::default(), Rendering::default(), &pool, &mut on_two).unwrap();
+        assert_eq!(on_two.finish().unwrap().samples(), hdr.samples(), "the pool changes no sample");
         let too_small = Limits::default().with_max_alloc_bytes(10_000);
         assert!(decode(RAMP, &too_small, Rendering::default()).is_err());
         assert!(decode(RAMP, &Limits::default(), Rendering { headroom: Some(0.5) }).is_err());

@@ -61,7 +61,7 @@ impl ImageCodec for GainMapJpegCodec {
         options: &DecodeOptions,
         sink: &mut dyn hdrcodec_core::sink::RowSink,
     ) -> Result<()> {
-        gainmap::decode_rows(data, &options.limits, Rendering::default(), sink)
+        gainmap::decode_rows_on(data, &options.limits, Rendering::default(), &options.pool, sink)
     }
     /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
     /// `map_scale`, `map_channels`.
