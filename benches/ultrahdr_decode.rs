@@ -17,12 +17,12 @@
 //! rows in parallel; meaningful unpinned, against libultrahdr's own threads). Criterion's
 //! throughput is in pixels: Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
-use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
+use hdrcodec_core::ImageCodec;
 use hdrcodec_jpeghdr::GainMapJpegCodec;
 #[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers besides `corpus_dir` and `missing`
+#[allow(dead_code)] // the JPEG XR helpers besides these
 mod jxr_common;
-use jxr_common::{corpus_dir, missing};
+use jxr_common::{corpus_dir, missing, one_and_two_threads};
 use std::hint::black_box;
 
 /// libultrahdr through tests/peers/libultrahdr_shim.c.
@@ -92,8 +92,7 @@ fn bench(c: &mut Criterion) {
     };
     #[cfg(not(libultrahdr))]
     missing("ultrahdr_decode", "libultrahdr 1.4 (imagecodecs in the reference venv; tests/build.rs links it if found)");
-    let options = DecodeOptions::new(Limits::default());
-    let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
+    let (options, two) = one_and_two_threads();
     let mut group = c.benchmark_group("ultrahdr_decode");
     group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for name in ["sky_ultrahdr.jpg", "moonless_golf_1k.ultrahdr.jpg"] {
