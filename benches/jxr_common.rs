@@ -1,6 +1,6 @@
 //! What the JPEG XR benches (jxr_decode, jxr_encode) share: finding the corpus and tools,
 //! saying what is missing, and the GoldenGate half floats and their 13 MP mosaic.
-use hdrcodec_core::{DecodeOptions, ImageCodec, Limits};
+use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
 use hdrcodec_jxr::{decode_raw, JxrCodec};
 use std::path::PathBuf;
 
@@ -20,6 +20,13 @@ pub fn corpus_dir() -> Option<PathBuf> {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
     dir.join("MANIFEST.tsv").is_file().then_some(dir)
+}
+
+/// Decode options on one thread and on a pool of two (the decode benches' two rows of ours).
+#[allow(dead_code)] // jxr_encode has no decode rows.
+pub fn one_and_two_threads() -> (DecodeOptions, DecodeOptions) {
+    let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
+    (DecodeOptions::new(Limits::default()), two)
 }
 
 /// A program on PATH.

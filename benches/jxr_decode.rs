@@ -19,7 +19,7 @@
 //! pixels (elements), so Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
 use hdrcodec_cli::jxrlib::float_rgb_tiff;
-use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
+use hdrcodec_core::{ImageCodec, Limits};
 use hdrcodec_jxr::{decode_raw, decode_raw_into, raw_layout, JxrCodec};
 #[path = "jxr_common.rs"]
 mod jxr_common;
@@ -175,8 +175,7 @@ fn bench(c: &mut Criterion) {
     #[cfg(not(jxrlib))]
     missing("jxr_decode", "jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
 
-    let single = DecodeOptions::new(Limits::default());
-    let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
+    let (single, two) = jxr_common::one_and_two_threads();
     let mut group = c.benchmark_group("jxr_decode");
     group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for f in &files {

@@ -6,6 +6,11 @@
 //   in-process through a small C shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers
 //   and `pkg-config libjxr`; scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
 //   benches say jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
+// - libultrahdr 1.4, the Ultra HDR peer of benches/ultrahdr_decode.rs, is the shared library
+//   bundled in the reference venv's imagecodecs wheel (`$HDRCODEC_VENV`, else `.venv`;
+//   scripts/setup-reference-tools.sh makes it), without a header: peers/libultrahdr_shim.c
+//   declares the few functions it calls. Found, it is linked (with an rpath to its directory)
+//   into the benches only, and `cfg(libultrahdr)` is set.
 //
 // `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
 // binaries never link, so they get the link flags themselves.
@@ -14,12 +19,54 @@ use std::process::Command;
 
 fn main() {
     println!("cargo::rustc-check-cfg=cfg(jxrlib)");
+    println!("cargo::rustc-check-cfg=cfg(libultrahdr)");
     println!("cargo::rerun-if-changed=build.rs");
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("linux") {
         println!("cargo::rustc-link-arg-tests=-lstdc++");
         println!("cargo::rustc-link-arg-benches=-lstdc++");
     }
     jxrlib_shim();
+    libultrahdr_shim();
+}
+
+/// The directory and file name of libultrahdr 1.4 in the reference venv's imagecodecs wheel
+/// (`imagecodecs.libs/libuhdr-<hash>.so.1.4.<patch>`), if it is there.
+fn libultrahdr_library() -> Option<(PathBuf, String)> {
+    println!("cargo::rerun-if-env-changed=HDRCODEC_VENV");
+    let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR")?);
+    let venv = std::env::var_os("HDRCODEC_VENV").map(PathBuf::from).unwrap_or_else(|| manifest.join("../.venv"));
+    for entry in std::fs::read_dir(venv.join("lib")).ok()?.flatten() {
+        let libs = entry.path().join("site-packages/imagecodecs.libs");
+        let Ok(files) = std::fs::read_dir(&libs) else { continue };
+        for file in files.flatten() {
+            let name = file.file_name().to_string_lossy().into_owned();
+            if name.starts_with("libuhdr-") && name.contains(".so.1.4.") {
+                println!("cargo::rerun-if-changed={}", libs.display());
+                return Some((libs, name));
+            }
+        }
+    }
+    None
+}
+
+fn libultrahdr_shim() {
+    println!("cargo::rerun-if-changed=peers/libultrahdr_shim.c");
+    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("linux") {
+        return;
+    }
+    let Some((dir, name)) = libultrahdr_library() else {
+        println!("cargo::warning=libultrahdr 1.4 (imagecodecs in the reference venv) not found: benches/ultrahdr_decode.rs runs without its peer");
+        return;
+    };
+    cc::Build::new().file("peers/libultrahdr_shim.c").cargo_metadata(false).compile("libultrahdr_shim");
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo::rustc-link-arg-benches=-L{}", out.display());
+    println!("cargo::rustc-link-arg-benches=-llibultrahdr_shim");
+    println!("cargo::rustc-link-arg-benches=-L{}", dir.display());
+    println!("cargo::rustc-link-arg-benches=-l:{name}");
+    // DT_RPATH, not RUNPATH: the wheel's libuhdr finds its own libjpeg through the same directory.
+    println!("cargo::rustc-link-arg-benches=-Wl,--disable-new-dtags,-rpath,{}", dir.display());
+    println!("cargo::rustc-cfg=libultrahdr");
 }
 
 /// jxrlib's compiler flags from `pkg-config --cflags libjxr` (`-I…/jxrlib -D__ANSI__

@@ -16,9 +16,13 @@
 //! jxrlib's `JxrEncApp` writes the file (an outside program, timed as such), our decoder reads it (quality and our decode speed, as in every row), and jxrlib's
 //! `JxrDecApp` decoding the same file is the peer's decode speed and the check that our samples
 //! equal jxrlib's. Without `JxrEncApp` on PATH those rows say "not installed".
+//!
+//! The gain-map JPEG has peer rows of the same kind ([`Encoder::Libultrahdr`]): libultrahdr 1.4
+//! (through the reference venv's imagecodecs) writes the file, our decoder reads it.
 
 use crate::equal_quality;
 use crate::jxrlib;
+use crate::libultrahdr;
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
@@ -54,6 +58,12 @@ pub enum Encoder {
     /// thread; process start and TIFF reading included; no pool figure); the configuration's
     /// codec decodes the file; `JxrDecApp` decoding it is the peer.
     Jxrlib(&'static [&'static str]),
+    /// libultrahdr 1.4's `ultrahdr_encode` (imagecodecs in the reference venv, an outside
+    /// program) at this base quality, its other settings at the library's defaults; the input
+    /// as linear half floats in SDR-white units. The encode speed is the wall time of the
+    /// Python process (interpreter start included; no pool figure); the configuration's codec
+    /// decodes the file; no peer decode (benches/ultrahdr_decode.rs times libultrahdr's).
+    Libultrahdr(u8),
 }
 
 impl Encoder {
@@ -62,6 +72,7 @@ impl Encoder {
         match self {
             Encoder::Hdrcodec => None,
             Encoder::Jxrlib(_) => Some(format!("jxrlib {} (outside program)", jxrlib::ENCODER)),
+            Encoder::Libultrahdr(_) => Some("libultrahdr 1.4 ultrahdr_encode (imagecodecs, outside program)".into()),
         }
     }
 }
@@ -106,7 +117,7 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     }
     // Gain-map JPEG at three qualities of its base (the map's quality and scale at their
     // defaults).
-    for q in [95, 85, 70] {
+    for q in [95, 85, 70, 50] {
         add("ultrahdr", format!("ultrahdr:q{q}"), EncodeSettings::default().with_quality(q));
     }
     // Ward & Simmons' JPEG-HDR beside it: the same base qualities (ratio image at its
@@ -117,6 +128,19 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     add("jpeg-hdr", "jpeg-hdr:q85-post".into(), opts(&[("correction", "post")]).with_quality(85));
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
+    // libultrahdr's gain-map JPEG encoder as the peer of the `ultrahdr:` rows (see `Encoder::Libultrahdr`).
+    if let Ok(codec) = registry.by_name("ultrahdr") {
+        for q in [95, 85, 70, 50] {
+            let (label, settings) = (format!("ultrahdr(libultrahdr):q{q}"), EncodeSettings::default());
+            out.push(Config {
+                label,
+                codec: codec.clone(),
+                settings,
+                encoder: Encoder::Libultrahdr(q),
+                lossless: false,
+            });
+        }
+    }
     // JPEG XR: ours at a sweep of qualities (half samples), and jxrlib's encoder as the peer
     // (see `Encoder::Jxrlib`).
     if let Ok(codec) = registry.by_name("jxr") {
@@ -436,6 +460,17 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
         }
         return row;
     }
+    if let Encoder::Libultrahdr(quality) = config.encoder {
+        match libultrahdr::python() {
+            None => row.error = Some(format!("{NOT_INSTALLED}: {}", libultrahdr::PACKAGE)),
+            Some(python) => {
+                if let Err(e) = measure_libultrahdr(config, &python, quality, input, runs, pool, &mut row) {
+                    row.error = Some(e.to_string());
+                }
+            }
+        }
+        return row;
+    }
     let result = (|| -> hdrcodec::core::Result<()> {
         // The colour is prepared once, as `convert` does; only the codec is timed.
         let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
@@ -532,12 +567,7 @@ fn measure_jxrlib(
     enc_args.extend(format_args.iter().chain(args).map(OsStr::new));
     let (enc_t, _) = timed(runs, || jxrlib::run(enc, &enc_args, &jxr))?;
     let bytes = std::fs::read(&jxr)?;
-    let codec = config.codec.as_ref();
-    let dec_one = DecodeOptions::new(Limits::default());
-    let dec_all = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
-    let (dec_t, decoded) = timed(runs, || codec.decode_with(&bytes, &dec_one))?;
-    let (dec_all_t, _) = timed(runs, || codec.decode_with(&bytes, &dec_all))?;
-    let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
+    decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
     match jxrlib::tool(jxrlib::DECODER) {
         None => notes.push(format!(
             "{} ({}) is not installed: the JPEG XR rows have no peer decode",
@@ -560,12 +590,62 @@ fn measure_jxrlib(
             Err(e) => notes.push(format!("{} on {}: no peer decode: {e}", config.label, input.name)),
         },
     }
-    row.set_size_and_quality(bytes.len(), pixels, &cmp);
-    row.encode_mps = mps(pixels, enc_t);
-    row.decode_mps = mps(pixels, dec_t);
-    // JxrEncApp runs on one thread: there is no pool figure.
+    row.notes = notes;
+    Ok(())
+}
+
+/// Our decoder (`config`'s codec) on `bytes`, a file an outside encoder wrote in `enc_t`: the
+/// row's size, quality against the input, and speeds (the encoder's on one thread only).
+fn decode_peer_file(
+    config: &Config,
+    bytes: &[u8],
+    input: &Input,
+    runs: usize,
+    pool: &ThreadPool,
+    enc_t: Duration,
+    row: &mut Row,
+) -> hdrcodec::core::Result<()> {
+    let codec = config.codec.as_ref();
+    let dec_one = DecodeOptions::new(Limits::default());
+    let dec_all = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
+    let (dec_t, decoded) = timed(runs, || codec.decode_with(bytes, &dec_one))?;
+    let (dec_all_t, _) = timed(runs, || codec.decode_with(bytes, &dec_all))?;
+    let cmp = metrics::compare(&input.image.with_channels(Channels::Rgb), &decoded.with_channels(Channels::Rgb))?;
+    row.set_size_and_quality(bytes.len(), row.pixels, &cmp);
+    row.encode_mps = mps(row.pixels, enc_t);
+    row.decode_mps = mps(row.pixels, dec_t);
+    // The outside encoders run on one thread: there is no pool figure.
     row.encode_mps_all = f64::NAN;
-    row.decode_mps_all = mps(pixels, dec_all_t);
+    row.decode_mps_all = mps(row.pixels, dec_all_t);
+    Ok(())
+}
+
+/// A gain-map JPEG row written by libultrahdr ([`Encoder::Libultrahdr`]): the input, its colour
+/// prepared as for our encoder (BT.709 or Display P3), goes to `python`'s imagecodecs as linear
+/// half floats; our decoder reads the file.
+fn measure_libultrahdr(
+    config: &Config,
+    python: &Path,
+    quality: u8,
+    input: &Input,
+    runs: usize,
+    pool: &ThreadPool,
+    row: &mut Row,
+) -> hdrcodec::core::Result<()> {
+    let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
+    let gamut = libultrahdr::gamut(prepared.image.color.primaries)?;
+    let (rgba, clipped) = libultrahdr::linear_half_rgba(&prepared.image);
+    let mut notes = prepared.notes.clone();
+    if clipped > 0 {
+        notes.push(format!(
+            "{} on {}: {clipped} negative, NaN or beyond-half samples clipped in libultrahdr's input",
+            config.label, input.name
+        ));
+    }
+    let dir = jxrlib::TempDir::new("bench-uhdr")?;
+    let (w, h) = (input.image.width(), input.image.height());
+    let (enc_t, bytes) = timed(runs, || libultrahdr::encode(python, &dir, &rgba, w, h, quality, gamut))?;
+    decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
     row.notes = notes;
     Ok(())
 }
@@ -744,7 +824,14 @@ pub fn table(report: &Report) -> String {
         "speeds in MP/s: 1T on one thread, {}T on a pool of {} threads (--threads)\n",
         report.threads, report.threads
     ));
-    if report.rows.iter().any(|r| r.encoder.is_some()) {
+    if report.rows.iter().any(|r| r.config.starts_with("ultrahdr(libultrahdr)")) {
+        s.push_str(
+            "ultrahdr(libultrahdr) rows: libultrahdr 1.4's ultrahdr_encode (imagecodecs, Python) writes the file at the labelled \
+             base quality,\n  the rest at the library's defaults; enc 1T is the wall time of that process (interpreter start \
+             included), enc all '-';\n  bytes, quality and dec are our decoder on libultrahdr's file\n",
+        );
+    }
+    if report.rows.iter().any(|r| r.config.starts_with("jxr(jxrlib-enc)")) {
         s.push_str(&format!(
             "jxr(jxrlib-enc) rows: jxrlib's {enc} writes the file (the input as scRGB half floats, -c 12, or -c 25 with alpha, -q as \
              labelled);\n  enc 1T is the wall time of that process (start and TIFF reading included), enc {n}T '-';\n  \

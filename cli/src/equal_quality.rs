@@ -21,6 +21,8 @@ pub const COMPARISONS: &[(&str, &str)] = &[
     ("jxr:", "jxr(jxrlib-enc):"),
     // ... and at most 1/2 of BC6H's bytes at its PU21-PSNR on every photograph, 1/3 median.
     ("jxr:", "bc6h:effort2"),
+    // Issue 13: our gain-map JPEG at least as small as libultrahdr's at equal PU21-PSNR.
+    ("ultrahdr:", "ultrahdr(libultrahdr):"),
 ];
 
 /// One subject row (or reference point) placed on the other side's curve.

@@ -8,4 +8,5 @@ pub mod bench;
 pub mod corpus;
 pub mod equal_quality;
 pub mod jxrlib;
+pub mod libultrahdr;
 pub mod plot;

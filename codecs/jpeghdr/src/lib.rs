@@ -83,7 +83,7 @@ impl ImageCodec for GainMapJpegCodec {
         options: &DecodeOptions,
         sink: &mut dyn hdrcodec_core::sink::RowSink,
     ) -> Result<()> {
-        gainmap::decode_rows(data, &options.limits, Rendering::from_options(options)?, sink)
+        gainmap::decode_rows_on(data, &options.limits, Rendering::from_options(options)?, &options.pool, sink)
     }
     /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
     /// `map_scale`, `map_channels`.
