@@ -116,6 +116,10 @@ impl ImageCodec for JpegHdrCodec {
     fn sniff(&self, _head: &[u8]) -> bool {
         false
     }
+    /// Those of [`GainMapJpegCodec`], which decodes for it.
+    fn decode_option_keys(&self) -> &'static [&'static str] {
+        GainMapJpegCodec.decode_option_keys()
+    }
     /// BT.709 only (colours outside it travel in the unclamped Y'CbCr).
     fn color_signalling(&self) -> ColorSignalling {
         ColorSignalling::Only(&[ColorPrimaries::Bt709])
