@@ -67,9 +67,13 @@ impl GainMapEncodeOptions {
     }
 }
 
-/// The offset added on both sides of the gain (ISO 21496-1's k; the Ultra HDR format's
-/// recommended 1/64), so that black pixels keep a finite gain.
-const OFFSET: f64 = 1.0 / 64.0;
+/// The offset added on both sides of the gain (ISO 21496-1's k), so that black pixels keep a
+/// finite gain: 1/256 of SDR white (0.8 cd/m²), not the Ultra HDR format's recommended 1/64
+/// (3.2 cd/m²; libultrahdr 1.4 writes 0). A map code's error is an absolute error of about
+/// k · 2% in the HDR rendition, colour-blind below k; on the corpus photographs at q85, 1/256
+/// took mean ΔE ITP on StillLife from 17.3 to 14.9 and on GoldenGate from 4.7 to 4.3, PU21-PSNR
+/// up to 0.5 dB (1/1024: about the same; StillLife 16.0).
+const OFFSET: f64 = 1.0 / 256.0;
 
 /// The base's tone curve: GT with a linear toe (black tightness 1 instead of the CEDEC 1.33),
 /// the identity up to 0.53 of SDR white (108 cd/m²), then its shoulder. The default toe crushed
