@@ -138,18 +138,43 @@ pub enum ToneOperator {
     ReinhardExtended(f64),
 }
 
+impl ToneOperator {
+    /// The display-linear value (1.0 = the display's peak) of scene value `x` (1.0 = paper
+    /// white); not clamped.
+    pub fn map(&self, x: f64) -> f64 {
+        match self {
+            ToneOperator::Gt(c) => c.map(x) / c.max_brightness,
+            ToneOperator::Reinhard => reinhard(x),
+            ToneOperator::ReinhardExtended(w) => reinhard_extended(x, *w),
+        }
+    }
+}
+
+impl std::str::FromStr for ToneOperator {
+    type Err = crate::Error;
+
+    /// `gt` (the default GT curve), `reinhard`, or `reinhard-extended:W` (white point W > 0,
+    /// in paper-white units), as options on a command line name them.
+    fn from_str(s: &str) -> crate::Result<Self> {
+        match s.split_once(':') {
+            None if s == "gt" => Ok(ToneOperator::Gt(GtToneCurve::default())),
+            None if s == "reinhard" => Ok(ToneOperator::Reinhard),
+            Some(("reinhard-extended", w)) => match w.parse::<f64>() {
+                Ok(w) if w > 0.0 && w.is_finite() => Ok(ToneOperator::ReinhardExtended(w)),
+                _ => Err(crate::Error::invalid(format!("tone operator {s}: the white point must be a number above 0"))),
+            },
+            _ => Err(crate::Error::invalid(format!("tone operator {s} (known: gt, reinhard, reinhard-extended:W)"))),
+        }
+    }
+}
+
 /// Tone-maps every pixel, channel by channel, to display-linear values in [0, 1] (apply an
 /// output transfer such as sRGB afterwards). The input is scaled so that 1.0 is
 /// `paper_white_nits` cd/m².
 pub fn tonemap_to_sdr(image: &HdrImage, op: ToneOperator, paper_white_nits: f64) -> Vec<[f32; 3]> {
     let scale = image.color.nits_per_unit as f64 / paper_white_nits;
     let f = |v: f32| -> f32 {
-        let x = v as f64 * scale;
-        let y = match op {
-            ToneOperator::Gt(c) => c.map(x) / c.max_brightness,
-            ToneOperator::Reinhard => reinhard(x),
-            ToneOperator::ReinhardExtended(w) => reinhard_extended(x, w),
-        };
+        let y = op.map(v as f64 * scale);
         if y.is_nan() {
             0.0
         } else {
@@ -162,6 +187,19 @@ pub fn tonemap_to_sdr(image: &HdrImage, op: ToneOperator, paper_white_nits: f64)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tone_operators_by_name() {
+        assert_eq!("gt".parse::<ToneOperator>().unwrap(), ToneOperator::Gt(GtToneCurve::default()));
+        assert_eq!("reinhard".parse::<ToneOperator>().unwrap(), ToneOperator::Reinhard);
+        let ext = "reinhard-extended:4".parse::<ToneOperator>().unwrap();
+        assert_eq!(ext, ToneOperator::ReinhardExtended(4.0));
+        assert!((ext.map(4.0) - 1.0).abs() < 1e-12, "the white point maps to 1");
+        assert_eq!(ToneOperator::Reinhard.map(1.0), 0.5);
+        for bad in ["", "aces", "reinhard-extended", "reinhard-extended:0", "reinhard-extended:x", "gt:2"] {
+            assert!(bad.parse::<ToneOperator>().is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn gt_curve_has_the_cedec_shape() {

@@ -26,6 +26,7 @@
 use crate::encode::{base_image, jpeg_error};
 use crate::gainmap::{decode_jpeg_as, SDR_WHITE_NITS};
 use crate::ratio::{gaussian_downsample, upsample, Correction, RatioHeader, SIGNATURE};
+use hdrcodec_core::tonemap::ToneOperator;
 use hdrcodec_core::SrgbTransfer;
 use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Limits, Result};
 
@@ -65,6 +66,9 @@ pub struct RatioEncodeOptions {
     /// The desaturation `alp` (β is 1); `None`: the largest with which all but 0.01 % of the
     /// pixels below the base's highlights fit (not below 0.5).
     pub alpha: Option<f64>,
+    /// The tone-mapping operator applied to luminance for the base (core's; 1.0 = SDR white
+    /// in, the base's white out): the GT curve by default.
+    pub tone: ToneOperator,
 }
 
 impl Default for RatioEncodeOptions {
@@ -77,6 +81,7 @@ impl Default for RatioEncodeOptions {
             ratio_scale: 2,
             correction: Correction::Pre,
             alpha: None,
+            tone: ToneOperator::Gt(GtToneCurve::default()),
         }
     }
 }
@@ -84,7 +89,7 @@ impl Default for RatioEncodeOptions {
 impl RatioEncodeOptions {
     /// The options `settings` give (unknown keys are errors).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
-        settings.check_options("jpeg-hdr", &["ratio_quality", "ratio_scale", "correction", "alpha"])?;
+        settings.check_options("jpeg-hdr", &["ratio_quality", "ratio_scale", "correction", "alpha", "tone"])?;
         let d = Self::default();
         let correction = match settings.option("correction") {
             None => d.correction,
@@ -102,6 +107,7 @@ impl RatioEncodeOptions {
             ratio_scale: settings.parse_option("ratio_scale")?.unwrap_or(d.ratio_scale),
             correction,
             alpha,
+            tone: settings.option("tone").map(str::parse).transpose()?.unwrap_or(d.tone),
         };
         o.check()?;
         Ok(o)
@@ -271,7 +277,6 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     let nits = f64::from(image.color.nits_per_unit);
     let s2n = if nits.is_finite() && nits > 0.0 { nits } else { 0.0 };
     let to_sdr = if s2n > 0.0 { s2n / f64::from(SDR_WHITE_NITS) } else { 1.0 };
-    let curve = GtToneCurve::default();
     let pixel = |i: usize| -> [f64; 3] {
         let p = &image.samples()[i * channels..i * channels + 3];
         [0, 1, 2].map(|c| if p[c].is_finite() { f64::from(p[c]) } else { 0.0 })
@@ -283,7 +288,10 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     // (At least the grey of sRGB code 16, as the reference raises its codes below 20: the
     // ratio, not the base's few darkest codes, carries the deep shadows.)
     let shadow = SrgbTransfer::decode(16.0 / 256.0);
-    let tone_map = |y: f64| curve.map(y * to_sdr).clamp(shadow, white);
+    let tone_map = |y: f64| {
+        let t = options.tone.map(y * to_sdr);
+        (if t.is_nan() { 0.0 } else { t }).clamp(shadow, white)
+    };
 
     // The log ratio at full resolution; black pixels take the smallest ratio around.
     let mut ln_ratio: Vec<f32> = (0..w * h)
@@ -621,5 +629,21 @@ mod tests {
         assert!(bad("ratio_scale", "0") && bad("ratio_scale", "17") && bad("correction", "none"));
         assert!(bad("alpha", "0.2") && bad("ratio_quality", "0") && bad("map_scale", "2"));
         assert!(!bad("alpha", "auto") && !bad("alpha", "0.8") && !bad("correction", "post"));
+        assert!(bad("tone", "aces") && !bad("tone", "reinhard") && !bad("tone", "reinhard-extended:4"));
+    }
+
+    #[test]
+    fn any_core_tone_operator_makes_the_base() {
+        // Another operator gives another SDR base; the ratio image still restores the HDR image.
+        let image = scene(128, 96);
+        let (gt, _) = encode_jpeg_hdr(&image, &RatioEncodeOptions::default()).unwrap();
+        for tone in ["reinhard", "reinhard-extended:8"] {
+            let options = RatioEncodeOptions { tone: tone.parse().unwrap(), ..Default::default() };
+            let (file, _) = encode_jpeg_hdr(&image, &options).unwrap();
+            assert_ne!(file, gt, "{tone}");
+            let back = decode(&file, &Limits::default(), Rendering::default()).unwrap();
+            let q = pu21(&image, &back);
+            assert!(q >= 40.0, "{tone}: {q}");
+        }
     }
 }
