@@ -25,12 +25,13 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 9] = [
+pub const TARGETS: [(&str, Target); 10] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
     ("exr", exr),
     ("gainmap_jpeg", gainmap_jpeg),
+    ("jpeg_metadata", jpeg_metadata),
     ("jxr", jxr),
     ("logluv", logluv),
     ("pfm", pfm),
@@ -152,6 +153,32 @@ pub fn gainmap_jpeg(data: &[u8]) {
     let limits = Limits::fuzzing();
     let _ = probe_and_decode(&GainMapJpegCodec, data, &limits);
     let _ = hdrcodec_jpeghdr::decode(data, &limits, Rendering { headroom: Some(2.0) });
+}
+
+/// HDR JPEG's metadata parsers alone, each given the whole input (faster than the whole
+/// decoder, which reaches them only through valid JPEG structure): the ISO 21496-1 record (and
+/// what it writes back parses again), hdrgm / GContainer / Apple XMP, MPF, ICC primaries, the
+/// JPEG-HDR header text, EXIF orientation and Apple's maker note, and the marker walker.
+pub fn jpeg_metadata(data: &[u8]) {
+    use hdrcodec_jpeghdr::{exif, icc, markers, metadata::GainMapMetadata, mpf, ratio::RatioHeader, xmp::Xmp};
+    if let Ok(Some(m)) = GainMapMetadata::from_iso(data) {
+        let again = GainMapMetadata::from_iso(&m.to_iso());
+        assert!(matches!(again, Ok(Some(_))), "a record we write back must parse: {again:?}");
+        let _ = (m.describe(), m.weight(1.5), m.full_hdr_weight());
+    }
+    if let Ok(x) = Xmp::new(data) {
+        let _ = (x.hdrgm_version(), x.hdrgm_metadata(), x.container_items(), x.is_apple_gain_map(), x.apple_headroom());
+    }
+    let _ = mpf::parse(data, 0, 0);
+    let _ = mpf::parse(data, usize::MAX / 2, usize::MAX / 4);
+    let _ = icc::primaries(data);
+    let _ = icc::assemble(data.chunks(97));
+    let _ = RatioHeader::parse(&String::from_utf8_lossy(data));
+    let _ = (exif::orientation(data), exif::apple_headroom_stops_in(data));
+    if let Ok(image) = markers::parse_image(data, 0) {
+        let _ = hdrcodec_jpeghdr::ratio::ratio_image(&image);
+    }
+    let _ = markers::next_image_start(data, data.len() / 2);
 }
 
 /// JPEG XR: the codec (probe and decode through the container, entropy decoding, the

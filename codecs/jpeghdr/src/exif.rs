@@ -54,7 +54,11 @@ pub fn from_hex(text: &str) -> Option<Vec<u8>> {
 /// 48, signed rationals), as Apple documents it for gain maps whose XMP does not carry
 /// `HDRGainMapHeadroom`; `Ok(None)` when the image has no Apple maker note.
 pub fn apple_headroom_stops(image: &JpegImage<'_>) -> Result<Option<f64>> {
-    let Some(block) = exif_block(image) else { return Ok(None) };
+    exif_block(image).map_or(Ok(None), apple_headroom_stops_in)
+}
+
+/// [`apple_headroom_stops`] of an EXIF block (the TIFF-structured bytes after `Exif\0\0`).
+pub fn apple_headroom_stops_in(block: &[u8]) -> Result<Option<f64>> {
     let tiff = Tiff::parse(block, MAGIC_TIFF)?;
     let Some(pointer) = tiff.first_ifd()?.get(EXIF_IFD_POINTER).cloned() else { return Ok(None) };
     let exif_ifd = tiff.read_ifd(u64::from(pointer.first_u32(&tiff)?))?;

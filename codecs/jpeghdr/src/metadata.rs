@@ -184,21 +184,24 @@ impl GainMapMetadata {
 
     /// The full ISO 21496-1 record (signature not included), in the form every reader takes:
     /// separate fractions, backward-direction and common-denominator flags clear. Fractions
-    /// have denominator 2^20 (|x| < 2048 stops or linear units, far beyond real metadata).
+    /// have denominator 2^20 (|x| < 2048 stops or linear units, far beyond real metadata), or a
+    /// larger power of two for a small value that would keep fewer than 10 bits (a positive
+    /// gamma must not round to 0).
     pub fn to_iso(&self) -> Vec<u8> {
-        const DEN: f64 = (1u32 << 20) as f64;
         let channels = if self.multichannel { 3 } else { 1 };
         let mut out = Vec::with_capacity(21 + 40 * channels);
         out.extend(0u16.to_be_bytes());
         out.extend(0u16.to_be_bytes());
         out.push(if self.multichannel { 0x80 } else { 0 } | if self.use_base_colour_space { 0x40 } else { 0 });
         let unsigned = |out: &mut Vec<u8>, v: f64| {
-            out.extend(((v.max(0.0) * DEN).round().min(f64::from(u32::MAX)) as u32).to_be_bytes());
-            out.extend((DEN as u32).to_be_bytes());
+            let (num, den) = to_fraction(v.max(0.0), f64::from(u32::MAX));
+            out.extend((num as u32).to_be_bytes());
+            out.extend(den.to_be_bytes());
         };
         let signed = |out: &mut Vec<u8>, v: f64| {
-            out.extend(((v * DEN).round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32).to_be_bytes());
-            out.extend((DEN as u32).to_be_bytes());
+            let (num, den) = to_fraction(v, f64::from(i32::MAX));
+            out.extend((num as i32).to_be_bytes());
+            out.extend(den.to_be_bytes());
         };
         unsigned(&mut out, self.base_headroom);
         unsigned(&mut out, self.alternate_headroom);
@@ -216,6 +219,21 @@ impl GainMapMetadata {
     pub fn iso_version_record() -> [u8; 4] {
         [0, 0, 0, 0]
     }
+}
+
+/// `v` as numerator / denominator for the ISO record: denominator 2^20, raised (by powers of
+/// two, up to 2^31) while the numerator would keep fewer than 10 bits of a non-zero `v`; the
+/// numerator rounded, at least 1 in magnitude for a non-zero `v`, and within ±`max`.
+fn to_fraction(v: f64, max: f64) -> (f64, u32) {
+    let mut den: u32 = 1 << 20;
+    while v != 0.0 && (v * f64::from(den)).abs() < 1024.0 && den < 1 << 31 {
+        den <<= 1;
+    }
+    let mut num = (v * f64::from(den)).round();
+    if num == 0.0 && v != 0.0 {
+        num = v.signum();
+    }
+    (num.clamp(-max - 1.0, max), den)
 }
 
 /// Big-endian reads from a record.
@@ -303,6 +321,20 @@ mod tests {
         }
         assert_eq!(GainMapMetadata::from_iso(&GainMapMetadata::iso_version_record()).unwrap(), None);
         assert!(GainMapMetadata::from_iso(&[0, 1, 0, 0]).is_err());
+        // Small values keep their precision (a positive gamma of 2^-25 is not written as 0:
+        // found by the jpeg_metadata fuzz target), large ones their range.
+        let tiny = GainMapMetadata { gamma: [2f64.powi(-25); 3], gain_min: [-1e-6; 3], ..sample(false) };
+        let back = GainMapMetadata::from_iso(&tiny.to_iso()).unwrap().unwrap();
+        assert_eq!(back.gamma, tiny.gamma);
+        assert!((back.gain_min[0] + 1e-6).abs() < 1e-9, "{:?}", back.gain_min);
+        let huge = GainMapMetadata {
+            alternate_headroom: 4000.0,
+            gain_min: [-2000.0; 3],
+            gain_max: [2000.0; 3],
+            ..sample(false)
+        };
+        let back = GainMapMetadata::from_iso(&huge.to_iso()).unwrap().unwrap();
+        assert_eq!((back.alternate_headroom, back.gain_min[0], back.gain_max[0]), (4000.0, -2000.0, 2000.0));
     }
 
     #[test]
