@@ -372,19 +372,12 @@ impl Rendering {
     /// The decode option that sets [`Rendering::headroom`] (`--opt headroom=2.0`).
     pub const OPTION_KEYS: &'static [&'static str] = &["headroom"];
 
-    /// The rendering asked for in a decoder's options: `headroom=H`, a linear ratio ≥ 1, or
-    /// `headroom=full` (the default).
+    /// The rendering asked for in a decoder's options: `headroom=H`, a linear ratio (the
+    /// decode checks it is at least 1), or `headroom=full` (the default).
     pub fn from_options(options: &DecodeOptions) -> Result<Self> {
         match options.option("headroom") {
             None | Some("full") => Ok(Rendering::default()),
-            Some(_) => {
-                let h: f64 = options.parse_option("headroom")?.unwrap_or(1.0);
-                if h >= 1.0 && h.is_finite() {
-                    Ok(Rendering { headroom: Some(h) })
-                } else {
-                    Err(Error::invalid(format!("option headroom={h}: the display headroom must be at least 1")))
-                }
-            }
+            Some(_) => Ok(Rendering { headroom: options.parse_option("headroom")? }),
         }
     }
 }

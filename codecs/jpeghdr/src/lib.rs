@@ -143,7 +143,8 @@ impl ImageCodec for JpegHdrCodec {
         GainMapJpegCodec.decode_rows(data, options, sink)
     }
     /// A GT-tone-mapped sRGB base with a ratio image in APP11 (see [`encode_jpeg_hdr`]);
-    /// options `ratio_quality`, `ratio_scale`, `correction=pre|post`, `alpha`, `tone=gt|reinhard|reinhard-extended:W`.
+    /// options `ratio_quality`, `ratio_scale`, `correction=pre|post`, `alpha`,
+    /// `tone=gt|reinhard|reinhard-extended:W`.
     fn encode_to(
         &self,
         image: &HdrImage,

@@ -18,6 +18,16 @@ use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, ImageInfo, Limit
 /// The APP11 payload signature of a JPEG-HDR segment (with its trailing space).
 pub const SIGNATURE: &[u8] = b"HDR_RI ";
 
+/// The luminance weights of JPEG-HDR's desaturation and ratio (BT.709, to four decimals, as the
+/// format's reference uses them): the decoder resaturates with them, the encoder measures with
+/// them.
+pub(crate) const LUMA_WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// The luminance of `rgb` by [`LUMA_WEIGHTS`].
+pub(crate) fn luma(rgb: [f64; 3]) -> f64 {
+    LUMA_WEIGHTS[0] * rgb[0] + LUMA_WEIGHTS[1] * rgb[1] + LUMA_WEIGHTS[2] * rgb[2]
+}
+
 /// How the ratio image was made (`cor`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Correction {
@@ -272,7 +282,7 @@ fn resaturate(rgb: &mut [f64; 3], alpha: f64, beta: f64) {
     if (alpha - 1.0).abs() <= 1e-4 && (beta - 1.0).abs() <= 1e-4 {
         return;
     }
-    let y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    let y = luma(*rgb);
     if y <= 1e-10 {
         return;
     }
@@ -509,7 +519,7 @@ mod tests {
     fn resaturation_inverts_desaturation() {
         let (alpha, beta) = (0.8, 1.0);
         let c = [0.9, 0.3, 0.1];
-        let y = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let y = luma(c);
         let mut d = c.map(|v| y * (1.0 - alpha) + alpha * v);
         resaturate(&mut d, alpha, beta);
         assert!((0..3).all(|k| (d[k] - c[k]).abs() < 1e-12));

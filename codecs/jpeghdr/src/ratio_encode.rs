@@ -25,7 +25,7 @@
 
 use crate::encode::{base_image, jpeg_error};
 use crate::gainmap::{decode_jpeg_as, SDR_WHITE_NITS};
-use crate::ratio::{gaussian_downsample, upsample, Correction, RatioHeader, SIGNATURE};
+use crate::ratio::{gaussian_downsample, luma, upsample, Correction, RatioHeader, SIGNATURE};
 use hdrcodec_core::tonemap::ToneOperator;
 use hdrcodec_core::SrgbTransfer;
 use hdrcodec_core::{ColorPrimaries, EncodeReport, EncodeSettings, Error, GtToneCurve, HdrImage, Limits, Result};
@@ -45,9 +45,6 @@ const MIN_LN_RANGE: f64 = 0.01;
 
 /// The base's linear luminance above which colours are not considered in choosing α.
 const HIGHLIGHT: f64 = 0.75;
-
-/// BT.709 luminance weights (those decoders resaturate with).
-const WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Options of the JPEG-HDR encoder (`--opt key=value`: `ratio_quality`, `ratio_scale`,
 /// `correction=pre|post`, `alpha=auto|0.5..1`; the base's quality is the settings' `quality`).
@@ -281,7 +278,6 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
         let p = &image.samples()[i * channels..i * channels + 3];
         [0, 1, 2].map(|c| if p[c].is_finite() { f64::from(p[c]) } else { 0.0 })
     };
-    let luminance = |rgb: [f64; 3]| WEIGHTS[0] * rgb[0] + WEIGHTS[1] * rgb[1] + WEIGHTS[2] * rgb[2];
     // The tone-mapped luminance (linear, 1.0 = the base's white) of HDR luminance y.
     // (At most the brightest grey the base codes: 255.5 / 256 of the sRGB curve.)
     let white = SrgbTransfer::decode(255.4 / 256.0);
@@ -297,7 +293,7 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     let mut ln_ratio: Vec<f32> = (0..w * h)
         .map(|i| {
             let rgb = pixel(i);
-            let y = luminance(rgb);
+            let y = luma(rgb);
             if y > BLACK {
                 (y / fitting(rgb, y, tone_map(y), 1.0)).ln() as f32
             } else {
@@ -363,7 +359,7 @@ pub fn encode_jpeg_hdr(image: &HdrImage, options: &RatioEncodeOptions) -> Result
     // The base's linear colour at pixel i, before desaturation, and its luminance.
     let base_linear = |i: usize| -> ([f64; 3], f64) {
         let rgb = pixel(i);
-        let y = luminance(rgb);
+        let y = luma(rgb);
         if y <= BLACK {
             return ([0.0; 3], 0.0);
         }
