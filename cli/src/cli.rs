@@ -43,6 +43,11 @@ pub fn run_catching_panics(f: impl FnOnce() -> ExitCode) -> ExitCode {
         Ok(code) => code,
         Err(_) => {
             let msg = LAST_PANIC.lock().ok().and_then(|m| m.clone()).unwrap_or_else(|| "unknown".into());
+            // `hdrcodec info x | head`: the reader closed stdout, which is not a bug. Quiet, with
+            // the status a shell gives a process that SIGPIPE ended (128 + 13).
+            if msg.starts_with("failed printing to stdout") && msg.contains("Broken pipe") {
+                return ExitCode::from(141);
+            }
             fail(&format!("internal error (a bug, please report it): {msg}"));
             ExitCode::from(101)
         }

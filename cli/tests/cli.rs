@@ -636,3 +636,19 @@ fn jpeg_hdr_is_written_by_name_and_read_back_as_a_jpg() {
         "map_scale",
     );
 }
+
+#[test]
+fn a_closed_stdout_is_not_an_internal_error() {
+    // `hdrcodec codecs | head -0`: the reader is gone before anything is written.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .arg("codecs")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run hdrcodec");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait for hdrcodec");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("internal error"), "{stderr}");
+    assert!(matches!(out.status.code(), Some(0) | Some(141)), "{:?}", out.status);
+}
