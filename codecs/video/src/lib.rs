@@ -11,5 +11,7 @@
 //! ([`thresholds`]); and the L_p u'v' colour space ([`luv`]).
 
 pub mod curves;
+pub mod gsdf;
 pub mod mantiuk;
+pub mod mantiuk06;
 pub mod tvi;

@@ -3,6 +3,7 @@
 
 use hdrcodec_video::curves::LumaCurve;
 use hdrcodec_video::mantiuk::{Psi04, PsiIntegration, PsiOptions};
+use hdrcodec_video::mantiuk06::Mantiuk06;
 use hdrcodec_video::tvi::ferwerda_tvi;
 
 /// Entries of LumaHDRv's `ptf_jnd_ferwerda_11bit.h` (gabrieleilertsen/lumahdrv 4cf5949, as
@@ -84,4 +85,36 @@ fn both_constructions_agree_at_high_bit_depth() {
         let (a, b) = (continuous.decode(c), recurrence.decode(c));
         assert!((a / b - 1.0).abs() < 2e-3, "code {c}: {a} vs {b}");
     }
+}
+
+/// The largest difference between two curves over `min..max` cd/m², in codes of `a`'s depth
+/// (b's codes scaled to it), and where it occurs.
+fn max_code_difference(a: &dyn LumaCurve, b: &dyn LumaCurve, min: f64, max: f64) -> (f64, f64) {
+    let scale = f64::from(a.max_code()) / f64::from(b.max_code());
+    let mut worst = (0.0, min);
+    let mut l = min;
+    while l <= max {
+        let d = (f64::from(a.encode(l)) - scale * f64::from(b.encode(l))).abs();
+        if d > worst.0 {
+            worst = (d, l);
+        }
+        l *= 1.002;
+    }
+    worst
+}
+
+#[test]
+fn mantiuk06_is_not_the_2004_curve() {
+    // Both as 12-bit curves over the 2006 curve's range, 10⁻⁵ … 10¹⁰ cd/m², so that the
+    // difference is one of shape, not of range or depth. The issue expected "~150 codes".
+    let m06 = Mantiuk06::new(12).unwrap();
+    let psi = Psi04::new(&PsiOptions { bits: 12, min_nits: 1e-5, max_nits: 1e10, ..PsiOptions::default() }).unwrap();
+    let (whole, at_whole) = max_code_difference(&m06, &psi, 1e-5, 1e10);
+    let (display, at_display) = max_code_difference(&m06, &psi, 0.005, 1e4);
+    println!(
+        "mantiuk06 vs psi04 (12 bits, 1e-5..1e10): at most {whole:.0} codes apart (at {at_whole:.1} cd/m²); \
+         over 0.005..1e4 at most {display:.0} (at {at_display:.1} cd/m²)"
+    );
+    // Two different curves, not one curve up to rounding.
+    assert!(whole > 100.0 && display > 100.0);
 }
