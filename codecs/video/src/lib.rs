@@ -14,4 +14,5 @@ pub mod curves;
 pub mod gsdf;
 pub mod mantiuk;
 pub mod mantiuk06;
+pub mod thresholds;
 pub mod tvi;

@@ -16,7 +16,7 @@
 use hdrcodec_core::Result;
 
 use crate::curves::{check_bits, check_range, max_code, LumaCurve};
-use crate::tvi::ferwerda_tvi;
+use crate::tvi::{ferwerda_tvi, BRANCH_ENDS_LOG10};
 
 /// How the table of ψ is computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -95,46 +95,71 @@ fn rk4(ln_l: f64, h: f64) -> f64 {
 /// that the integration lands on L_max to 10⁻⁹.
 const MAX_STEP_THRESHOLDS: f64 = 1.0 / 64.0;
 
-/// The ODE solved on a fixed grid of s (thresholds counted from `min_nits`): ln L at
-/// s = i·[`MAX_STEP_THRESHOLDS`] for every i up to the last grid point below `max_nits`, and
-/// S = ∫ dL/tvi(L) from `min_nits` to `max_nits`, where the final partial step (found by
-/// bisection) reaches ln `max_nits`.
-fn trajectory(min_nits: f64, max_nits: f64) -> (Vec<f64>, f64) {
-    let ln_end = max_nits.ln();
-    let mut grid = vec![min_nits.ln()];
-    loop {
-        let next = rk4(grid[grid.len() - 1], MAX_STEP_THRESHOLDS);
-        if next >= ln_end {
-            break;
-        }
-        grid.push(next);
-    }
-    let last = grid[grid.len() - 1];
-    let (mut lo, mut hi) = (0.0, MAX_STEP_THRESHOLDS);
+/// The step `h` ≤ [`MAX_STEP_THRESHOLDS`] from `ln_l` that lands exactly on `ln_target`
+/// (bisection; the caller knows a full step would pass it).
+fn step_to(ln_l: f64, ln_target: f64, h: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, h);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if rk4(last, mid) < ln_end {
+        if rk4(ln_l, mid) < ln_target {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    let total = (grid.len() - 1) as f64 * MAX_STEP_THRESHOLDS + 0.5 * (lo + hi);
-    (grid, total)
+    0.5 * (lo + hi)
+}
+
+/// The ODE solved on a grid of s (thresholds counted from `min_nits`): pairs (s, ln L) from
+/// `min_nits` to `max_nits`, steps of [`MAX_STEP_THRESHOLDS`] except that the grid stops
+/// exactly on every branch end of the tvi and on `max_nits`. Runge–Kutta is only accurate on
+/// a smooth right-hand side; the tvi jumps at two branch ends (2.8 % at 10^−1.44 cd/m²), and a
+/// step across a jump would misplace the next codes by up to that fraction of a step.
+fn trajectory(min_nits: f64, max_nits: f64) -> Vec<(f64, f64)> {
+    let ln_end = max_nits.ln();
+    let mut stops: Vec<f64> = BRANCH_ENDS_LOG10
+        .iter()
+        .map(|x| x * std::f64::consts::LN_10)
+        .filter(|&k| k > min_nits.ln() && k < ln_end)
+        .collect();
+    stops.push(ln_end);
+    let mut grid = vec![(0.0, min_nits.ln())];
+    let (mut s, mut ln_l) = grid[0];
+    for stop in stops {
+        loop {
+            let next = rk4(ln_l, MAX_STEP_THRESHOLDS);
+            if next >= stop {
+                s += step_to(ln_l, stop, MAX_STEP_THRESHOLDS);
+                ln_l = stop;
+                grid.push((s, ln_l));
+                break;
+            }
+            s += MAX_STEP_THRESHOLDS;
+            ln_l = next;
+            grid.push((s, ln_l));
+        }
+    }
+    grid
 }
 
 /// ln ψ(l) for l = 0 … `codes` − 1 by the continuous ODE, and its k. Each entry is one partial
-/// Runge–Kutta step from the grid point below it, so that every code is integrated on the
-/// same grid that measured S and the last code lands on L_max. The last entry is the
+/// Runge–Kutta step from the grid point below it, which never crosses a branch end of the tvi,
+/// and the last code lands on L_max because the grid ends there. The last entry is the
 /// integrator's own (not forced to L_max), so that tests can see how closely it lands.
 fn continuous_ln_table(codes: usize, min_nits: f64, max_nits: f64) -> (Vec<f64>, f64) {
-    let (grid, total) = trajectory(min_nits, max_nits);
+    let grid = trajectory(min_nits, max_nits);
+    let total = grid[grid.len() - 1].0;
     let k = total / (codes - 1) as f64;
     let table = (0..codes)
         .map(|l| {
             let s = k * l as f64;
-            let i = ((s / MAX_STEP_THRESHOLDS) as usize).min(grid.len() - 1);
-            rk4(grid[i], s - i as f64 * MAX_STEP_THRESHOLDS)
+            let i = grid.partition_point(|&(at, _)| at <= s).saturating_sub(1);
+            let (at, ln_l) = grid[i];
+            if s >= total {
+                ln_l
+            } else {
+                rk4(ln_l, s - at)
+            }
         })
         .collect();
     (table, k)

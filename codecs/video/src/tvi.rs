@@ -7,6 +7,11 @@
 //! Both branches are fed photopic luminance, as LumaHDRv does; Ferwerda states the rod branch
 //! in scotopic units, and what the 2004 paper did there is not known (VIDEO-NOTES §1.2).
 
+/// log10 of the luminances (cd/m²) where a branch of either mechanism ends. The tvi is
+/// continuous at −3.94 and −2.6 but drops by 2.8 % at −1.44 and by 0.7 % at 1.9 (Ferwerda's
+/// segments do not quite meet), so integrators must not step across these points.
+pub const BRANCH_ENDS_LOG10: [f64; 4] = [-3.94, -2.6, -1.44, 1.9];
+
 /// log10 of the rod threshold (cd/m²) at adaptation log10 L = `x`.
 ///
 /// Ferwerda et al. 1996, the rod tvi: a floor below 10^−3.94, a power-law knee, Weber
@@ -79,6 +84,18 @@ mod tests {
             let got = ferwerda_tvi(l) / l;
             assert!((got / fraction - 1.0).abs() < 0.01, "tvi({l})/L = {got}, notes say {fraction}");
         }
+    }
+
+    #[test]
+    fn the_branch_ends_are_where_the_model_says() {
+        // Just below and above each end, the threshold changes by under 3 %.
+        for x in BRANCH_ENDS_LOG10 {
+            let (below, above) = (ferwerda_tvi(10f64.powf(x - 1e-9)), ferwerda_tvi(10f64.powf(x + 1e-9)));
+            assert!((above / below - 1.0).abs() < 0.03, "10^{x}: {below} → {above}");
+        }
+        let x = -1.44;
+        let drop = ferwerda_tvi(10f64.powf(x + 1e-9)) / ferwerda_tvi(10f64.powf(x - 1e-9));
+        assert!((drop - 10f64.powf(-1.835 + 1.823)).abs() < 0.001, "{drop}");
     }
 
     #[test]
