@@ -12,6 +12,7 @@
 
 pub mod curves;
 pub mod gsdf;
+pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;
 pub mod thresholds;
