@@ -12,6 +12,21 @@
 //! (u' = 0.1978, v' = 0.4683: codes 81, 192). Chromaticities outside 0 ≤ 410·u', 410·v' ≤ 255
 //! (only imaginary colours: the XYZ or ACES AP0 primaries themselves) clamp to that square.
 //! Primaries that are [`Unspecified`](ColorPrimaries::Unspecified) are taken as BT.709.
+//!
+//! ```
+//! use hdrcodec_core::ColorPrimaries;
+//! use hdrcodec_video::curves::LumaCurve;
+//! use hdrcodec_video::luv::{decode_pixel, encode_pixel, LinearRgb};
+//! use hdrcodec_video::mantiuk::{Psi04, PsiOptions};
+//!
+//! let psi = Psi04::new(&PsiOptions::default())?; // 11 bits over 1e-4..1e8 cd/m²
+//! assert_eq!(psi.encode(psi.decode(1000)), 1000);
+//! let space = LinearRgb::new(ColorPrimaries::Bt709, 100.0)?; // 1.0 = 100 cd/m²
+//! let pixel = encode_pixel(&psi, &space, [0.5, 0.25, 0.125]);
+//! let rgb = decode_pixel(&psi, &space, pixel);
+//! assert!((rgb[1] / 0.25 - 1.0).abs() < 0.05);
+//! # Ok::<(), hdrcodec_core::Error>(())
+//! ```
 
 use hdrcodec_core::color::{luv_prime_to_xyz, mat_apply, mat_inverse, xyz_to_uv_prime, Mat3};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Result};

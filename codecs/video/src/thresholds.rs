@@ -96,8 +96,8 @@ pub struct BitsNeeded {
     /// bits: the 16-bit curve's worst ratio r asks for (2¹⁶ − 1)·r·f/2 steps, log2(steps + 1)
     /// bits. This is the figure for a curve fine enough that its steps scale as 1/(2ⁿ − 1)
     /// (the limit the paper's "n bits" speaks of) and it can go below 8 bits, where the curves
-    /// are not built. A coarse curve's worst step is a little larger than this predicts, so
-    /// `whole` can exceed ⌈estimate⌉.
+    /// are not built. A coarse curve's worst step can be a little larger or smaller than this
+    /// predicts, so `whole` can differ from ⌈estimate⌉ by one.
     pub estimate: f64,
 }
 

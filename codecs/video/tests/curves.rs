@@ -157,14 +157,18 @@ fn threshold_counts_agree_with_the_notes() {
 fn psi_bits_needed_follow_from_the_threshold_count() {
     // ψ's steps are k·tvi with k = N/(2ⁿ − 1), N = ∫ dL/tvi, so the criterion step ≤ (2/f)·tvi
     // needs N·f/2 steps: log2(N·f/2 + 1) bits. The crate measures it on the curve's steps.
+    println!("| ψ range (cd/m²) | N = ∫dL/tvi | f = 1 | f = 2 | f = 4 | f = 8 |\n|---|---|---|---|---|---|");
     for (min, max) in [(1e-4, 1e8), (0.005, 1e4)] {
         let n = thresholds_by_simpson(min, max);
+        let mut line = format!("| {min}..{max} | {n:.1} |");
         for f in [1.0, 2.0, 4.0, 8.0] {
             let measured =
                 bits_needed(&psi_over(min, max), ThresholdModel::FerwerdaTvi, min, max, f).unwrap().unwrap().estimate;
             let expected = (n * f / 2.0 + 1.0).log2();
             assert!((measured - expected).abs() < 0.01, "{min}..{max}, f = {f}: {measured} bits, expected {expected}");
+            line += &format!(" {measured:.2} |");
         }
+        println!("{line}");
     }
 }
 
