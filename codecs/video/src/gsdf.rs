@@ -8,12 +8,12 @@ use hdrcodec_core::Result;
 
 use crate::curves::{check_bits, round_code, LumaCurve};
 
-/// The numerator coefficients of PS3.14 eq. 7-1 for log10 L(j) as a rational function of
+/// The numerator coefficients of the GSDF (PS3.14 §7) for log10 L(j) as a rational function of
 /// u = ln j: a, c, e, g, m (constants as in DCMTK's `DiGSDFunction`, VIDEO-NOTES §2.1).
 const NUMERATOR: [f64; 5] = [-1.3011877, 8.0242636e-2, 1.3646699e-1, -2.5468404e-2, 1.3635334e-3];
-/// The denominator coefficients of eq. 7-1: 1, b, d, f, h, k.
+/// The denominator coefficients of the GSDF: 1, b, d, f, h, k.
 const DENOMINATOR: [f64; 6] = [1.0, -2.5840191e-2, -1.0320229e-1, 2.8745620e-2, -3.1978977e-3, 1.2992634e-4];
-/// PS3.14 eq. 7-2, the inverse: j(L) = A + B·t + … + I·t⁸ with t = log10 L.
+/// The standard's inverse (eq. 7-2 as VIDEO-NOTES §2.1 numbers it; same source): j(L) = A + B·t + … + I·t⁸ with t = log10 L.
 const INVERSE: [f64; 9] =
     [71.498068, 94.593053, 41.912053, 9.8247004, 0.28175407, -1.1878455, -0.18014349, 0.14710899, -0.017046845];
 /// The JND indices the GSDF is defined for.
@@ -34,14 +34,14 @@ fn log_luminance_and_slope(j: f64) -> (f64, f64) {
     (n / d, (dn * d - n * dd) / (d * d) / j)
 }
 
-/// L(j) in cd/m² for a JND index j (clamped to 1 … 1023; NaN as 1), PS3.14 eq. 7-1.
+/// L(j) in cd/m² for a JND index j (clamped to 1 … 1023; NaN as 1): the GSDF of PS3.14 §7.
 pub fn luminance(j: f64) -> f64 {
     let j = if j.is_nan() { J_MIN } else { j.clamp(J_MIN, J_MAX) };
     10f64.powf(log_luminance_and_slope(j).0)
 }
 
 /// The JND index of `nits`, clamped to the GSDF's range: eq. 7-2 as the starting point, then
-/// Newton steps on eq. 7-1 so that it inverts [`luminance`] to 10⁻⁹ of a JND (eq. 7-2 alone
+/// Newton steps on the GSDF itself so that it inverts [`luminance`] to 10⁻⁹ of a JND (eq. 7-2 alone
 /// is a separate fit and is off by up to a few tenths).
 pub fn jnd_index(nits: f64) -> f64 {
     let (lo, hi) = (luminance(J_MIN), luminance(J_MAX));
@@ -111,7 +111,7 @@ mod tests {
 
     #[test]
     fn the_published_inverse_agrees_with_the_forward_curve() {
-        // eq. 7-2 is a fit of eq. 7-1's inverse; a few tenths of a JND apart at most.
+        // eq. 7-2 is a fit of the GSDF's inverse; a few tenths of a JND apart at most.
         for j in [1.0, 10.0, 100.0, 500.0, 1000.0, 1023.0] {
             let fit = polynomial(&INVERSE, luminance(j).log10()).0;
             assert!((fit - j).abs() < 0.5, "j = {j}: eq. 7-2 gives {fit}");

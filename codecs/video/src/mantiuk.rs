@@ -5,7 +5,8 @@
 //! > dψ/dl = k · tvi(ψ(l)),  ψ(0) = L_min,  ψ(2ⁿ − 1) = L_max,
 //!
 //! so that the quantization error is the same fraction of visibility everywhere. The paper
-//! writes k = 2/f with a safety factor f; here k follows from the bit depth and the range
+//! writes k = 2/f with a safety factor f (as recalled in VIDEO-NOTES §1.3; the paper's body
+//! could not be read); here k follows from the bit depth and the range
 //! instead, and [`Psi04::step_scale`] reports it (f = 2/k).
 //!
 //! ψ has no closed form. [`Psi04::new`] tabulates it once, 2ⁿ entries, by one of two
@@ -256,7 +257,9 @@ impl LumaCurve for Psi04 {
     /// against the same tvi(L), so the better one is the one nearer in cd/m², and only the
     /// arithmetic midpoint keeps every error within half a step (a geometric midpoint lies
     /// below it and sends some values to the upper entry from more than half a step away).
-    /// The two differ by < 1 % of a step at 11 bits except on the rod plateau.
+    /// The two midpoints are r/8 of a step apart for a relative step r: under 1 % of a step for
+    /// the default 11-bit ψ above 0.01 cd/m², 14 % at 10⁻⁴ cd/m², where a step is twice its
+    /// luminance.
     fn encode(&self, nits: f64) -> u16 {
         // `<=` is false for NaN, so NaN encodes as code 0, like any luminance below ψ(0).
         self.midpoints.partition_point(|&m| m <= nits) as u16
