@@ -258,3 +258,29 @@ fn bits_needed_table() {
         println!("{line}");
     }
 }
+
+#[test]
+fn worst_step_table() {
+    // Max over codes of step / threshold (threshold in the middle of the step) for each curve
+    // at 10, 11 and 12 bits; ψ and log built over each column's range. Printed for the README.
+    let (gsdf_min, gsdf_max) = ThresholdModel::GsdfJnd.domain();
+    let columns = [
+        (1e-4, 1e8, ThresholdModel::FerwerdaTvi, "tvi, 1e-4..1e8"),
+        (0.005, 1e4, ThresholdModel::FerwerdaTvi, "tvi, 0.005..1e4"),
+        (gsdf_min, gsdf_max, ThresholdModel::GsdfJnd, "GSDF JND, 0.05..3993"),
+    ];
+    println!("| curve | bits | {} |\n|---|---|---|---|---|", columns.map(|c| c.3).join(" | "));
+    let names: Vec<&str> = table_curves(1.0, 2.0).iter().map(|(name, _)| *name).collect();
+    for (row, name) in names.iter().enumerate() {
+        for bits in [10, 11, 12] {
+            let cells = columns.map(|(min, max, model, _)| {
+                let curve = (table_curves(min, max)[row].1)(bits).unwrap();
+                match max_step_ratio(curve.as_ref(), model, min, max) {
+                    Some(r) => format!("{r:.3}"),
+                    None => "n/c".to_string(),
+                }
+            });
+            println!("| {name} | {bits} | {} |", cells.join(" | "));
+        }
+    }
+}
