@@ -3,3 +3,17 @@
 //! Two transfer paths on the same frames: HDR10 (PQ or HLG, BT.2020, with MaxCLL/MaxFALL and
 //! the SMPTE ST 2086 mastering display) and Mantiuk et al.'s 2004 perception-motivated
 //! luminance quantization (L_p u'v').
+//!
+//! The luminance curves ([`curves::LumaCurve`]): [`mantiuk::Psi04`] (the 2004 ψ, built on
+//! [`tvi::ferwerda_tvi`]), [`mantiuk06::Mantiuk06`] (the 2006 closed form), core's PQ
+//! ([`curves::PqCurve`]), the DICOM GSDF ([`gsdf::GsdfCurve`]) and a plain logarithm
+//! ([`curves::LogCurve`]); how their steps compare with visibility thresholds
+//! ([`thresholds`]); and the L_p u'v' colour space ([`luv`]).
+
+pub mod curves;
+pub mod gsdf;
+pub mod luv;
+pub mod mantiuk;
+pub mod mantiuk06;
+pub mod thresholds;
+pub mod tvi;
