@@ -17,6 +17,11 @@
 
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "image")]
+pub mod image_hooks;
+#[cfg(feature = "image")]
+pub use image_hooks::register_image_decoding_hooks;
+
 pub use hdrcodec_bc6h as bc6h;
 pub use hdrcodec_container as container;
 pub use hdrcodec_core as core;

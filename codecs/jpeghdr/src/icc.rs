@@ -69,10 +69,24 @@ pub fn primaries(profile: &[u8]) -> Option<ColorPrimaries> {
         })
 }
 
+/// The tone curve a profile of [`rgb_profile_with`] gives its three channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Curve {
+    /// The sRGB transfer curve (IEC 61966-2-1), of 8-bit pictures.
+    Srgb,
+    /// The identity: samples proportional to light, as HDR images hold them.
+    Linear,
+}
+
 /// A display profile (ICC.1:2022, version 4.3) for RGB in `primaries` with a D65 white and the
 /// sRGB transfer curve: what a base image in Display P3 carries so that viewers and our
 /// [`primaries`] know its colours. `None` for primaries without chromaticities.
 pub fn rgb_profile(primaries: &ColorPrimaries, description: &str) -> Option<Vec<u8>> {
+    rgb_profile_with(primaries, description, Curve::Srgb)
+}
+
+/// [`rgb_profile`] with the tone curve `curve`.
+pub fn rgb_profile_with(primaries: &ColorPrimaries, description: &str, curve: Curve) -> Option<Vec<u8>> {
     let to_xyz = primaries.chromaticities().try_rgb_to_xyz()?;
     let d65_to_d50 = bradford([0.3127, 0.3290], [0.3457, 0.3585]);
     let s15 = |v: f64| ((v * 65536.0).round() as i32).to_be_bytes();
@@ -88,12 +102,22 @@ pub fn rgb_profile(primaries: &ColorPrimaries, description: &str) -> Option<Vec<
         t.extend(utf16);
         t
     };
-    // sRGB's curve as parametric function 3: Y = (aX + b)^g for X ≥ d, else cX.
     let mut para = b"para\0\0\0\0".to_vec();
-    para.extend(3u16.to_be_bytes());
-    para.extend(0u16.to_be_bytes());
-    for v in [2.4, 1.0 / 1.055, 0.055 / 1.055, 1.0 / 12.92, 0.04045] {
-        para.extend(s15(v));
+    match curve {
+        // sRGB's curve as parametric function 3: Y = (aX + b)^g for X ≥ d, else cX.
+        Curve::Srgb => {
+            para.extend(3u16.to_be_bytes());
+            para.extend(0u16.to_be_bytes());
+            for v in [2.4, 1.0 / 1.055, 0.055 / 1.055, 1.0 / 12.92, 0.04045] {
+                para.extend(s15(v));
+            }
+        }
+        // Parametric function 0, Y = X^g, with g = 1.
+        Curve::Linear => {
+            para.extend(0u16.to_be_bytes());
+            para.extend(0u16.to_be_bytes());
+            para.extend(s15(1.0));
+        }
     }
     let chad = [b"sf32\0\0\0\0".to_vec(), d65_to_d50.iter().flatten().flat_map(|&x| s15(x)).collect()].concat();
     let colorant = |k: usize| xyz(mat_apply(&d65_to_d50, [to_xyz[0][k], to_xyz[1][k], to_xyz[2][k]]));
