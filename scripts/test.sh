@@ -17,6 +17,12 @@ cargo fmt --all -- --check
 step "cargo clippy (all targets, warnings are errors)"
 cargo clippy --workspace --all-targets -- -D warnings
 
+# Every public item documented (`missing_docs` is denied workspace-wide), and no broken doc
+# link (issue 16). The CLI's library is internal, and its binary's docs would collide with the
+# facade's (both `hdrcodec`, cargo#6313).
+step "cargo doc (warnings are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --exclude hdrcodec-cli --quiet
+
 # A program that embeds the codecs must not pull the tool's dependencies (issue 9).
 step "the hdrcodec library pulls no CLI or peer crates"
 if cargo tree -p hdrcodec -e normal,build,dev --prefix none | sed 's/ .*//' | sort -u \

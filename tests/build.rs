@@ -1,19 +1,19 @@
-// Native peers of the tests and benches.
-//
-// - The `intel_tex_2` peer (a dev-dependency of the BC6H tests and benches) links Intel's ISPC
-//   kernels, which need the C++ runtime on Linux.
-// - jxrlib, the JPEG XR peer of benches/jxr_decode.rs and benches/jxr_encode.rs, is called
-//   in-process through a small C shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers
-//   and `pkg-config libjxr`; scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
-//   benches say jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
-// - libultrahdr 1.4, the Ultra HDR peer of benches/ultrahdr_decode.rs, is the shared library
-//   bundled in the reference venv's imagecodecs wheel (`$HDRCODEC_VENV`, else `.venv`;
-//   scripts/setup-reference-tools.sh makes it), without a header: peers/libultrahdr_shim.c
-//   declares the few functions it calls. Found, it is linked (with an rpath to its directory)
-//   into the benches only, and `cfg(libultrahdr)` is set.
-//
-// `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
-// binaries never link, so they get the link flags themselves.
+//! Native peers of the tests and benches.
+//!
+//! - The `intel_tex_2` peer (a dev-dependency of the BC6H tests and benches) links Intel's ISPC
+//!   kernels, which need the C++ runtime on Linux.
+//! - jxrlib, the JPEG XR peer of benches/jxr_decode.rs and benches/jxr_encode.rs, is called
+//!   in-process through a small C shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers
+//!   and `pkg-config libjxr`; scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
+//!   benches say jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
+//! - libultrahdr 1.4, the Ultra HDR peer of benches/ultrahdr_decode.rs, is the shared library
+//!   bundled in the reference venv's imagecodecs wheel (`$HDRCODEC_VENV`, else `.venv`;
+//!   scripts/setup-reference-tools.sh makes it), without a header: peers/libultrahdr_shim.c
+//!   declares the few functions it calls. Found, it is linked (with an rpath to its directory)
+//!   into the benches only, and `cfg(libultrahdr)` is set.
+//!
+//! `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
+//! binaries never link, so they get the link flags themselves.
 use std::path::PathBuf;
 use std::process::Command;
 

@@ -8,6 +8,11 @@
 //!   [`hdrcodec_core::ImageCodec`].
 //! - [`encode`]: the encoder.
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 mod codec;
 pub mod dds;
 mod decode;

@@ -505,7 +505,7 @@ impl YcbcrCoefficients {
     pub const BT2020: Self = YcbcrCoefficients { kr: 0.2627, kb: 0.0593 };
 }
 
-/// Non-linear R'G'B' → Y'CbCr (analogue form: Y' in [0,1], Cb and Cr in [−0.5, 0.5]):
+/// Non-linear R'G'B' → Y'CbCr (analogue form: Y' in 0 … 1, Cb and Cr in −0.5 … 0.5):
 /// Y' = Kr·R' + Kg·G' + Kb·B', Cb = (B' − Y') / (2(1 − Kb)), Cr = (R' − Y') / (2(1 − Kr)).
 pub fn rgb_to_ycbcr(rgb: [f64; 3], k: YcbcrCoefficients) -> [f64; 3] {
     let kg = 1.0 - k.kr - k.kb;

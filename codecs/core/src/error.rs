@@ -8,13 +8,25 @@ use std::fmt;
 #[non_exhaustive]
 pub enum Error {
     /// The input ended before `what` was complete.
-    Truncated { what: String },
+    Truncated {
+        /// What was being read when the input ended.
+        what: String,
+    },
     /// The input is malformed: `what` says which part and how.
-    Invalid { what: String },
+    Invalid {
+        /// Which part is malformed, and how.
+        what: String,
+    },
     /// The input is well-formed but uses a feature this crate does not implement.
-    Unsupported { what: String },
+    Unsupported {
+        /// The feature, named.
+        what: String,
+    },
     /// Decoding would exceed the caller's [`Limits`](crate::Limits).
-    LimitExceeded { what: String },
+    LimitExceeded {
+        /// What would have been allocated, and the limit.
+        what: String,
+    },
     /// An I/O error from the operating system.
     Io(std::io::Error),
 }

@@ -23,6 +23,11 @@
 
 #![forbid(unsafe_code)]
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 pub mod bytes;
 mod codec;
 pub mod color;

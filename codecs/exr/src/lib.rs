@@ -29,6 +29,11 @@
 
 #![forbid(unsafe_code)]
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 mod decode;
 mod encode;
 

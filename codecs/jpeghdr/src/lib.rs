@@ -8,11 +8,16 @@
 //! primaries (read from its ICC profile; sRGB without one), with SDR white = 1.0 = 203 cd/m²
 //! ([`gainmap::SDR_WHITE_NITS`]) for gain maps, and 1.0 = `s2n` cd/m² for JPEG-HDR.
 //!
-//! Two encoders: [`encode`] writes a GT-tone-mapped sRGB (or Display P3) base and a gain map
+//! Two encoders: [`encode()`] writes a GT-tone-mapped sRGB (or Display P3) base and a gain map
 //! with ISO 21496-1 and hdrgm metadata together, MPF and GContainer (codec `ultrahdr`);
 //! [`encode_jpeg_hdr`] writes Ward & Simmons' JPEG-HDR, a GT-tone-mapped base and a log ratio
 //! image in `HDR_RI` APP11 segments, pre- or post-corrected, which the format's author's
 //! library (panlib) reads (codec `jpeg-hdr`, [`ratio_encode`]).
+
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
 
 pub mod encode;
 pub mod exif;
@@ -85,7 +90,7 @@ impl ImageCodec for GainMapJpegCodec {
     ) -> Result<()> {
         gainmap::decode_rows_on(data, &options.limits, Rendering::from_options(options)?, &options.pool, sink)
     }
-    /// A tone-mapped sRGB base with a gain map (see [`encode`]); options `map_quality`,
+    /// A tone-mapped sRGB base with a gain map (see [`encode()`]); options `map_quality`,
     /// `map_scale`, `map_channels`.
     fn encode_to(
         &self,

@@ -85,7 +85,7 @@ pub fn parse(payload: &[u8], endian_offset: usize, primary_start: usize) -> Resu
         .collect()
 }
 
-/// Length of the APP2 payload [`write`] produces (signature included): fixed for two images.
+/// Length of the APP2 payload [`write()`] produces (signature included): fixed for two images.
 pub const PAYLOAD_LEN: usize = 4 + 8 + 2 + 3 * 12 + 4 + 2 * 16;
 
 /// An MPF APP2 payload (signature included) for a primary image of `primary_size` bytes and one

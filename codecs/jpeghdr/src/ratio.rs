@@ -324,7 +324,7 @@ pub struct Prepared {
 }
 
 /// Decodes a JPEG-HDR file's two JPEGs (whose primary image is `primary` and ratio image
-/// `ratio_jpeg`), ready for [`Prepared::rows`]. Samples are relative when `s2n` is 0 (then 1.0
+/// `ratio_jpeg`), ready for `Prepared::rows`. Samples are relative when `s2n` is 0 (then 1.0
 /// is noted as unknown luminance and given the family's default scale), else 1.0 = `s2n`
 /// cd/m².
 pub fn prepare(

@@ -27,6 +27,11 @@
 // that the CPU has AVX2 (`transform::inverse_band_rows`).
 #![deny(unsafe_code)]
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 mod bits;
 mod colour;
 pub mod container;

@@ -27,6 +27,11 @@
 
 #![forbid(unsafe_code)]
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 pub mod pixel;
 mod rle;
 mod scale;

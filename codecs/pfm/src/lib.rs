@@ -27,6 +27,11 @@
 
 #![forbid(unsafe_code)]
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{

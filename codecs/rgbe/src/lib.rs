@@ -18,6 +18,11 @@
 //! # Ok::<(), hdrcodec_core::Error>(())
 //! ```
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 mod decode;
 mod encode;
 mod header;

@@ -10,6 +10,11 @@
 //! ([`curves::LogCurve`]); how their steps compare with visibility thresholds
 //! ([`thresholds`]); and the L_p u'v' colour space ([`luv`]).
 
+/// The README's example is compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 pub mod curves;
 pub mod gsdf;
 pub mod luv;
