@@ -115,6 +115,24 @@ impl HdrImage {
     pub fn into_samples(self) -> Vec<f32> {
         self.samples
     }
+    /// The samples as half floats (IEEE 754 binary16, what OpenEXR's HALF, DXGI's R16G16B16A16
+    /// and GPU upload paths take), rounded to nearest; beyond ±65504 they become infinite, as
+    /// the conversion defines. To decode straight into a half buffer, see
+    /// [`FrameBufMut::f16`](crate::sink::FrameBufMut::f16).
+    pub fn to_f16(&self) -> Vec<half::f16> {
+        self.samples.iter().map(|&v| half::f16::from_f32(v)).collect()
+    }
+    /// An image of half-float samples (interleaved as [`HdrImage::new`] takes them), widened
+    /// exactly to `f32`.
+    pub fn from_f16(
+        width: u32,
+        height: u32,
+        channels: Channels,
+        samples: &[half::f16],
+        color: ColorInfo,
+    ) -> Result<Self> {
+        HdrImage::new(width, height, channels, samples.iter().map(|v| v.to_f32()).collect(), color)
+    }
     /// Samples of row `y`. Panics if `y >= height`.
     pub fn row(&self, y: u32) -> &[f32] {
         let w = self.width as usize * self.channels.count();
@@ -297,5 +315,18 @@ mod tests {
         let rgba = img.with_channels(Channels::Rgba);
         assert_eq!(rgba.samples(), &[1.0, 2.0, 3.0, 1.0, 4.0, 5.0, 6.0, 1.0]);
         assert_eq!(rgba.with_channels(Channels::Rgb), img);
+    }
+
+    #[test]
+    fn half_float_buffers_convert_both_ways() {
+        let image =
+            HdrImage::new(2, 1, Channels::Rgb, vec![0.5, 1.0, 2.0, 65504.0, 1e6, -0.25], ColorInfo::default()).unwrap();
+        let half = image.to_f16();
+        assert_eq!(half[3].to_f32(), 65504.0);
+        assert!(half[4].is_infinite());
+        let back = HdrImage::from_f16(2, 1, Channels::Rgb, &half, ColorInfo::default()).unwrap();
+        assert_eq!(&back.samples()[..4], &[0.5, 1.0, 2.0, 65504.0]);
+        assert_eq!(back.samples()[5], -0.25);
+        assert!(HdrImage::from_f16(3, 1, Channels::Rgb, &half, ColorInfo::default()).is_err());
     }
 }
