@@ -3,3 +3,5 @@
 //! Two transfer paths on the same frames: HDR10 (PQ or HLG, BT.2020, with MaxCLL/MaxFALL and
 //! the SMPTE ST 2086 mastering display) and Mantiuk et al.'s 2004 perception-motivated
 //! luminance quantization (L_p u'v').
+
+pub mod ivf;
