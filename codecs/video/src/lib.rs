@@ -5,3 +5,4 @@
 //! luminance quantization (L_p u'v').
 
 pub mod ivf;
+pub mod obu;
