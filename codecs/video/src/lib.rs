@@ -4,6 +4,8 @@
 //! the SMPTE ST 2086 mastering display) and Mantiuk et al.'s 2004 perception-motivated
 //! luminance quantization (L_p u'v').
 
+#[cfg(feature = "decode")]
+pub mod decode;
 #[cfg(feature = "encode")]
 pub mod encode;
 pub mod hdr10;
