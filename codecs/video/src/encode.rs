@@ -10,7 +10,7 @@
 
 use crate::hdr10::{content_light_level, frame_to_yuv, ClipReport, Range, Subsampling, Transfer, BIT_DEPTH};
 use crate::ivf::{IvfHeader, IvfWriter};
-use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool};
+use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
     MasteringDisplay as Rav1eMasteringDisplay, MatrixCoefficients, PixelRange, TransferCharacteristics,
@@ -304,6 +304,17 @@ impl<W: Write> Av1Encoder<W> {
         }
         let out = self.ivf.finish()?;
         Ok((self.summary, out))
+    }
+}
+
+/// The family's stream-encoder trait (begin with [`Av1Encoder::begin`], push frames, finish).
+impl<W: Write + Send> VideoEncoder for Av1Encoder<W> {
+    fn push_frame(&mut self, frame: &HdrImage) -> Result<()> {
+        Av1Encoder::push_frame(self, frame)
+    }
+
+    fn finish(self: Box<Self>) -> Result<u64> {
+        Av1Encoder::finish(*self).map(|(summary, _)| summary.frames)
     }
 }
 

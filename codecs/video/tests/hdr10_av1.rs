@@ -145,6 +145,12 @@ fn bad_frames_and_streams_are_errors() {
     let small = HdrImage::zeroed(32, 32, Channels::Rgb);
     assert!(matches!(enc.push_frame(&small), Err(Error::Invalid { .. })));
     assert!(encode_sequence(&[], &options, Vec::new()).is_err());
+    // Through core's stream-encoder trait, as tools that treat every stream alike use it.
+    let mut boxed: Box<dyn hdrcodec_core::VideoEncoder> =
+        Box::new(Av1Encoder::begin(W, H, 2, &options, Vec::new()).unwrap());
+    boxed.push_frame(&frames[0]).unwrap();
+    boxed.push_frame(&frames[1]).unwrap();
+    assert_eq!(boxed.finish().unwrap(), 2);
     // NaN, infinities and negatives are coded (as 0 and the peak), and counted.
     let mut odd = frames[0].clone();
     odd.samples_mut()[..4].copy_from_slice(&[f32::NAN, f32::INFINITY, -5.0, f32::NEG_INFINITY]);
