@@ -20,25 +20,34 @@ use std::process::Command;
 /// Four 96x64 BT.2020 frames: a ramp from 1 to 1000 cd/m² with a colour wash, and a 3000 cd/m²
 /// square moving right.
 fn frames() -> Vec<HdrImage> {
+    frames_of(96, 64)
+}
+
+/// [`frames`] at any size.
+fn frames_of(w: u32, h: u32) -> Vec<HdrImage> {
     (0..4)
         .map(|t| {
             let mut s = Vec::new();
-            for y in 0..64u32 {
-                for x in 0..96u32 {
-                    let l = 10f32.powf(-2.0 + 3.0 * (x + y) as f32 / 160.0);
-                    let hue = x as f32 / 96.0;
+            for y in 0..h {
+                for x in 0..w {
+                    let l = 10f32.powf(-2.0 + 3.0 * (x + y) as f32 / (w + h) as f32);
+                    let hue = x as f32 / w as f32;
                     let bright = (10 + 8 * t..22 + 8 * t).contains(&x) && (20..32).contains(&y);
                     s.extend(if bright { [30.0, 27.0, 20.0] } else { [l * (0.5 + hue), l * 0.8, l * (1.2 - hue)] });
                 }
             }
             let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 100.0, hdr10: None };
-            HdrImage::new(96, 64, Channels::Rgb, s, color).unwrap()
+            HdrImage::new(w, h, Channels::Rgb, s, color).unwrap()
         })
         .collect()
 }
 
 fn write_stream(dir: &Path, name: &str, options: &Av1Options) -> std::path::PathBuf {
-    let (_, ivf) = encode_sequence(&frames(), options, Vec::new()).unwrap();
+    write_frames(dir, name, &frames(), options)
+}
+
+fn write_frames(dir: &Path, name: &str, frames: &[HdrImage], options: &Av1Options) -> std::path::PathBuf {
+    let (_, ivf) = encode_sequence(frames, options, Vec::new()).unwrap();
     let path = dir.join(name);
     std::fs::write(&path, ivf).unwrap();
     path
@@ -130,11 +139,13 @@ fn ffmpeg_dav1d_and_our_decoder_agree_bit_for_bit() {
     let Some(_) = require(tool("dav1d"), "the dav1d CLI (Debian dav1d)") else { return };
     let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
     let dir = temp_dir("video_ffmpeg_md5");
-    for (name, options) in [
-        ("pq.ivf", fast()),
-        ("hlg_lowlatency.ivf", Av1Options { transfer: Transfer::HLG_1000, low_latency: true, ..fast() }),
+    // Odd sizes give chroma planes of (w + 1) / 2 x (h + 1) / 2.
+    for (name, (w, h), options) in [
+        ("pq.ivf", (96, 64), fast()),
+        ("hlg_lowlatency.ivf", (96, 64), Av1Options { transfer: Transfer::HLG_1000, low_latency: true, ..fast() }),
+        ("pq_odd_97x63.ivf", (97, 63), fast()),
     ] {
-        let path = write_stream(&dir, name, &options);
+        let path = write_frames(&dir, name, &frames_of(w, h), &options);
         let ffmpeg = run_ok(Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(&path).args([
             "-f",
             "md5",
