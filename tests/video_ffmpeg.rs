@@ -5,7 +5,9 @@
 //!   and 16384) and content light level;
 //! - `ffmpeg -f md5` (libdav1d), `dav1d --muxer md5` and `md5sum` of the planes our decoder
 //!   returns agree: three decoders (the CLI, FFmpeg's wrapper, ours through the dav1d crate) and
-//!   one hash.
+//!   one hash;
+//! - a stream SVT-AV1 wrote (through FFmpeg) reads, in our parser, as the HDR10 values it was
+//!   given, and decodes in ours to FFmpeg's samples.
 mod common;
 
 use common::{require, run_ok, temp_dir, tool};
@@ -146,36 +148,84 @@ fn ffmpeg_dav1d_and_our_decoder_agree_bit_for_bit() {
         ("pq_odd_97x63.ivf", (97, 63), fast()),
     ] {
         let path = write_frames(&dir, name, &frames_of(w, h), &options);
-        let ffmpeg = run_ok(Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(&path).args([
-            "-f",
-            "md5",
-            "-pix_fmt",
-            "yuv420p10le",
-            "-",
-        ]));
+        let ffmpeg = ffmpeg_md5(&path);
         let dav1d = run_ok(Command::new("dav1d").args(["-q", "-i"]).arg(&path).args(["--muxer", "md5", "-o", "-"]));
-
-        let data = std::fs::read(&path).unwrap();
-        let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default()).unwrap();
-        let mut raw = Vec::new();
-        let mut count = 0;
-        while let Some(planes) = decoder.next_planes().unwrap() {
-            for plane in [&planes.y, &planes.cb, &planes.cr] {
-                raw.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
-            }
-            count += 1;
-        }
+        let dav1d = md5_in(&String::from_utf8_lossy(&dav1d.stdout));
+        let (raw, count) = our_planes(&path);
         assert_eq!(count, 4);
-        let raw_path = dir.join(format!("{name}.yuv"));
-        std::fs::write(&raw_path, &raw).unwrap();
-        let ours = run_ok(Command::new("md5sum").arg(&raw_path));
-
-        let (ffmpeg, dav1d, ours) = (
-            md5_in(&String::from_utf8_lossy(&ffmpeg.stdout)),
-            md5_in(&String::from_utf8_lossy(&dav1d.stdout)),
-            md5_in(&String::from_utf8_lossy(&ours.stdout)),
-        );
+        let ours = md5sum(&dir.join(format!("{name}.yuv")), &raw);
         assert_eq!(ffmpeg, dav1d, "{name}: FFmpeg and the dav1d CLI");
         assert_eq!(ours, ffmpeg, "{name}: our decode and FFmpeg's");
     }
+}
+
+/// FFmpeg's (libdav1d's) decode of `path` as 10-bit 4:2:0 planes, hashed by `-f md5`.
+fn ffmpeg_md5(path: &Path) -> String {
+    let out = run_ok(Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(path).args([
+        "-f",
+        "md5",
+        "-pix_fmt",
+        "yuv420p10le",
+        "-",
+    ]));
+    md5_in(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// `md5sum` of `bytes`, written to `path` first.
+fn md5sum(path: &Path, bytes: &[u8]) -> String {
+    std::fs::write(path, bytes).unwrap();
+    md5_in(&String::from_utf8_lossy(&run_ok(Command::new("md5sum").arg(path)).stdout))
+}
+
+/// The planes our decoder returns for the IVF file at `path`, as one little-endian byte string.
+fn our_planes(path: &Path) -> (Vec<u8>, usize) {
+    let data = std::fs::read(path).unwrap();
+    let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default()).unwrap();
+    let (mut raw, mut count) = (Vec::new(), 0);
+    while let Some(planes) = decoder.next_planes().unwrap() {
+        for plane in [&planes.y, &planes.cb, &planes.cr] {
+            raw.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
+        }
+        count += 1;
+    }
+    (raw, count)
+}
+
+#[test]
+fn we_read_an_svt_av1_hdr10_stream_as_ffmpeg_does() {
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_svt");
+    let path = dir.join("svt.ivf");
+    // SVT-AV1 1.4 through FFmpeg, with the P3-D65 1000 / 0.0001 cd/m² display of VIDEO-NOTES §3.2.
+    run_ok(Command::new("ffmpeg").args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc2=s=128x72:d=0.2:r=25"]).args([
+        "-pix_fmt",
+        "yuv420p10le",
+        "-c:v",
+        "libsvtav1",
+        "-preset",
+        "12",
+        "-svtav1-params",
+        "mastering-display=G(0.265,0.690)B(0.150,0.060)R(0.680,0.320)WP(0.3127,0.3290)L(1000,0.0001):content-light=1000,400",
+        "-color_primaries",
+        "bt2020",
+        "-color_trc",
+        "smpte2084",
+        "-colorspace",
+        "bt2020nc",
+    ])
+    .arg(&path));
+    let data = std::fs::read(&path).unwrap();
+    let (_, s) = hdrcodec_video::decode::probe_ivf(&data, &Default::default()).unwrap();
+    let seq = s.sequence_header.unwrap();
+    assert_eq!(seq.color.color_description, Some(hdrcodec_video::obu::ColorDescription::HDR10_PQ));
+    assert_eq!((seq.color.bit_depth, seq.max_frame_width, seq.max_frame_height), (10, 128, 72));
+    // Exactly the bytes of the notes' worked example: 44564, 20972, ... 256000, 2.
+    assert_eq!(s.mastering_display, Some(MasteringDisplay::p3_d65_1000().to_av1()));
+    let cll = s.content_light.unwrap();
+    assert_eq!((cll.max_cll, cll.max_fall), (1000, 400));
+    // And we decode SVT-AV1's stream to the same samples as FFmpeg.
+    let (raw, count) = our_planes(&path);
+    assert_eq!(count, 5);
+    assert_eq!(md5sum(&dir.join("ours.yuv"), &raw), ffmpeg_md5(&path));
 }
