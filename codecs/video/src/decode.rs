@@ -2,9 +2,9 @@
 //! `dav1d` crate. The colour description and HDR10 metadata come from our own OBU parser
 //! ([`crate::obu`]): the `dav1d` 0.9 crate exposes neither.
 
-use crate::hdr10::{yuv_to_frame, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
+use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
 use crate::ivf::IvfReader;
-use crate::obu::{ColorDescription, SequenceHeader, StreamSummary};
+use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
 use dav1d::{PixelLayout, PlanarImageComponent};
 use hdrcodec_core::{Channels, ColorPrimaries, Error, HdrImage, Limits, Result};
 
@@ -90,6 +90,7 @@ pub struct Av1Decoder<'a> {
     transfer: Transfer,
     range: Range,
     subsampling: Subsampling,
+    siting: ChromaSiting,
     options: Av1DecodeOptions,
     width: u32,
     height: u32,
@@ -123,6 +124,13 @@ impl<'a> Av1Decoder<'a> {
             transfer,
             range,
             subsampling,
+            // Our streams say colocated; VERTICAL and an unsignalled position (0, what SVT-AV1
+            // and libaom write) are taken as "left", H.273's default.
+            siting: if seq.color.chroma_sample_position == chroma_sample_position::COLOCATED {
+                ChromaSiting::Colocated
+            } else {
+                ChromaSiting::Left
+            },
             options: options.clone(),
             width,
             height,
@@ -189,7 +197,7 @@ impl<'a> Av1Decoder<'a> {
     /// The next frame as scene-linear BT.2020 light, with the stream's HDR10 metadata.
     pub fn next_frame(&mut self) -> Result<Option<HdrImage>> {
         let Some(yuv) = self.next_planes()? else { return Ok(None) };
-        let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.options.nits_per_unit)?;
+        let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
         image.color.primaries = ColorPrimaries::Bt2020;
         image.color.hdr10 = self.summary.hdr10();
         Ok(Some(image))

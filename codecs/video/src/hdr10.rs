@@ -233,17 +233,37 @@ fn downsample_colocated(plane: &[f64], width: usize, height: usize) -> Vec<f64> 
     out
 }
 
-/// Bilinear upsampling from chroma co-sited with even luma positions: even positions take the
-/// chroma sample, odd ones the mean of their neighbours (the last column/row repeats).
-fn upsample_colocated(plane: &[f64], width: usize, height: usize) -> Vec<f64> {
+/// Where 4:2:0 chroma samples sit vertically, for upsampling (horizontally both are co-sited
+/// with the even luma columns).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ChromaSiting {
+    /// With the even luma rows (AV1 CSP_COLOCATED, "top-left"): what this crate writes.
+    #[default]
+    Colocated,
+    /// Midway between luma rows 2j and 2j+1 (AV1 CSP_VERTICAL, "left"; MPEG-2's siting and
+    /// H.273's default, so also what an unsignalled stream most likely means).
+    Left,
+}
+
+/// Bilinear chroma upsampling: columns from chroma co-sited with the even luma columns (even
+/// columns take the sample, odd ones the mean of their neighbours); rows the same for
+/// [`ChromaSiting::Colocated`], or with weights 3/4 and 1/4 for chroma midway between rows
+/// ([`ChromaSiting::Left`]). Edges repeat the last sample.
+fn upsample_420(plane: &[f64], width: usize, height: usize, siting: ChromaSiting) -> Vec<f64> {
     let (cw, ch) = YuvFrame::chroma_size(width, height, Subsampling::Yuv420);
-    let at = |cx: usize, cy: usize| plane[cy.min(ch - 1) * cw + cx.min(cw - 1)];
+    let at = |cx: usize, cy: isize| plane[(cy.clamp(0, ch as isize - 1) as usize) * cw + cx.min(cw - 1)];
     let mut out = Vec::with_capacity(width * height);
     for y in 0..height {
+        let cy = (y / 2) as isize;
         for x in 0..width {
-            let (cx, cy) = (x / 2, y / 2);
+            let cx = x / 2;
             let h = |cy| if x % 2 == 0 { at(cx, cy) } else { (at(cx, cy) + at(cx + 1, cy)) / 2.0 };
-            out.push(if y % 2 == 0 { h(cy) } else { (h(cy) + h(cy + 1)) / 2.0 });
+            out.push(match (siting, y % 2) {
+                (ChromaSiting::Colocated, 0) => h(cy),
+                (ChromaSiting::Colocated, _) => (h(cy) + h(cy + 1)) / 2.0,
+                (ChromaSiting::Left, 0) => 0.75 * h(cy) + 0.25 * h(cy - 1),
+                (ChromaSiting::Left, _) => 0.75 * h(cy) + 0.25 * h(cy + 1),
+            });
         }
     }
     out
@@ -276,8 +296,15 @@ pub fn frame_to_yuv(
     (YuvFrame { width, height, subsampling, y, cb: q(cb), cr: q(cr) }, report)
 }
 
-/// Planes back to a scene-linear frame in BT.2020 primaries with `nits_per_unit` cd/m² per 1.0.
-pub fn yuv_to_frame(yuv: &YuvFrame, transfer: Transfer, range: Range, nits_per_unit: f32) -> Result<HdrImage> {
+/// Planes back to a scene-linear frame in BT.2020 primaries with `nits_per_unit` cd/m² per 1.0;
+/// 4:2:0 chroma is upsampled from `siting`.
+pub fn yuv_to_frame(
+    yuv: &YuvFrame,
+    transfer: Transfer,
+    range: Range,
+    siting: ChromaSiting,
+    nits_per_unit: f32,
+) -> Result<HdrImage> {
     let (width, height) = (yuv.width, yuv.height);
     let (cw, ch) = YuvFrame::chroma_size(width, height, yuv.subsampling);
     if yuv.y.len() != width * height || yuv.cb.len() != cw * ch || yuv.cr.len() != cw * ch {
@@ -286,8 +313,8 @@ pub fn yuv_to_frame(yuv: &YuvFrame, transfer: Transfer, range: Range, nits_per_u
     let dq = |plane: &[u16]| plane.iter().map(|&d| dequantize(d, true, range)).collect::<Vec<_>>();
     let (mut cb, mut cr) = (dq(&yuv.cb), dq(&yuv.cr));
     if yuv.subsampling == Subsampling::Yuv420 {
-        cb = upsample_colocated(&cb, width, height);
-        cr = upsample_colocated(&cr, width, height);
+        cb = upsample_420(&cb, width, height, siting);
+        cr = upsample_420(&cr, width, height, siting);
     }
     let scale = 1.0 / f64::from(nits_per_unit);
     let mut samples = Vec::with_capacity(width * height * 3);
@@ -353,11 +380,22 @@ mod tests {
             let (yuv, _) = frame_to_yuv(&img, transfer, range, Subsampling::Yuv420);
             // Grey has no colour difference: every chroma code is the centre.
             assert!(yuv.cb.iter().chain(&yuv.cr).all(|&c| c == 512));
-            let back = yuv_to_frame(&yuv, transfer, range, 100.0).unwrap();
+            let back = yuv_to_frame(&yuv, transfer, range, ChromaSiting::Colocated, 100.0).unwrap();
             for (a, b) in img.samples().iter().zip(back.samples()) {
                 // Half a 10-bit step of either curve is below 1 % above 1 cd/m².
                 assert!((a - b).abs() <= 0.01 * a + 0.002, "{transfer:?}: {a} vs {b}");
             }
         }
+    }
+
+    #[test]
+    fn chroma_upsampling_follows_the_siting() {
+        // One chroma column, two chroma rows 0 and 1, for a 2x4 luma frame.
+        let plane = [0.0, 1.0];
+        let colocated = upsample_420(&plane, 2, 4, ChromaSiting::Colocated);
+        assert_eq!(colocated, [0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0]);
+        // Chroma rows at luma 0.5 and 2.5: luma rows 0..3 sit at chroma -0.25, 0.25, 0.75, 1.25.
+        let left = upsample_420(&plane, 2, 4, ChromaSiting::Left);
+        assert_eq!(left, [0.0, 0.0, 0.25, 0.25, 0.75, 0.75, 1.0, 1.0]);
     }
 }
