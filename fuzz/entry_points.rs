@@ -25,12 +25,13 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 10] = [
+pub const TARGETS: [(&str, Target); 11] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
     ("exr", exr),
     ("gainmap_jpeg", gainmap_jpeg),
+    ("ivf_obu", ivf_obu),
     ("jpeg_metadata", jpeg_metadata),
     ("jxr", jxr),
     ("logluv", logluv),
@@ -153,6 +154,42 @@ pub fn gainmap_jpeg(data: &[u8]) {
     let limits = Limits::fuzzing();
     let _ = probe_and_decode(&GainMapJpegCodec, data, &limits);
     let _ = hdrcodec_jpeghdr::decode(data, &limits, Rendering { headroom: Some(2.0) });
+}
+
+/// IVF and AV1 OBU parsing (hdrcodec-video without its encoder and decoder): the IVF reader
+/// under `Limits::fuzzing()`, the OBU walker, sequence header and metadata OBU parsers on each
+/// frame, and the same parsers on the raw input as one temporal unit. What parses as a
+/// mastering display or a leb128 number must write back to the same value.
+pub fn ivf_obu(data: &[u8]) {
+    use hdrcodec_video::ivf::IvfReader;
+    use hdrcodec_video::obu::{
+        mdcv_body, read_leb128, write_leb128, Metadata, ObuReader, SequenceHeader, StreamSummary,
+    };
+    let limits = Limits::fuzzing();
+    if let Ok(mut reader) = IvfReader::new(data, &limits) {
+        let mut summary = StreamSummary::default();
+        while let Ok(Some(frame)) = reader.next_frame() {
+            assert!(frame.data.len() as u64 <= limits.max_alloc_bytes);
+            if summary.add_temporal_unit(frame.data).is_err() {
+                break;
+            }
+        }
+        let _ = summary.hdr10();
+    }
+    for obu in ObuReader::new(data).flatten() {
+        let _ = SequenceHeader::parse(obu.payload);
+        if let Ok(Metadata::MasteringDisplay(units)) = Metadata::parse(obu.payload) {
+            let mut again = vec![hdrcodec_video::obu::metadata_type::HDR_MDCV as u8];
+            again.extend_from_slice(&mdcv_body(&units));
+            assert_eq!(Metadata::parse(&again).ok(), Some(Metadata::MasteringDisplay(units)), "MDCV write-back");
+        }
+    }
+    let _ = StreamSummary::default().add_temporal_unit(data);
+    if let Ok((value, len)) = read_leb128(data) {
+        let mut out = Vec::new();
+        write_leb128(&mut out, value);
+        assert!(out.len() <= len && read_leb128(&out).ok() == Some((value, out.len())), "leb128 write-back");
+    }
 }
 
 /// HDR JPEG's metadata parsers alone, each given the whole input (faster than the whole

@@ -4,7 +4,8 @@
 # libjxr-dev: headers and libraries for the in-process peer of benches/jxr_decode.rs, which
 # tests/build.rs compiles against, so it must be installed before cargo builds the benches),
 # libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs,
-# GNU time (peak memory in scripts/memory-bench.sh), and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
+# libdav1d-dev (the system library hdrcodec-video decodes AV1 with, through the dav1d crate),
+# nasm (rav1e's assembly kernels, its `asm` feature), GNU time (peak memory in scripts/memory-bench.sh), and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
 # Idempotent: re-running it on a prepared machine takes a few seconds.
 set -euo pipefail
 
@@ -12,7 +13,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 venv="${HDRCODEC_VENV:-$here/.venv}"
 
 packages=(openimageio-tools python3-openimageio python3-numpy openexr libtiff-tools libtiff-dev
-          libjxr-tools libjxr-dev libjxl-tools libavif-bin ffmpeg dav1d pfstools pkg-config
+          libjxr-tools libjxr-dev libjxl-tools libavif-bin ffmpeg dav1d libdav1d-dev nasm pfstools pkg-config
           fonts-dejavu-core time)
 
 missing=()

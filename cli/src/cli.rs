@@ -1,7 +1,9 @@
 //! The commands of the `hdrcodec` binary. Each returns `Err` with a one-line reason; `main`
 //! prints it as `hdrcodec: <reason>` and exits non-zero.
 
-use hdrcodec::core::{metrics, DecodeOptions, EncodeSettings, Error, Limits, Result, ThreadPool, VideoCodec};
+use hdrcodec::core::{
+    metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
+};
 use hdrcodec_cli::bench;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
@@ -147,7 +149,7 @@ pub fn convert(
 
 /// A one-line remark on stderr after a successful command (colour kept or converted, values
 /// clipped): `hdrcodec: note: ...`.
-fn note(text: &str) {
+pub fn note(text: &str) {
     let line = text.split(['\n', '\r']).map(str::trim).filter(|s| !s.is_empty()).collect::<Vec<_>>().join("; ");
     eprintln!("hdrcodec: note: {line}");
 }
@@ -156,6 +158,9 @@ fn note(text: &str) {
 /// codec's header probe; the luminance statistics and metadata from a full decode into a
 /// [`hdrcodec::StatsSink`], which keeps nothing of the image (the decoder holds a band of rows).
 pub fn info(file: &Path, json: bool) -> Result<()> {
+    if crate::video::handles(file) {
+        return crate::video::info(file, json);
+    }
     let reg = hdrcodec::registry();
     let data = hdrcodec::read_file(file)?;
     let (codec, header) = reg.probe(file, &data, &Limits::default())?;
@@ -178,15 +183,7 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
     let hdrcodec::LuminanceStats { min, max, mean, non_finite_samples: nonfinite } = stats.luminance;
     // CTA-861.3 light levels of this one frame (MaxFALL of a single frame is its average).
     let (measured_cll, measured_fall) = (stats.max_cll_nits, stats.frame_average_nits);
-    let hdr10 = c.hdr10.map(|h| {
-        json!({
-            "mastering_display": h.mastering_display.map(|m| json!({
-                "primaries": m.primaries, "white": m.white,
-                "max_luminance": m.max_luminance, "min_luminance": m.min_luminance,
-            })),
-            "content_light_level": h.content_light_level.map(|l| json!({"max_cll": l.max_cll, "max_fall": l.max_fall})),
-        })
-    });
+    let hdr10 = c.hdr10.map(hdr10_json);
     let metadata_json: Map<String, Value> =
         metadata.iter().map(|(k, v)| (k.clone(), Value::String(v.clone()))).collect();
     if json {
@@ -241,20 +238,7 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
     if nonfinite > 0 {
         println!("non-finite samples: {nonfinite}");
     }
-    match c.hdr10 {
-        None => println!("HDR10:         none"),
-        Some(h) => {
-            if let Some(m) = h.mastering_display {
-                println!(
-                    "mastering display: R {:?} G {:?} B {:?} W {:?}, {}-{} cd/m²",
-                    m.primaries[0], m.primaries[1], m.primaries[2], m.white, m.min_luminance, m.max_luminance
-                );
-            }
-            if let Some(l) = h.content_light_level {
-                println!("content light level: MaxCLL {} MaxFALL {} cd/m²", l.max_cll, l.max_fall);
-            }
-        }
-    }
+    print_hdr10(c.hdr10);
     if metadata.is_empty() {
         println!("metadata:      none");
     }
@@ -270,6 +254,35 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         println!("metadata:      {k} = {}{more}", short.replace(['\n', '\r'], " "));
     }
     Ok(())
+}
+
+/// HDR10 static metadata as `info --json` shows it.
+pub fn hdr10_json(h: Hdr10Metadata) -> Value {
+    json!({
+        "mastering_display": h.mastering_display.map(|m| json!({
+            "primaries": m.primaries, "white": m.white,
+            "max_luminance": m.max_luminance, "min_luminance": m.min_luminance,
+        })),
+        "content_light_level": h.content_light_level.map(|l| json!({"max_cll": l.max_cll, "max_fall": l.max_fall})),
+    })
+}
+
+/// HDR10 static metadata as `info` prints it.
+pub fn print_hdr10(hdr10: Option<Hdr10Metadata>) {
+    match hdr10 {
+        None => println!("HDR10:         none"),
+        Some(h) => {
+            if let Some(m) = h.mastering_display {
+                println!(
+                    "mastering display: R {:?} G {:?} B {:?} W {:?}, {}-{} cd/m²",
+                    m.primaries[0], m.primaries[1], m.primaries[2], m.white, m.min_luminance, m.max_luminance
+                );
+            }
+            if let Some(l) = h.content_light_level {
+                println!("content light level: MaxCLL {} MaxFALL {} cd/m²", l.max_cll, l.max_fall);
+            }
+        }
+    }
 }
 
 /// `hdrcodec compare`.

@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 
 mod cli;
+mod video;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -63,6 +64,9 @@ enum Command {
     /// The project's generated corpus of synthetic HDR scenes.
     #[command(subcommand)]
     Corpus(CorpusCommand),
+    /// HDR video: frames to HDR10 (PQ) or HLG AV1 in IVF (rav1e), and back (libdav1d).
+    #[command(subcommand)]
+    Video(VideoCommand),
     /// List the codecs of this build: name, file extensions, container id.
     Codecs {
         /// Print one JSON object instead of text.
@@ -148,6 +152,37 @@ enum CorpusCommand {
     },
 }
 
+#[derive(Subcommand, Debug)]
+enum VideoCommand {
+    /// Encode image files (one per frame, in order) to OUT.ivf: BT.2020, 10-bit 4:2:0 limited
+    /// range, PQ with MaxCLL/MaxFALL (measured over all frames) and a BT.2020 1000 cd/m²
+    /// mastering display, or HLG for a 1000 cd/m² display.
+    Encode {
+        /// The frame files, then the output .ivf file.
+        #[arg(required = true, num_args = 2.., value_name = "FRAMES... OUT.ivf")]
+        paths: Vec<PathBuf>,
+        /// Transfer function: pq (HDR10) or hlg.
+        #[arg(long, default_value = "pq")]
+        transfer: String,
+        /// Quality 0-100 (mapped linearly onto rav1e's quantizer 255-0).
+        #[arg(long, value_parser = clap::value_parser!(u8).range(0..=100))]
+        quality: Option<u8>,
+        /// rav1e speed preset 0-10 (10 fastest; default 6).
+        #[arg(long, value_parser = clap::value_parser!(u8).range(0..=10))]
+        speed: Option<u8>,
+        /// Worker threads (0 = one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Decode IN.ivf into OUT_DIR as frame_00000.exr, ... (linear BT.2020, 1.0 = 100 cd/m²).
+    Decode {
+        /// The AV1 stream.
+        input: PathBuf,
+        /// Output directory (created if missing).
+        out_dir: PathBuf,
+    },
+}
+
 fn main() -> ExitCode {
     cli::install_panic_hook();
     cli::run_catching_panics(run)
@@ -176,6 +211,14 @@ fn run() -> ExitCode {
         }),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),
+        Command::Video(VideoCommand::Encode { paths, transfer, quality, speed, threads }) => match paths.split_last() {
+            Some((output, frames)) => {
+                let args = video::VideoEncodeArgs { frames, output, transfer: &transfer, quality, speed, threads };
+                video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
+            }
+            None => Err(hdrcodec::core::Error::invalid("video encode needs FRAMES... OUT.ivf")),
+        },
+        Command::Video(VideoCommand::Decode { input, out_dir }) => video::decode(&input, &out_dir),
         Command::Codecs { json } => cli::codecs(json),
     };
     match result {

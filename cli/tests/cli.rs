@@ -652,3 +652,39 @@ fn a_closed_stdout_is_not_an_internal_error() {
     assert!(!stderr.contains("internal error"), "{stderr}");
     assert!(matches!(out.status.code(), Some(0) | Some(141)), "{:?}", out.status);
 }
+
+#[test]
+fn video_encode_info_decode_round_trip() {
+    let dir = common::temp_dir("cli-video");
+    let frame = corpus().join("odd-257x129.exr");
+    let ivf = dir.join("clip.ivf");
+    ok(&hdrcodec(&[&"video", &"encode", &frame, &frame, &frame, &ivf, &"--quality", &"80", &"--speed", &"10"]));
+    // info reads the stream's own headers: 3 frames, HDR10 signalling, MaxCLL/MaxFALL of the
+    // frames (the same frame three times) as hdrcodec-video measures them.
+    let v = json(&hdrcodec(&[&"info", &ivf, &"--json"]));
+    assert_eq!((v["codec"].as_str(), v["frames"].as_u64()), (Some("av1"), Some(3)), "{v}");
+    assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(257), Some(129)), "{v}");
+    assert_eq!(v["color_description"], serde_json::json!([9, 16, 9]), "{v}");
+    let cll = hdrcodec_video::hdr10::content_light_level([&decode(&frame)], hdrcodec_video::hdr10::Transfer::Pq);
+    assert_eq!(v["hdr10"]["content_light_level"]["max_cll"].as_u64(), Some(cll.max_cll.into()), "{v}");
+    assert_eq!(v["hdr10"]["content_light_level"]["max_fall"].as_u64(), Some(cll.max_fall.into()), "{v}");
+    let frames = dir.join("frames");
+    ok(&hdrcodec(&[&"video", &"decode", &ivf, &frames]));
+    assert_eq!(names(&frames), ["frame_00000.exr", "frame_00001.exr", "frame_00002.exr"]);
+    let c = json(&hdrcodec(&[&"compare", &frame, &frames.join("frame_00002.exr"), &"--json"]));
+    let psnr = c["pu21_psnr"].as_f64().unwrap();
+    eprintln!("257x129 corpus frame, quality 80, speed 10: PU21-PSNR {psnr:.2} dB");
+    assert!(psnr > 35.0, "{c}");
+
+    // Bad input: one stderr line, no output file.
+    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mp4")], &dir, ".ivf");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq or hlg");
+    let other = corpus().join("sun-sky.exr");
+    must_fail(&[&"video", &"encode", &frame, &other, &dir.join("y.ivf")], &dir, "512x256");
+    let cut = dir.join("cut.ivf");
+    let bytes = std::fs::read(&ivf).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() - 20]).unwrap();
+    let empty = dir.join("none");
+    must_fail(&[&"video", &"decode", &cut, &empty], &dir, "truncated");
+    must_fail(&[&"info", &cut], &dir, "truncated");
+}

@@ -64,6 +64,13 @@ impl ThreadPool {
         ThreadPool { pool: Some(pool) }
     }
 
+    /// The rayon pool behind this handle, `None` for [`ThreadPool::single`]: for libraries that
+    /// take a rayon pool of their own (rav1e's `Config::with_thread_pool`), so that they run on
+    /// the caller's workers instead of starting theirs.
+    pub fn rayon_pool(&self) -> Option<&Arc<rayon::ThreadPool>> {
+        self.pool.as_ref()
+    }
+
     /// How many threads work run through this handle may use (1 for [`ThreadPool::single`]).
     pub fn threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())

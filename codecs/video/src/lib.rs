@@ -9,6 +9,11 @@
 //! ([`curves::PqCurve`]), the DICOM GSDF ([`gsdf::GsdfCurve`]) and a plain logarithm
 //! ([`curves::LogCurve`]); how their steps compare with visibility thresholds
 //! ([`thresholds`]); and the L_p u'v' colour space ([`luv`]).
+//!
+//! The AV1 path: HDR10 frames ([`hdr10`]: BT.2020 NCL Y'CbCr on PQ or HLG), encoded with rav1e
+//! (`encode`, feature `encode`), stored as IVF ([`ivf`]), read back by our OBU parser ([`obu`]:
+//! sequence header, HDR10 and T.35 metadata) and decoded with libdav1d (`decode`, feature
+//! `decode`).
 
 /// The README's example is compiled and run as a doc test.
 #[cfg(doctest)]
@@ -16,9 +21,16 @@
 struct ReadmeDoctests;
 
 pub mod curves;
+#[cfg(feature = "decode")]
+pub mod decode;
+#[cfg(feature = "encode")]
+pub mod encode;
 pub mod gsdf;
+pub mod hdr10;
+pub mod ivf;
 pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;
+pub mod obu;
 pub mod thresholds;
 pub mod tvi;

@@ -1,0 +1,183 @@
+//! `hdrcodec video encode|decode`, and `hdrcodec info` on an AV1 `.ivf` file: HDR10 (PQ) or HLG
+//! AV1 through hdrcodec-video (rav1e to encode, libdav1d to decode).
+
+use hdrcodec::core::{Error, Limits, Result, ThreadPool};
+use hdrcodec_video::decode::{probe_ivf, Av1DecodeOptions, Av1Decoder};
+use hdrcodec_video::encode::{Av1Encoder, Av1Options};
+use hdrcodec_video::hdr10::{content_light_level, Transfer};
+use hdrcodec_video::obu::chroma_sample_position;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// What `video encode` was asked for.
+pub struct VideoEncodeArgs<'a> {
+    /// Frame image files, in order.
+    pub frames: &'a [PathBuf],
+    /// The `.ivf` file to write.
+    pub output: &'a Path,
+    /// `pq` or `hlg`.
+    pub transfer: &'a str,
+    /// 0-100, mapped onto rav1e's quantizer.
+    pub quality: Option<u8>,
+    /// rav1e speed preset 0-10.
+    pub speed: Option<u8>,
+    /// Worker threads (0 = one per core).
+    pub threads: Option<usize>,
+}
+
+fn is_ivf(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("ivf"))
+}
+
+/// `hdrcodec video encode FRAMES... OUT.ivf`. Frames are decoded twice, once to measure
+/// MaxCLL/MaxFALL (needed before the stream's first header) and once to encode, so that no
+/// more than the first frame and one other are held at a time. The file is written atomically.
+/// Returns notes for stderr (values the PQ or HLG signal could not hold).
+pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
+    if !is_ivf(a.output) {
+        return Err(Error::unsupported(format!("'{}': video is written as .ivf", a.output.display())));
+    }
+    let transfer = match a.transfer.to_ascii_lowercase().as_str() {
+        "pq" => Transfer::Pq,
+        "hlg" => Transfer::HLG_1000,
+        "mantiuk" => return Err(Error::unsupported("--transfer mantiuk is not implemented yet (issue 14)")),
+        other => return Err(Error::invalid(format!("--transfer {other}: expected pq or hlg"))),
+    };
+    let first = a.frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
+    let reg = hdrcodec::registry();
+    let limits = Limits::default();
+    let read = |path: &PathBuf| reg.read(path, &limits).map(|(_, image)| image);
+    let mut options = Av1Options { transfer, pool: ThreadPool::new(a.threads.unwrap_or(0))?, ..Av1Options::default() };
+    if let Some(q) = a.quality {
+        options.quantizer = Av1Options::quantizer_for_quality(q);
+    }
+    if let Some(s) = a.speed {
+        options.speed = s;
+    }
+    let head = read(first)?;
+    if transfer == Transfer::Pq {
+        let mut cll = content_light_level([&head], transfer);
+        for path in &a.frames[1..] {
+            let next = content_light_level([&read(path)?], transfer);
+            cll.max_cll = cll.max_cll.max(next.max_cll);
+            cll.max_fall = cll.max_fall.max(next.max_fall);
+        }
+        options.content_light = Some(cll);
+    }
+    let count = u32::try_from(a.frames.len()).unwrap_or(0);
+    let summary = hdrcodec::write_atomic_with(a.output, |out| {
+        let mut encoder = Av1Encoder::begin(head.width(), head.height(), count, &options, out)?;
+        encoder.push_frame(&head)?;
+        for path in &a.frames[1..] {
+            encoder.push_frame(&read(path)?).map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
+        }
+        Ok(encoder.finish()?.0)
+    })?;
+    let c = summary.clipped;
+    let mut notes = Vec::new();
+    if !c.is_empty() {
+        notes.push(format!(
+            "{} components above {} cd/m² coded as the peak, {} negative and {} NaN coded as 0",
+            c.above_peak,
+            transfer.peak_nits(),
+            c.negative,
+            c.nan
+        ));
+    }
+    Ok(notes)
+}
+
+/// `hdrcodec video decode IN.ivf OUT_DIR`: every frame as `frame_NNNNN.exr` (float, linear
+/// BT.2020, 1.0 = 100 cd/m²). On failure the frames written so far are removed.
+pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
+    let data = hdrcodec::read_file(input)?;
+    let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default())?;
+    let exr = hdrcodec::registry().by_name("exr")?;
+    let settings = hdrcodec::core::EncodeSettings::default();
+    std::fs::create_dir_all(out_dir)
+        .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", out_dir.display()))))?;
+    let mut written = Vec::new();
+    let result = (|| {
+        let mut index = 0u64;
+        while let Some(frame) = decoder.next_frame()? {
+            let path = out_dir.join(format!("frame_{index:05}.exr"));
+            hdrcodec::encode_file(exr.as_ref(), &frame, &settings, &path)?;
+            written.push(path);
+            index += 1;
+        }
+        if index == 0 {
+            return Err(Error::invalid(format!("{}: the stream holds no frame", input.display())));
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        for path in &written {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+    result
+}
+
+/// `hdrcodec info FILE.ivf`: the IVF header, the sequence header's colour signalling and the
+/// HDR10 metadata, read by our own parsers without decoding.
+pub fn info(file: &Path, as_json: bool) -> Result<()> {
+    let data = hdrcodec::read_file(file)?;
+    let (header, summary) = probe_ivf(&data, &Limits::default())?;
+    let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
+    let c = seq.color;
+    let subsampling = match (c.subsampling_x, c.subsampling_y) {
+        (true, true) => "4:2:0",
+        (true, false) => "4:2:2",
+        _ => "4:4:4",
+    };
+    let siting = match c.chroma_sample_position {
+        chroma_sample_position::VERTICAL => "vertical (left)",
+        chroma_sample_position::COLOCATED => "colocated (top-left)",
+        _ => "unknown",
+    };
+    let cicp = c.color_description.map(|d| [d.color_primaries, d.transfer_characteristics, d.matrix_coefficients]);
+    let hdr10 = summary.hdr10();
+    if as_json {
+        let out = json!({
+            "file": file.display().to_string(),
+            "codec": "av1",
+            "file_size": data.len(),
+            "frames": summary.temporal_units,
+            "width": seq.max_frame_width,
+            "height": seq.max_frame_height,
+            "ivf_frame_rate": [header.timebase_den, header.timebase_num],
+            "profile": seq.profile,
+            "level_idx": seq.level_idx,
+            "bit_depth": c.bit_depth,
+            "subsampling": subsampling,
+            "chroma_sample_position": siting,
+            "full_range": c.full_range,
+            "color_description": cicp,
+            "hdr10": hdr10.map(crate::cli::hdr10_json),
+            "t35_messages": summary.t35_per_temporal_unit.iter().map(|&n| u64::from(n)).sum::<u64>(),
+        });
+        println!("{out}");
+        return Ok(());
+    }
+    println!("file:          {} ({} bytes, AV1 in IVF)", file.display(), data.len());
+    println!("frames:        {}", summary.temporal_units);
+    println!("dimensions:    {} x {}", seq.max_frame_width, seq.max_frame_height);
+    println!("profile:       {} (level index {})", seq.profile, seq.level_idx);
+    println!(
+        "samples:       {}-bit {subsampling}, {} range",
+        c.bit_depth,
+        if c.full_range { "full" } else { "limited" }
+    );
+    println!("chroma siting: {siting}");
+    match cicp {
+        Some([p, t, m]) => println!("colour (H.273): primaries {p}, transfer {t}, matrix {m}"),
+        None => println!("colour (H.273): not signalled"),
+    }
+    crate::cli::print_hdr10(hdr10);
+    Ok(())
+}
+
+/// True for a file `info` reads through [`info`] rather than the image registry.
+pub fn handles(file: &Path) -> bool {
+    is_ivf(file)
+}

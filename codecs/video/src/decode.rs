@@ -1,0 +1,252 @@
+//! AV1 (in IVF) back to scene-linear frames, decoded by the system's libdav1d through the safe
+//! `dav1d` crate. The colour description and HDR10 metadata come from our own OBU parser
+//! ([`crate::obu`]): the `dav1d` 0.9 crate exposes neither.
+
+use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
+use crate::ivf::IvfReader;
+use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
+use dav1d::{PixelLayout, PlanarImageComponent};
+use hdrcodec_core::{Channels, ColorPrimaries, Error, HdrImage, Limits, Result};
+
+/// How to decode.
+#[derive(Clone, Debug)]
+pub struct Av1DecodeOptions {
+    /// What decoders may allocate; the stream's declared frame size is checked against it.
+    pub limits: Limits,
+    /// cd/m² of a decoded sample value 1.0 (core's default convention: 100).
+    pub nits_per_unit: f32,
+    /// The display peak an HLG stream is rendered for, cd/m² (BT.2100 reference: 1000).
+    pub hlg_peak_nits: f64,
+}
+
+impl Default for Av1DecodeOptions {
+    fn default() -> Self {
+        Av1DecodeOptions { limits: Limits::default(), nits_per_unit: 100.0, hlg_peak_nits: 1000.0 }
+    }
+}
+
+/// Reads the colour signalling and HDR10 metadata of an IVF/AV1 stream without decoding it.
+pub fn probe_ivf(data: &[u8], limits: &Limits) -> Result<(crate::ivf::IvfHeader, StreamSummary)> {
+    let mut reader = IvfReader::new(data, limits)?;
+    if !reader.is_av1() {
+        let f = reader.header().fourcc;
+        return Err(Error::unsupported(format!("IVF FourCC {:?}: only AV01 is read", String::from_utf8_lossy(&f))));
+    }
+    let header = *reader.header();
+    let mut summary = StreamSummary::default();
+    while let Some(frame) = reader.next_frame()? {
+        summary.add_temporal_unit(frame.data)?;
+    }
+    Ok((header, summary))
+}
+
+/// The transfer, range and subsampling a sequence header declares, if we can decode it.
+fn stream_format(seq: &SequenceHeader, hlg_peak_nits: f64) -> Result<(Transfer, Range, Subsampling)> {
+    let c = &seq.color;
+    if u32::from(c.bit_depth) != BIT_DEPTH {
+        return Err(Error::unsupported(format!("{}-bit AV1 (this decoder returns HDR10/HLG 10-bit)", c.bit_depth)));
+    }
+    if c.mono_chrome {
+        return Err(Error::unsupported("monochrome AV1"));
+    }
+    let transfer = match c.color_description {
+        Some(ColorDescription { color_primaries: 9, transfer_characteristics: 16, matrix_coefficients: 9 }) => {
+            Transfer::Pq
+        }
+        Some(ColorDescription { color_primaries: 9, transfer_characteristics: 18, matrix_coefficients: 9 }) => {
+            Transfer::Hlg { peak_nits: hlg_peak_nits }
+        }
+        other => {
+            return Err(Error::unsupported(format!(
+                "AV1 colour description {other:?} (this decoder returns BT.2020 PQ or HLG, 9/16/9 or 9/18/9)"
+            )))
+        }
+    };
+    let subsampling = match (c.subsampling_x, c.subsampling_y) {
+        (true, true) => Subsampling::Yuv420,
+        (false, false) => Subsampling::Yuv444,
+        _ => return Err(Error::unsupported("4:2:2 AV1")),
+    };
+    Ok((transfer, if c.full_range { Range::Full } else { Range::Limited }, subsampling))
+}
+
+/// Copies a 16-bit-per-sample plane of `w` × `h` out of dav1d's strided buffer.
+fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize) -> Result<Vec<u16>> {
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        let row = bytes
+            .get(y * stride..y * stride + 2 * w)
+            .ok_or_else(|| Error::invalid("dav1d returned a plane smaller than the picture"))?;
+        out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
+    }
+    Ok(out)
+}
+
+/// Decodes an IVF/AV1 stream frame by frame.
+pub struct Av1Decoder<'a> {
+    reader: IvfReader<'a>,
+    decoder: dav1d::Decoder,
+    summary: StreamSummary,
+    transfer: Transfer,
+    range: Range,
+    subsampling: Subsampling,
+    siting: ChromaSiting,
+    options: Av1DecodeOptions,
+    width: u32,
+    height: u32,
+    /// dav1d holds back part of the last temporal unit sent.
+    pending: bool,
+    flushed: bool,
+}
+
+impl<'a> Av1Decoder<'a> {
+    /// Opens a stream: reads the IVF header and every temporal unit's headers and metadata
+    /// (cheap, no decoding), checks the frame size against the limits.
+    pub fn new(data: &'a [u8], options: &Av1DecodeOptions) -> Result<Self> {
+        let (_, summary) = probe_ivf(data, &options.limits)?;
+        let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
+        if summary.changed_sequence_headers > 0 {
+            return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
+        }
+        let (transfer, range, subsampling) = stream_format(&seq, options.hlg_peak_nits)?;
+        let (width, height) = (seq.max_frame_width, seq.max_frame_height);
+        options.limits.check_dimensions(width.into(), height.into())?;
+        let mut settings = dav1d::Settings::new();
+        // One picture out per temporal unit in: frame threading would delay output.
+        settings.set_n_threads(1);
+        settings.set_max_frame_delay(1);
+        settings.set_frame_size_limit(u32::try_from(options.limits.max_pixels).unwrap_or(u32::MAX));
+        let decoder = dav1d::Decoder::with_settings(&settings).map_err(|e| Error::invalid(format!("dav1d: {e}")))?;
+        Ok(Av1Decoder {
+            reader: IvfReader::new(data, &options.limits)?,
+            decoder,
+            summary,
+            transfer,
+            range,
+            subsampling,
+            // Our streams say colocated; VERTICAL and an unsignalled position (0, what SVT-AV1
+            // and libaom write) are taken as "left", H.273's default.
+            siting: if seq.color.chroma_sample_position == chroma_sample_position::COLOCATED {
+                ChromaSiting::Colocated
+            } else {
+                ChromaSiting::Left
+            },
+            options: options.clone(),
+            width,
+            height,
+            pending: false,
+            flushed: false,
+        })
+    }
+
+    /// What the stream's headers and metadata OBUs say.
+    pub fn summary(&self) -> &StreamSummary {
+        &self.summary
+    }
+
+    /// The transfer function the stream declares.
+    pub fn transfer(&self) -> Transfer {
+        self.transfer
+    }
+
+    /// The next frame's 10-bit planes as coded, or `None` after the last.
+    pub fn next_planes(&mut self) -> Result<Option<YuvFrame>> {
+        // Each round either returns, takes input, or notices that neither side moves.
+        let mut stalled = 0;
+        loop {
+            match self.decoder.get_picture() {
+                Ok(picture) => return self.planes_of(&picture).map(Some),
+                Err(e) if e.is_again() => {}
+                Err(e) => return Err(Error::invalid(format!("dav1d: {e}"))),
+            }
+            if self.pending {
+                // dav1d kept part of the last temporal unit until a picture came out.
+                self.pending = false;
+                let result = self.decoder.send_pending_data();
+                self.pending = self.accepted(result)?;
+                stalled += 1;
+                if stalled > 2 {
+                    return Err(Error::invalid("dav1d neither takes data nor returns a picture"));
+                }
+                continue;
+            }
+            if self.flushed {
+                return Ok(None);
+            }
+            match self.reader.next_frame()? {
+                Some(frame) => {
+                    let timestamp = i64::try_from(frame.pts).ok();
+                    let result = self.decoder.send_data(frame.data.to_vec(), None, timestamp, None);
+                    self.pending = self.accepted(result)?;
+                }
+                // No more input: what dav1d still holds comes out of get_picture.
+                None => self.flushed = true,
+            }
+        }
+    }
+
+    /// Whether dav1d kept data back (`Again`), or the error it reported.
+    fn accepted(&self, result: std::result::Result<(), dav1d::Error>) -> Result<bool> {
+        match result {
+            Ok(()) => Ok(false),
+            Err(e) if e.is_again() => Ok(true),
+            Err(e) => Err(Error::invalid(format!("dav1d cannot decode this temporal unit: {e}"))),
+        }
+    }
+
+    /// The next frame as scene-linear BT.2020 light, with the stream's HDR10 metadata.
+    pub fn next_frame(&mut self) -> Result<Option<HdrImage>> {
+        let Some(yuv) = self.next_planes()? else { return Ok(None) };
+        let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
+        image.color.primaries = ColorPrimaries::Bt2020;
+        image.color.hdr10 = self.summary.hdr10();
+        Ok(Some(image))
+    }
+
+    fn planes_of(&self, picture: &dav1d::Picture) -> Result<YuvFrame> {
+        let (w, h) = (picture.width() as usize, picture.height() as usize);
+        if (w as u32, h as u32) != (self.width, self.height) {
+            return Err(Error::unsupported(format!(
+                "a {w}x{h} frame in a {}x{} stream (frame size changes)",
+                self.width, self.height
+            )));
+        }
+        let layout = match picture.pixel_layout() {
+            PixelLayout::I420 => Subsampling::Yuv420,
+            PixelLayout::I444 => Subsampling::Yuv444,
+            other => return Err(Error::unsupported(format!("dav1d picture layout {other:?}"))),
+        };
+        if layout != self.subsampling || picture.bit_depth() != BIT_DEPTH as usize {
+            return Err(Error::invalid("a decoded picture does not match the sequence header"));
+        }
+        let (cw, ch) = YuvFrame::chroma_size(w, h, layout);
+        let plane = |c: PlanarImageComponent, pw: usize, ph: usize| {
+            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph)
+        };
+        Ok(YuvFrame {
+            width: w,
+            height: h,
+            subsampling: layout,
+            y: plane(PlanarImageComponent::Y, w, h)?,
+            cb: plane(PlanarImageComponent::U, cw, ch)?,
+            cr: plane(PlanarImageComponent::V, cw, ch)?,
+        })
+    }
+}
+
+/// Decodes every frame of an IVF/AV1 stream.
+pub fn decode_ivf(data: &[u8], options: &Av1DecodeOptions) -> Result<Vec<HdrImage>> {
+    let mut decoder = Av1Decoder::new(data, options)?;
+    let (mut frames, mut charges) = (Vec::new(), Vec::new());
+    loop {
+        // Charged before dav1d decodes the frame, so a long stream stops at the budget.
+        let charge = options.limits.charge_image(decoder.width.into(), decoder.height.into(), Channels::Rgb)?;
+        match decoder.next_frame()? {
+            Some(frame) => {
+                frames.push(frame);
+                charges.push(charge);
+            }
+            None => return Ok(frames),
+        }
+    }
+}

@@ -1,0 +1,352 @@
+//! HDR10 (PQ) and HLG encoding to AV1 with rav1e, written as IVF.
+//!
+//! The stream is 10-bit BT.2020 non-constant-luminance Y'CbCr (Main profile for 4:2:0, High for
+//! 4:4:4). Its sequence header carries the colour description 9/16/9 (PQ) or 9/18/9 (HLG), the
+//! range, and `chroma_sample_position` = colocated (what [`crate::hdr10`] downsamples to); each
+//! key frame carries HDR_CLL and HDR_MDCV metadata OBUs (PQ only; rav1e repeats them on every key
+//! frame). MaxCLL/MaxFALL must be known before the first frame is coded: [`encode_sequence`]
+//! walks the frames twice (measure, then encode); the streaming [`Av1Encoder`] takes them as an
+//! option.
+
+use crate::hdr10::{content_light_level, frame_to_yuv, ClipReport, Range, Subsampling, Transfer, BIT_DEPTH};
+use crate::ivf::{IvfHeader, IvfWriter};
+use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
+use rav1e::color::{
+    ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
+    MasteringDisplay as Rav1eMasteringDisplay, MatrixCoefficients, PixelRange, TransferCharacteristics,
+};
+use rav1e::config::{Config, EncoderConfig, RateControlConfig};
+use rav1e::data::{EncoderStatus, FrameParameters, Rational};
+use rav1e::Context;
+use std::io::Write;
+
+/// An ITU-T T.35 message to attach to every frame (AV1 `metadata_itut_t35`, §5.8.2).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct T35Message {
+    /// `itu_t_t35_country_code`.
+    pub country_code: u8,
+    /// `itu_t_t35_country_code_extension_byte`, written only when `country_code` is 0xFF.
+    pub country_code_extension: u8,
+    /// The payload (for most country codes it starts with a terminal provider code).
+    pub payload: Vec<u8>,
+}
+
+/// How to encode. `Default` is HDR10: PQ, limited range, 4:2:0, quantizer 100 at speed 6,
+/// mastering display BT.2020 D65 1000 / 0.0001 cd/m².
+#[derive(Clone, Debug)]
+pub struct Av1Options {
+    /// PQ (HDR10) or HLG.
+    pub transfer: Transfer,
+    /// Limited (default) or full range.
+    pub range: Range,
+    /// 4:2:0 (default) or 4:4:4.
+    pub subsampling: Subsampling,
+    /// rav1e's base quantizer, 0 (best) to 255. Ignored when `bitrate_kbps` is set.
+    pub quantizer: u8,
+    /// Target bitrate in kbit/s (rav1e's rate control) instead of a fixed quantizer.
+    pub bitrate_kbps: Option<u32>,
+    /// rav1e speed preset, 0 (slowest, smallest) to 10 (fastest).
+    pub speed: u8,
+    /// Longest distance between key frames, in frames.
+    pub keyframe_interval: u64,
+    /// Tiles (rav1e rounds to a power-of-two grid); 0 lets rav1e choose.
+    pub tiles: usize,
+    /// Frames per second (the IVF and AV1 time base is 1/fps).
+    pub fps: u32,
+    /// No frame reordering: every frame is shown when coded. Needed for `t35` to reach every
+    /// temporal unit (rav1e 0.8 drops the T.35 of frames it codes as hidden).
+    pub low_latency: bool,
+    /// `seq_level_idx` (AV1 Annex A: (major − 2)·4 + minor); `None` picks the smallest level
+    /// whose picture size and display rate fit, or 31 (unconstrained) if none does.
+    pub level_idx: Option<u8>,
+    /// SMPTE ST 2086 mastering display (PQ only).
+    pub mastering_display: MasteringDisplay,
+    /// MaxCLL/MaxFALL. [`encode_sequence`] measures them when `None`; the streaming
+    /// [`Av1Encoder`] then writes no HDR_CLL (0, 0 would mean "unknown" anyway).
+    pub content_light: Option<ContentLightLevel>,
+    /// A T.35 message for every frame (e.g. identifying the stream).
+    pub t35: Option<T35Message>,
+    /// The caller's worker threads, lent to rav1e.
+    pub pool: ThreadPool,
+}
+
+impl Default for Av1Options {
+    fn default() -> Self {
+        Av1Options {
+            transfer: Transfer::Pq,
+            range: Range::Limited,
+            subsampling: Subsampling::Yuv420,
+            quantizer: 100,
+            bitrate_kbps: None,
+            speed: 6,
+            keyframe_interval: 240,
+            tiles: 0,
+            fps: 25,
+            low_latency: false,
+            level_idx: None,
+            mastering_display: MasteringDisplay::bt2020(1000.0, 0.0001),
+            content_light: None,
+            t35: None,
+            pool: ThreadPool::single(),
+        }
+    }
+}
+
+impl Av1Options {
+    /// rav1e's quantizer for a 0-100 quality (100 best): linear, quality 100 → 0, 0 → 255.
+    pub fn quantizer_for_quality(quality: u8) -> u8 {
+        let q = u32::from(quality.min(100));
+        ((100 - q) * 255).div_ceil(100) as u8
+    }
+}
+
+/// What an encode did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EncodeSummary {
+    /// Frames coded.
+    pub frames: u64,
+    /// Samples the clipping policy changed, over all frames.
+    pub clipped: ClipReport,
+    /// The content light level written, if any.
+    pub content_light: Option<ContentLightLevel>,
+    /// Bytes of the IVF file.
+    pub bytes: u64,
+}
+
+/// AV1 Annex A.3 level limits: (seq_level_idx, MaxPicSize, MaxHSize, MaxVSize, MaxDisplayRate).
+const LEVELS: [(u8, u64, u64, u64, u64); 14] = [
+    (0, 147_456, 2048, 1152, 4_423_680),
+    (1, 278_784, 2816, 1584, 8_363_520),
+    (4, 665_856, 4352, 2448, 19_975_680),
+    (5, 1_065_024, 5504, 3096, 31_950_720),
+    (8, 2_359_296, 6144, 3456, 77_856_768),
+    (9, 2_359_296, 6144, 3456, 155_713_536),
+    (12, 8_912_896, 8192, 4352, 273_715_200),
+    (13, 8_912_896, 8192, 4352, 547_430_400),
+    (14, 8_912_896, 8192, 4352, 1_094_860_800),
+    (15, 8_912_896, 8192, 4352, 1_176_502_272),
+    (16, 35_651_584, 16384, 8704, 1_176_502_272),
+    (17, 35_651_584, 16384, 8704, 2_189_721_600),
+    (18, 35_651_584, 16384, 8704, 4_379_443_200),
+    (19, 35_651_584, 16384, 8704, 4_706_009_088),
+];
+
+/// The smallest level whose picture-size and display-rate limits hold `width` × `height` at
+/// `fps`; 31 (no level constraint) when none does.
+pub fn level_for(width: u32, height: u32, fps: u32) -> u8 {
+    let (w, h) = (u64::from(width), u64::from(height));
+    let rate = w * h * u64::from(fps.max(1));
+    LEVELS
+        .iter()
+        .find(|&&(_, pic, max_w, max_h, display)| w * h <= pic && w <= max_w && h <= max_h && rate <= display)
+        .map_or(31, |l| l.0)
+}
+
+/// rav1e's mastering display from core's (AV1 units through core's conversion).
+fn rav1e_mastering_display(md: &MasteringDisplay) -> Rav1eMasteringDisplay {
+    let u = md.to_av1();
+    let point = |xy: [u16; 2]| ChromaticityPoint { x: xy[0], y: xy[1] };
+    Rav1eMasteringDisplay {
+        primaries: u.primaries.map(point),
+        white_point: point(u.white),
+        max_luminance: u.luminance_max,
+        min_luminance: u.luminance_min,
+    }
+}
+
+fn rav1e_error(what: &str, e: impl std::fmt::Display) -> Error {
+    Error::invalid(format!("rav1e {what}: {e}"))
+}
+
+/// Encodes frames of scene-linear light as they come, to IVF.
+pub struct Av1Encoder<W: Write> {
+    ctx: Context<u16>,
+    ivf: IvfWriter<W>,
+    options: Av1Options,
+    width: u32,
+    height: u32,
+    frames_in: u64,
+    summary: EncodeSummary,
+}
+
+impl<W: Write> Av1Encoder<W> {
+    /// Starts a stream of `width` × `height` frames; `frame_count` goes into the IVF header
+    /// (0 when unknown). The content light level is `options.content_light` (none if `None`).
+    pub fn begin(width: u32, height: u32, frame_count: u32, options: &Av1Options, out: W) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!("frames of {width}x{height} pixels")));
+        }
+        let (ivf_w, ivf_h) = match (u16::try_from(width), u16::try_from(height)) {
+            (Ok(w), Ok(h)) => (w, h),
+            _ => return Err(Error::unsupported(format!("{width}x{height}: IVF records at most 65535x65535"))),
+        };
+        let pq = options.transfer == Transfer::Pq;
+        let fps = options.fps.max(1);
+        let mut enc = EncoderConfig::with_speed_preset(options.speed.min(10));
+        enc.width = width as usize;
+        enc.height = height as usize;
+        enc.time_base = Rational::new(1, u64::from(fps));
+        enc.bit_depth = BIT_DEPTH as usize;
+        enc.chroma_sampling = match options.subsampling {
+            Subsampling::Yuv420 => ChromaSampling::Cs420,
+            Subsampling::Yuv444 => ChromaSampling::Cs444,
+        };
+        enc.chroma_sample_position = match options.subsampling {
+            Subsampling::Yuv420 => ChromaSamplePosition::Colocated,
+            Subsampling::Yuv444 => ChromaSamplePosition::Unknown,
+        };
+        enc.pixel_range = match options.range {
+            Range::Limited => PixelRange::Limited,
+            Range::Full => PixelRange::Full,
+        };
+        enc.color_description = Some(ColorDescription {
+            color_primaries: ColorPrimaries::BT2020,
+            transfer_characteristics: if pq {
+                TransferCharacteristics::SMPTE2084
+            } else {
+                TransferCharacteristics::HLG
+            },
+            matrix_coefficients: MatrixCoefficients::BT2020NCL,
+        });
+        if pq {
+            enc.mastering_display = Some(rav1e_mastering_display(&options.mastering_display));
+            enc.content_light = options.content_light.map(|c| ContentLight {
+                max_content_light_level: c.max_cll,
+                max_frame_average_light_level: c.max_fall,
+            });
+        }
+        enc.level_idx = Some(options.level_idx.unwrap_or_else(|| level_for(width, height, fps)));
+        enc.max_key_frame_interval = options.keyframe_interval.max(1);
+        enc.min_key_frame_interval = enc.min_key_frame_interval.min(enc.max_key_frame_interval);
+        enc.low_latency = options.low_latency;
+        enc.quantizer = usize::from(options.quantizer);
+        enc.bitrate = options.bitrate_kbps.map_or(0, |k| i32::try_from(u64::from(k) * 1000).unwrap_or(i32::MAX));
+        enc.tiles = options.tiles;
+        let mut cfg = Config::new().with_encoder_config(enc).with_rate_control(RateControlConfig::new());
+        if let Some(pool) = options.pool.rayon_pool() {
+            cfg = cfg.with_thread_pool(pool.clone());
+        } else {
+            cfg = cfg.with_threads(1);
+        }
+        let ctx = cfg.new_context::<u16>().map_err(|e| rav1e_error("configuration", e))?;
+        let ivf = IvfWriter::new(out, &IvfHeader::av1(ivf_w, ivf_h, fps, frame_count))?;
+        let summary = EncodeSummary {
+            content_light: if pq { options.content_light } else { None },
+            bytes: crate::ivf::FILE_HEADER_LEN as u64,
+            ..EncodeSummary::default()
+        };
+        Ok(Av1Encoder { ctx, ivf, options: options.clone(), width, height, frames_in: 0, summary })
+    }
+
+    /// Codes one frame (same size as the stream's).
+    pub fn push_frame(&mut self, frame: &HdrImage) -> Result<()> {
+        if (frame.width(), frame.height()) != (self.width, self.height) {
+            return Err(Error::invalid(format!(
+                "frame {} is {}x{}, the stream {}x{}",
+                self.frames_in,
+                frame.width(),
+                frame.height(),
+                self.width,
+                self.height
+            )));
+        }
+        let (yuv, clipped) = frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
+        self.summary.clipped.add(&clipped);
+        let mut f = self.ctx.new_frame();
+        let (cw, _) = crate::hdr10::YuvFrame::chroma_size(yuv.width, yuv.height, yuv.subsampling);
+        for (plane, (data, w)) in f.planes.iter_mut().zip([(&yuv.y, yuv.width), (&yuv.cb, cw), (&yuv.cr, cw)]) {
+            let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+            plane.copy_from_raw_u8(&bytes, 2 * w, 2);
+        }
+        let t35 = match &self.options.t35 {
+            Some(m) => vec![rav1e::prelude::T35 {
+                country_code: m.country_code,
+                country_code_extension_byte: m.country_code_extension,
+                data: m.payload.clone().into_boxed_slice(),
+            }]
+            .into_boxed_slice(),
+            None => Box::default(),
+        };
+        let params = FrameParameters { t35_metadata: t35, ..FrameParameters::default() };
+        match self.ctx.send_frame((f, params)) {
+            Ok(()) => {}
+            Err(e) => return Err(rav1e_error("send_frame", e)),
+        }
+        self.frames_in += 1;
+        self.drain()
+    }
+
+    /// Writes every packet rav1e has ready; returns at `NeedMoreData` or the end.
+    fn drain(&mut self) -> Result<()> {
+        loop {
+            match self.ctx.receive_packet() {
+                Ok(packet) => {
+                    self.ivf.write_frame(packet.input_frameno, &packet.data)?;
+                    self.summary.frames += 1;
+                    self.summary.bytes += (crate::ivf::FRAME_HEADER_LEN + packet.data.len()) as u64;
+                }
+                Err(EncoderStatus::Encoded) => {}
+                Err(EncoderStatus::NeedMoreData) | Err(EncoderStatus::LimitReached) => return Ok(()),
+                Err(e) => return Err(rav1e_error("encoding", e)),
+            }
+        }
+    }
+
+    /// Flushes rav1e and returns the summary and the output.
+    pub fn finish(mut self) -> Result<(EncodeSummary, W)> {
+        self.ctx.flush();
+        self.drain()?;
+        if self.summary.frames != self.frames_in {
+            return Err(Error::invalid(format!(
+                "rav1e returned {} frames for {} sent",
+                self.summary.frames, self.frames_in
+            )));
+        }
+        let out = self.ivf.finish()?;
+        Ok((self.summary, out))
+    }
+}
+
+/// The family's stream-encoder trait (begin with [`Av1Encoder::begin`], push frames, finish).
+impl<W: Write + Send> VideoEncoder for Av1Encoder<W> {
+    fn push_frame(&mut self, frame: &HdrImage) -> Result<()> {
+        Av1Encoder::push_frame(self, frame)
+    }
+
+    fn finish(self: Box<Self>) -> Result<u64> {
+        Av1Encoder::finish(*self).map(|(summary, _)| summary.frames)
+    }
+}
+
+/// Encodes a whole sequence to IVF. When `options.content_light` is `None` (and the transfer is
+/// PQ) MaxCLL and MaxFALL are first measured over all frames on the values that are coded
+/// (BT.2020, cd/m², after clipping).
+pub fn encode_sequence<W: Write>(frames: &[HdrImage], options: &Av1Options, out: W) -> Result<(EncodeSummary, W)> {
+    let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
+    let mut options = options.clone();
+    if options.transfer == Transfer::Pq && options.content_light.is_none() {
+        options.content_light = Some(content_light_level(frames, options.transfer));
+    }
+    let count = u32::try_from(frames.len()).unwrap_or(0);
+    let mut encoder = Av1Encoder::begin(first.width(), first.height(), count, &options, out)?;
+    for f in frames {
+        encoder.push_frame(f)?;
+    }
+    encoder.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_follow_annex_a() {
+        assert_eq!(level_for(96, 64, 25), 0);
+        assert_eq!(level_for(1920, 1080, 30), 8); // 4.0
+        assert_eq!(level_for(1920, 1080, 60), 9); // 4.1
+        assert_eq!(level_for(3840, 2160, 60), 13); // 5.1
+        assert_eq!(level_for(100_000, 10, 1), 31);
+        assert_eq!(Av1Options::quantizer_for_quality(100), 0);
+        assert_eq!(Av1Options::quantizer_for_quality(0), 255);
+    }
+}

@@ -1,0 +1,231 @@
+//! hdrcodec-video's AV1 streams judged by FFmpeg and dav1d (VIDEO-NOTES §4):
+//! - `ffprobe` reports the stream's colour signalling as written: smpte2084 (or arib-std-b67),
+//!   bt2020, bt2020nc, tv range, chroma location topleft;
+//! - `ffprobe` frame side data shows exactly our mastering display (AV1 units over 65536, 256
+//!   and 16384) and content light level;
+//! - `ffmpeg -f md5` (libdav1d), `dav1d --muxer md5` and `md5sum` of the planes our decoder
+//!   returns agree: three decoders (the CLI, FFmpeg's wrapper, ours through the dav1d crate) and
+//!   one hash;
+//! - a stream SVT-AV1 wrote (through FFmpeg) reads, in our parser, as the HDR10 values it was
+//!   given, and decodes in ours to FFmpeg's samples.
+mod common;
+
+use common::{require, run_ok, temp_dir, tool};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, HdrImage, MasteringDisplay};
+use hdrcodec_video::decode::{Av1DecodeOptions, Av1Decoder};
+use hdrcodec_video::encode::{encode_sequence, Av1Options};
+use hdrcodec_video::hdr10::{content_light_level, Transfer};
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+
+/// Four 96x64 BT.2020 frames: a ramp from 1 to 1000 cd/m² with a colour wash, and a 3000 cd/m²
+/// square moving right.
+fn frames() -> Vec<HdrImage> {
+    frames_of(96, 64)
+}
+
+/// [`frames`] at any size.
+fn frames_of(w: u32, h: u32) -> Vec<HdrImage> {
+    (0..4)
+        .map(|t| {
+            let mut s = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let l = 10f32.powf(-2.0 + 3.0 * (x + y) as f32 / (w + h) as f32);
+                    let hue = x as f32 / w as f32;
+                    let bright = (10 + 8 * t..22 + 8 * t).contains(&x) && (20..32).contains(&y);
+                    s.extend(if bright { [30.0, 27.0, 20.0] } else { [l * (0.5 + hue), l * 0.8, l * (1.2 - hue)] });
+                }
+            }
+            let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 100.0, hdr10: None };
+            HdrImage::new(w, h, Channels::Rgb, s, color).unwrap()
+        })
+        .collect()
+}
+
+fn write_stream(dir: &Path, name: &str, options: &Av1Options) -> std::path::PathBuf {
+    write_frames(dir, name, &frames(), options)
+}
+
+fn write_frames(dir: &Path, name: &str, frames: &[HdrImage], options: &Av1Options) -> std::path::PathBuf {
+    let (_, ivf) = encode_sequence(frames, options, Vec::new()).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, ivf).unwrap();
+    path
+}
+
+fn ffprobe_json(args: &[&str], file: &Path) -> Value {
+    let out = run_ok(Command::new("ffprobe").args(["-v", "error", "-of", "json"]).args(args).arg(file));
+    serde_json::from_slice(&out.stdout).expect("ffprobe prints JSON")
+}
+
+fn fast() -> Av1Options {
+    Av1Options { speed: 10, quantizer: 60, ..Av1Options::default() }
+}
+
+#[test]
+fn ffprobe_reads_our_hdr10_signalling_and_metadata() {
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_probe");
+    let md = MasteringDisplay::p3_d65_1000();
+    let path = write_stream(&dir, "pq.ivf", &Av1Options { mastering_display: md, ..fast() });
+
+    let stream = ffprobe_json(
+        &[
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=codec_name,profile,pix_fmt,color_range,color_space,color_transfer,color_primaries,chroma_location",
+        ],
+        &path,
+    );
+    let s = &stream["streams"][0];
+    assert_eq!(s["codec_name"], "av1");
+    assert_eq!(s["pix_fmt"], "yuv420p10le");
+    assert_eq!(s["color_transfer"], "smpte2084");
+    assert_eq!(s["color_primaries"], "bt2020");
+    assert_eq!(s["color_space"], "bt2020nc");
+    assert_eq!(s["color_range"], "tv");
+    assert_eq!(s["chroma_location"], "topleft");
+
+    let frames_json = ffprobe_json(
+        &[
+            "-select_streams",
+            "v:0",
+            "-show_frames",
+            "-show_entries",
+            "frame=color_transfer,color_primaries,color_space:frame_side_data_list",
+        ],
+        &path,
+    );
+    let decoded = frames_json["frames"].as_array().expect("frames");
+    assert_eq!(decoded.len(), 4, "FFmpeg (libdav1d) decodes every frame");
+    let units = md.to_av1();
+    let cll = content_light_level(&frames(), Transfer::Pq);
+    for f in decoded {
+        assert_eq!(f["color_transfer"], "smpte2084");
+        let side = f["side_data_list"].as_array().expect("HDR10 side data on every frame");
+        let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("MDCV");
+        let chroma = |key: &str, v: u16| assert_eq!(mdcv[key], format!("{v}/65536"), "{key}");
+        for (i, colour) in ["red", "green", "blue"].iter().enumerate() {
+            chroma(&format!("{colour}_x"), units.primaries[i][0]);
+            chroma(&format!("{colour}_y"), units.primaries[i][1]);
+        }
+        chroma("white_point_x", units.white[0]);
+        chroma("white_point_y", units.white[1]);
+        assert_eq!(mdcv["max_luminance"], format!("{}/256", units.luminance_max));
+        assert_eq!(mdcv["min_luminance"], format!("{}/16384", units.luminance_min));
+        let light = side.iter().find(|d| d["side_data_type"] == "Content light level metadata").expect("CLL");
+        assert_eq!(light["max_content"], u64::from(cll.max_cll));
+        assert_eq!(light["max_average"], u64::from(cll.max_fall));
+    }
+
+    let hlg = write_stream(&dir, "hlg.ivf", &Av1Options { transfer: Transfer::HLG_1000, ..fast() });
+    let s = ffprobe_json(&["-select_streams", "v:0", "-show_entries", "stream=color_transfer,color_primaries"], &hlg);
+    assert_eq!(s["streams"][0]["color_transfer"], "arib-std-b67");
+    assert_eq!(s["streams"][0]["color_primaries"], "bt2020");
+}
+
+/// The first 32 hexadecimal characters in `text` that form one word.
+fn md5_in(text: &str) -> String {
+    text.split(|c: char| !c.is_ascii_hexdigit())
+        .find(|w| w.len() == 32)
+        .unwrap_or_else(|| panic!("no MD5 in {text:?}"))
+        .to_ascii_lowercase()
+}
+
+#[test]
+fn ffmpeg_dav1d_and_our_decoder_agree_bit_for_bit() {
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("dav1d"), "the dav1d CLI (Debian dav1d)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_md5");
+    // Odd sizes give chroma planes of (w + 1) / 2 x (h + 1) / 2.
+    for (name, (w, h), options) in [
+        ("pq.ivf", (96, 64), fast()),
+        ("hlg_lowlatency.ivf", (96, 64), Av1Options { transfer: Transfer::HLG_1000, low_latency: true, ..fast() }),
+        ("pq_odd_97x63.ivf", (97, 63), fast()),
+    ] {
+        let path = write_frames(&dir, name, &frames_of(w, h), &options);
+        let ffmpeg = ffmpeg_md5(&path);
+        let dav1d = run_ok(Command::new("dav1d").args(["-q", "-i"]).arg(&path).args(["--muxer", "md5", "-o", "-"]));
+        let dav1d = md5_in(&String::from_utf8_lossy(&dav1d.stdout));
+        let (raw, count) = our_planes(&path);
+        assert_eq!(count, 4);
+        let ours = md5sum(&dir.join(format!("{name}.yuv")), &raw);
+        assert_eq!(ffmpeg, dav1d, "{name}: FFmpeg and the dav1d CLI");
+        assert_eq!(ours, ffmpeg, "{name}: our decode and FFmpeg's");
+    }
+}
+
+/// FFmpeg's (libdav1d's) decode of `path` as 10-bit 4:2:0 planes, hashed by `-f md5`.
+fn ffmpeg_md5(path: &Path) -> String {
+    let out = run_ok(Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(path).args([
+        "-f",
+        "md5",
+        "-pix_fmt",
+        "yuv420p10le",
+        "-",
+    ]));
+    md5_in(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// `md5sum` of `bytes`, written to `path` first.
+fn md5sum(path: &Path, bytes: &[u8]) -> String {
+    std::fs::write(path, bytes).unwrap();
+    md5_in(&String::from_utf8_lossy(&run_ok(Command::new("md5sum").arg(path)).stdout))
+}
+
+/// The planes our decoder returns for the IVF file at `path`, as one little-endian byte string.
+fn our_planes(path: &Path) -> (Vec<u8>, usize) {
+    let data = std::fs::read(path).unwrap();
+    let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default()).unwrap();
+    let (mut raw, mut count) = (Vec::new(), 0);
+    while let Some(planes) = decoder.next_planes().unwrap() {
+        for plane in [&planes.y, &planes.cb, &planes.cr] {
+            raw.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
+        }
+        count += 1;
+    }
+    (raw, count)
+}
+
+#[test]
+fn we_read_an_svt_av1_hdr10_stream_as_ffmpeg_does() {
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_svt");
+    let path = dir.join("svt.ivf");
+    // SVT-AV1 1.4 through FFmpeg, with the P3-D65 1000 / 0.0001 cd/m² display of VIDEO-NOTES §3.2.
+    run_ok(Command::new("ffmpeg").args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc2=s=128x72:d=0.2:r=25"]).args([
+        "-pix_fmt",
+        "yuv420p10le",
+        "-c:v",
+        "libsvtav1",
+        "-preset",
+        "12",
+        "-svtav1-params",
+        "mastering-display=G(0.265,0.690)B(0.150,0.060)R(0.680,0.320)WP(0.3127,0.3290)L(1000,0.0001):content-light=1000,400",
+        "-color_primaries",
+        "bt2020",
+        "-color_trc",
+        "smpte2084",
+        "-colorspace",
+        "bt2020nc",
+    ])
+    .arg(&path));
+    let data = std::fs::read(&path).unwrap();
+    let (_, s) = hdrcodec_video::decode::probe_ivf(&data, &Default::default()).unwrap();
+    let seq = s.sequence_header.unwrap();
+    assert_eq!(seq.color.color_description, Some(hdrcodec_video::obu::ColorDescription::HDR10_PQ));
+    assert_eq!((seq.color.bit_depth, seq.max_frame_width, seq.max_frame_height), (10, 128, 72));
+    // Exactly the bytes of the notes' worked example: 44564, 20972, ... 256000, 2.
+    assert_eq!(s.mastering_display, Some(MasteringDisplay::p3_d65_1000().to_av1()));
+    let cll = s.content_light.unwrap();
+    assert_eq!((cll.max_cll, cll.max_fall), (1000, 400));
+    // And we decode SVT-AV1's stream to the same samples as FFmpeg.
+    let (raw, count) = our_planes(&path);
+    assert_eq!(count, 5);
+    assert_eq!(md5sum(&dir.join("ours.yuv"), &raw), ffmpeg_md5(&path));
+}
