@@ -26,7 +26,7 @@ use crate::conversion::ConversionSettings;
 use hdrcodec::core::{metrics, Error, ImageCodec, ImageInfo, Limits, Result, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{mpsc, Arc};
@@ -254,6 +254,9 @@ pub struct Summary {
     /// Files no codec of the family recognises.
     pub skipped: usize,
     pub up_to_date: usize,
+    /// Up-to-date outputs that had no manifest line (their run was killed before writing it):
+    /// measured and recorded now, not re-encoded; counted among `up_to_date` too.
+    pub measured_for_the_manifest: usize,
     pub failed: usize,
     /// Bytes of the sources converted and of their outputs.
     pub bytes_in: u64,
@@ -286,6 +289,9 @@ pub struct ManifestLine {
     pub error: Option<String>,
     /// What the conversion noted (colour kept or converted, values clipped).
     pub notes: Vec<String>,
+    /// True when the output was found whole from an interrupted run and only measured now
+    /// (`seconds` is then the measurement's; the notes of its encoding are lost).
+    pub reused_output: bool,
 }
 
 /// What the caller hears while a batch runs: the number of files to convert once known, then
@@ -373,10 +379,13 @@ pub fn output_codec(registry: &Registry, to: &str) -> Result<Arc<dyn ImageCodec>
     Ok(codec)
 }
 
-/// A file to convert: its paths and when its source was last changed.
+/// A file to convert: its paths, and whether its output is already there.
 struct Job {
     source: PathBuf,
     output: PathBuf,
+    /// The output is up to date but the manifest has no line for it (a run was killed between
+    /// renaming it into place and writing its line): it is decoded and measured, not re-encoded.
+    reuse_output: bool,
 }
 
 /// Runs the batch. Per-file failures are in the summary and the manifest, not in the result;
@@ -411,7 +420,14 @@ pub fn run(o: &BatchOptions, progress: &mut dyn Progress) -> Result<Summary> {
             Some(s) => format!("manifest-{}-of-{}.jsonl", s.index, s.count),
         })
     });
-    let mut manifest = Manifest::open(&manifest_path)?;
+    let (mut manifest, recorded_outputs) = Manifest::open(&manifest_path)?;
+    // The recorded outputs by file name, for [`recorded_in`].
+    let mut recorded: HashMap<std::ffi::OsString, Vec<PathBuf>> = HashMap::new();
+    for output in recorded_outputs.into_iter().map(PathBuf::from) {
+        if let Some(name) = output.file_name() {
+            recorded.entry(name.to_os_string()).or_default().push(output.clone());
+        }
+    }
     let mut summary = Summary {
         manifest: manifest_path.display().to_string(),
         shard: o.shard.map(|s| s.to_string()),
@@ -449,12 +465,15 @@ pub fn run(o: &BatchOptions, progress: &mut dyn Progress) -> Result<Summary> {
     summary.stale_temp_files_removed = remove_stale_temps(&o.out_dir, pending.iter().map(|(_, out)| out.as_path()));
     let mut jobs_to_run = Vec::new();
     for (rel, out_rel) in pending {
-        let job = Job { source: o.in_dir.join(&rel), output: o.out_dir.join(&out_rel) };
+        let mut job = Job { source: o.in_dir.join(&rel), output: o.out_dir.join(&out_rel), reuse_output: false };
         if !o.force && up_to_date(&job.source, &job.output) {
             summary.up_to_date += 1;
-        } else {
-            jobs_to_run.push(job);
+            if recorded_in(&recorded, &out_rel) {
+                continue;
+            }
+            job.reuse_output = true;
         }
+        jobs_to_run.push(job);
     }
     progress.start(jobs_to_run.len() + collisions.len());
     for (rel, out_rel, first) in collisions {
@@ -522,6 +541,8 @@ fn record(
 ) -> Result<()> {
     if line.error.is_some() {
         summary.failed += 1;
+    } else if line.reused_output {
+        summary.measured_for_the_manifest += 1;
     } else {
         summary.converted += 1;
         summary.bytes_in += line.bytes_in;
@@ -543,7 +564,16 @@ fn failed_line(source: &Path, output: &Path, bytes_in: u64, seconds: f64, e: &Er
         seconds,
         error: Some(e.to_string()),
         notes: Vec::new(),
+        reused_output: false,
     }
+}
+
+/// True when the manifest's outputs (`recorded`) hold `out_rel` (a path below OUT_DIR): compared
+/// by their last components, so that OUT_DIR spelt otherwise (`./out`, an absolute path) in an
+/// earlier run still matches.
+fn recorded_in(recorded: &HashMap<std::ffi::OsString, Vec<PathBuf>>, out_rel: &Path) -> bool {
+    let Some(name) = out_rel.file_name() else { return false };
+    recorded.get(name).is_some_and(|paths| paths.iter().any(|p| p.ends_with(out_rel)))
 }
 
 /// True when `output` exists and was written after `source` last changed.
@@ -613,6 +643,7 @@ fn convert_one(
             seconds,
             error: None,
             notes,
+            reused_output: job.reuse_output,
         },
         Err(e) => failed_line(&job.source, &job.output, bytes_in, seconds, &e),
     }
@@ -635,7 +666,8 @@ fn convert_and_measure(
         std::fs::create_dir_all(dir)
             .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
     }
-    let notes = hdrcodec::encode_file(out_codec, &source, &settings, &job.output)?;
+    let notes =
+        if job.reuse_output { Vec::new() } else { hdrcodec::encode_file(out_codec, &source, &settings, &job.output)? };
     let written = hdrcodec::read_file(&job.output)?;
     let bytes_out = written.len() as u64;
     let back_options = hdrcodec::core::DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
@@ -653,8 +685,9 @@ struct Manifest {
 
 impl Manifest {
     /// Opens `path` for appending; a last line without its newline (torn by a full disk or a
-    /// power cut) is cut off first, so that the file holds only whole lines.
-    fn open(path: &Path) -> Result<Manifest> {
+    /// power cut) is cut off first, so that the file holds only whole lines. Also returns the
+    /// outputs whose last line says they were written without error.
+    fn open(path: &Path) -> Result<(Manifest, HashSet<String>)> {
         let io = |e: std::io::Error| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())));
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(io)?;
@@ -676,7 +709,19 @@ impl Manifest {
                 file.set_len(keep).map_err(io)?;
             }
         }
-        Ok(Manifest { file, path: path.to_path_buf() })
+        file.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
+        let mut recorded = HashSet::new();
+        for line in std::io::BufRead::lines(std::io::BufReader::new(&mut file)) {
+            let Ok(value) = serde_json::from_str::<serde_json::Value>(&line.map_err(io)?) else { continue };
+            if let Some(output) = value["output"].as_str() {
+                if value["error"].is_null() {
+                    recorded.insert(output.to_string());
+                } else {
+                    recorded.remove(output);
+                }
+            }
+        }
+        Ok((Manifest { file, path: path.to_path_buf() }, recorded))
     }
 
     fn append(&mut self, line: &ManifestLine) -> Result<()> {
@@ -830,6 +875,11 @@ mod tests {
         std::fs::write(&path, "{\"a\":1}\n{\"b\":").unwrap();
         drop(Manifest::open(&path).unwrap());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "{\"a\":1}\n");
+        // The outputs written without error, by their last line.
+        let log = "{\"output\":\"x\",\"error\":null}\n{\"output\":\"y\",\"error\":null}\n{\"output\":\"y\",\"error\":\"bad\"}\n";
+        std::fs::write(&path, log).unwrap();
+        let (_, recorded) = Manifest::open(&path).unwrap();
+        assert_eq!(recorded, HashSet::from(["x".to_string()]));
         std::fs::write(&path, "{\"b\":").unwrap();
         drop(Manifest::open(&path).unwrap());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "");

@@ -413,6 +413,12 @@ pub fn batch(options: &batch::BatchOptions, json: bool) -> Result<()> {
         println!("inputs:      {}{shard}", s.inputs);
         println!("converted:   {}", s.converted);
         println!("up to date:  {}", s.up_to_date);
+        if s.measured_for_the_manifest > 0 {
+            println!(
+                "             ({} of them measured for the manifest, which had no line)",
+                s.measured_for_the_manifest
+            );
+        }
         println!("skipped:     {} (not an image of the family)", s.skipped);
         println!("failed:      {}", s.failed);
         println!("bytes:       {} in, {} out", s.bytes_in, s.bytes_out);

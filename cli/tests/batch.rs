@@ -30,6 +30,14 @@ fn count(summary: &Value, key: &str) -> u64 {
     summary[key].as_u64().unwrap_or_else(|| panic!("no {key} in {summary}"))
 }
 
+/// Several counts of a summary, in the order of `keys`.
+fn counts(summary: &Value, keys: &[&str]) -> Vec<u64> {
+    keys.iter().map(|k| count(summary, k)).collect()
+}
+
+/// What a rerun is judged by.
+const RERUN_COUNTS: &[&str] = &["converted", "up_to_date", "measured_for_the_manifest"];
+
 /// The generated scenes as float EXR files, written once.
 fn scenes() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
@@ -155,9 +163,24 @@ fn a_rerun_skips_up_to_date_outputs_and_force_redoes_them() {
     let out = common::temp_dir("batch-rerun-out");
     let (s, ok, _) = batch(&[&input, &out, &"--to", &"hdr"]);
     assert!(ok && count(&s, "converted") == 9);
+    // A run killed after renaming two outputs into place but before their manifest lines: the
+    // rerun measures those two for the manifest and re-encodes nothing.
+    let manifest_path = out.join("manifest.jsonl");
+    let text = std::fs::read_to_string(&manifest_path).unwrap();
+    let kept: Vec<&str> = text.lines().take(7).collect();
+    std::fs::write(&manifest_path, kept.join("\n") + "\n").unwrap();
     let (s, ok, _) = batch(&[&input, &out, &"--to", &"hdr"]);
     assert!(ok);
-    assert_eq!((count(&s, "converted"), count(&s, "up_to_date")), (0, 9), "{s}");
+    assert_eq!(counts(&s, RERUN_COUNTS), [0, 9, 2], "{s}");
+    let lines = manifest(&manifest_path);
+    assert_eq!(lines.len(), 9);
+    assert!(
+        lines[7..].iter().all(|l| l["reused_output"] == true && (l["pu21_psnr"].is_f64() || l["identical"] == true)),
+        "{lines:?}"
+    );
+    let (s, ok, _) = batch(&[&input, &out, &"--to", &"hdr"]);
+    assert!(ok);
+    assert_eq!(counts(&s, RERUN_COUNTS), [0, 9, 0], "{s}");
     // A source changed after its output: that one file is redone.
     std::thread::sleep(std::time::Duration::from_millis(20));
     std::fs::copy(scenes().join("edges.exr"), input.join("sun-sky.exr")).unwrap();
@@ -271,9 +294,11 @@ fn a_killed_batch_resumes_with_only_the_missing_files_and_leaves_no_partial_file
     assert!(ok, "{stderr}");
     assert_eq!(count(&s, "up_to_date") as usize, done_before.len(), "{s}");
     assert_eq!(count(&s, "converted") as usize, 10 - done_before.len(), "{s}");
-    // The resumed run's lines are exactly the missing files.
+    // The resumed run's conversions are exactly the missing files (an output renamed into place
+    // just before the kill, without its manifest line, is only measured: reused_output).
     let resumed: BTreeSet<String> = manifest(&manifest_path)[lines_before..]
         .iter()
+        .filter(|l| l["reused_output"] == false)
         .map(|l| {
             Path::new(l["output"].as_str().unwrap()).strip_prefix(&out).unwrap().to_string_lossy().replace('\\', "/")
         })
