@@ -255,7 +255,7 @@ fn the_shard_comes_from_slurm_or_kubernetes_variables() {
 
 #[test]
 fn a_killed_batch_resumes_with_only_the_missing_files_and_leaves_no_partial_file() {
-    // Larger images, one at a time, so that the batch is surely killed half-way.
+    // Larger images, one at a time, so that the batch is surely stopped half-way.
     let input = common::temp_dir("batch-kill-in");
     for i in 0..10 {
         let f = input.join(format!("d{}/big{i}.exr", i % 3));
@@ -263,11 +263,21 @@ fn a_killed_batch_resumes_with_only_the_missing_files_and_leaves_no_partial_file
         let o = hdrcodec(&[&"corpus", &"large", &f, &"--width", &"640", &"--height", &"480"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    let out = common::temp_dir("batch-kill-out");
+    // kill -9, a batch system's SIGTERM, Ctrl-C's SIGINT: the process ends at once in each case
+    // (no handler), and the outputs' temporary names keep it safe.
+    for signal in ["KILL", "TERM", "INT"] {
+        stop_and_resume(&input, signal);
+    }
+}
+
+/// Starts a batch of the 10 images of `input`, stops it with `signal` once it has converted a
+/// file, resumes it, and checks what each run did and what it left.
+fn stop_and_resume(input: &Path, signal: &str) {
+    let out = common::temp_dir(&format!("batch-kill-out-{signal}"));
     let manifest_path = out.join("manifest.jsonl");
     let mut child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
         .args(["batch", "--json", "--to", "exr", "--jobs", "1", "--threads", "1"])
-        .arg(&input)
+        .arg(input)
         .arg(&out)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -278,12 +288,15 @@ fn a_killed_batch_resumes_with_only_the_missing_files_and_leaves_no_partial_file
         assert!(std::time::Instant::now() < deadline, "no manifest line after 60 s");
         std::thread::sleep(std::time::Duration::from_millis(2));
     }
-    let killed = Command::new("kill").args(["-KILL", &child.id().to_string()]).status().unwrap();
+    let killed = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
     assert!(killed.success());
     let _ = child.wait();
     let done_before: BTreeSet<String> =
         files(&out).into_iter().filter(|f| f.ends_with(".exr") && !f.starts_with('.') && !f.contains("/.")).collect();
-    assert!(!done_before.is_empty() && done_before.len() < 10, "killed too late to test resuming: {done_before:?}");
+    assert!(
+        !done_before.is_empty() && done_before.len() < 10,
+        "SIG{signal} came too late to test resuming: {done_before:?}"
+    );
     // Every output there is whole (the atomic rename); the manifest has only whole lines.
     for f in &done_before {
         hdrcodec::registry().read(&out.join(f), &hdrcodec::core::Limits::default()).expect("a whole output");
