@@ -371,7 +371,13 @@ fn same_file(a: &Path, b: &Path) -> bool {
 pub fn output_codec(registry: &Registry, to: &str) -> Result<Arc<dyn ImageCodec>> {
     let codec = match registry.by_name(to) {
         Ok(c) => c,
-        Err(by_name) => registry.by_extension(to).into_iter().next().ok_or(by_name)?,
+        Err(_) => registry.by_extension(to).into_iter().next().ok_or_else(|| {
+            Error::unsupported(format!(
+                "--to {to}: neither a codec (known: {}) nor a file extension (known: {})",
+                registry.names().join(", "),
+                registry.extensions().join(", ")
+            ))
+        })?,
     };
     if !codec.can_encode() {
         return Err(Error::unsupported(format!("{} decodes only and cannot be a batch's output", codec.name())));
