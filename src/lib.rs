@@ -412,7 +412,7 @@ pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) 
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let tmp = dir.join(atomic_temp_name(name, std::process::id()));
     let io =
         |e: std::io::Error, what: &Path| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", what.display())));
     let result = (|| {
@@ -432,6 +432,25 @@ pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) 
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// The name of the temporary file [`write_atomic_with`] writes for the file called `name`, in
+/// the same directory, from process `pid`: hidden, and ending in `.tmp` so that no tool takes it
+/// for an image of the format.
+pub fn atomic_temp_name(name: &str, pid: u32) -> String {
+    format!(".{name}.{pid}.tmp")
+}
+
+/// True when `candidate` is the name of a temporary file that [`write_atomic_with`] (in any
+/// process) writes for the file called `name`: what a killed writer leaves behind, for a batch
+/// tool to remove on its next run.
+pub fn is_atomic_temp_name_of(name: &str, candidate: &str) -> bool {
+    candidate
+        .strip_prefix('.')
+        .and_then(|rest| rest.strip_prefix(name))
+        .and_then(|rest| rest.strip_prefix('.'))
+        .and_then(|rest| rest.strip_suffix(".tmp"))
+        .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
 }
 
 /// Encodes `image` for `codec` straight into the file at `path` ([`prepare_colour`], then the
@@ -864,6 +883,18 @@ mod tests {
         let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names.len(), 2, "{names:?}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn atomic_temp_names_are_recognised_exactly() {
+        let tmp = atomic_temp_name("a.jxr", 4242);
+        assert_eq!(tmp, ".a.jxr.4242.tmp");
+        assert!(is_atomic_temp_name_of("a.jxr", &tmp));
+        for other in [".a.jxr.tmp", ".a.jxr.42x.tmp", "a.jxr.42.tmp", ".b.a.jxr.42.tmp", ".a.jxr.42.tmp.x", "a.jxr"] {
+            assert!(!is_atomic_temp_name_of("a.jxr", other), "{other}");
+        }
+        // Another file's temporary file is not this one's.
+        assert!(!is_atomic_temp_name_of("a.jx", &tmp));
     }
 
     #[test]

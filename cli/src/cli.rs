@@ -4,7 +4,8 @@
 use hdrcodec::core::{
     metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
 };
-use hdrcodec_cli::bench;
+use hdrcodec_cli::conversion::ConversionSettings;
+use hdrcodec_cli::{batch, bench};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -119,25 +120,11 @@ pub fn convert(
         Some(name) => reg.by_name(name)?,
         None => reg.for_output(output)?,
     };
-    let mut settings = EncodeSettings::default();
-    if let Some(q) = quality {
-        settings.quality = q;
-    }
-    if let Some(e) = effort {
-        settings.effort = e;
-    }
     // One pool for the whole command, decoding and encoding alike.
-    settings.pool = ThreadPool::new(threads.unwrap_or(0))?;
-    let pairs = opts.iter().map(|kv| hdrcodec::core::split_option(kv)).collect::<Result<Vec<_>>>()?;
+    let conversion = ConversionSettings::new(quality, effort, ThreadPool::new(threads.unwrap_or(0))?, opts)?;
     let data = hdrcodec::read_file(input)?;
-    let mut options = DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
     let in_codec = reg.for_input(input, &data)?;
-    // The keys IN's decoder knows are its own (a gain-map JPEG's `headroom`); the encoder
-    // checks the rest.
-    let (decode, encode): (Vec<_>, Vec<_>) =
-        pairs.into_iter().partition(|(k, _)| in_codec.decode_option_keys().contains(&k.as_str()));
-    options.options = decode;
-    settings.options = encode;
+    let (options, settings) = conversion.for_decoder(in_codec.as_ref(), Limits::default());
     // Band by band when the output format allows it: neither the decoded image nor the encoded
     // file is held whole.
     let notes = hdrcodec::convert_file(in_codec.as_ref(), &data, &options, out_codec.as_ref(), &settings, output)?;
@@ -393,6 +380,75 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         print!("{}", bench::per_image_table(&report));
     }
     print!("{}", bench::table(&report));
+    Ok(())
+}
+
+/// The batch's progress bar on stderr (with an ETA), when stderr is a terminal and the output
+/// is not JSON; per-file failures as `hdrcodec: FILE: reason` lines above it.
+struct BatchProgress {
+    bar: ProgressBar,
+    visible: bool,
+}
+
+impl batch::Progress for BatchProgress {
+    fn start(&mut self, files: usize) {
+        if self.visible {
+            self.bar = ProgressBar::new(files as u64);
+            if let Ok(style) = ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} {elapsed} ETA {eta} {msg}")
+            {
+                self.bar.set_style(style);
+            }
+        }
+    }
+
+    fn finished(&mut self, line: &batch::ManifestLine) {
+        self.bar.inc(1);
+        self.bar.set_message(line.source.clone());
+        if let Some(e) = &line.error {
+            self.bar.suspend(|| fail(&format!("{}: {e}", line.source)));
+        }
+    }
+}
+
+/// `hdrcodec batch`: prints the summary (text, or one JSON object); fails when a file failed.
+pub fn batch(options: &batch::BatchOptions, json: bool) -> Result<()> {
+    let visible = !json && std::io::stderr().is_terminal();
+    let mut progress = BatchProgress { bar: ProgressBar::hidden(), visible };
+    let summary = batch::run(options, &mut progress);
+    progress.bar.finish_and_clear();
+    let s = summary?;
+    if json {
+        let v = serde_json::to_value(&s).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
+        print_json(&v)?;
+    } else {
+        let shard =
+            s.shard.as_ref().map(|k| format!(" (shard {k}; {} in other shards)", s.other_shards)).unwrap_or_default();
+        println!("inputs:      {}{shard}", s.inputs);
+        println!("converted:   {}", s.converted);
+        println!("up to date:  {}", s.up_to_date);
+        if s.measured_for_the_manifest > 0 {
+            println!(
+                "             ({} of them measured for the manifest, which had no line)",
+                s.measured_for_the_manifest
+            );
+        }
+        println!("skipped:     {} (not an image of the family)", s.skipped);
+        println!("failed:      {}", s.failed);
+        println!("bytes:       {} in, {} out", s.bytes_in, s.bytes_out);
+        println!("time:        {:.2} s ({} jobs, {} threads)", s.seconds, s.jobs, s.threads);
+        println!("manifest:    {}", s.manifest);
+        if s.stale_temp_files_removed > 0 {
+            println!("removed:     {} temporary files of an interrupted run", s.stale_temp_files_removed);
+        }
+    }
+    if s.failed > 0 {
+        return Err(Error::invalid(format!(
+            "{} of {} files failed (see {})",
+            s.failed,
+            s.failed + s.converted,
+            s.manifest
+        )));
+    }
     Ok(())
 }
 

@@ -1,10 +1,12 @@
 //! `hdrcodec-cli`: what the `hdrcodec` command line tool adds on top of the library: the bench
-//! engine ([`bench`]), the project's generated corpus ([`corpus`]) and the rate-distortion plot
+//! engine ([`bench`]), the batch engine ([`batch`]), the project's generated corpus ([`corpus`]) and the rate-distortion plot
 //! ([`plot`]). Kept out of the `hdrcodec` facade so that a program embedding the codecs pulls no
 //! clap, plotters, png or serde.
 #![forbid(unsafe_code)]
 
+pub mod batch;
 pub mod bench;
+pub mod conversion;
 pub mod corpus;
 pub mod equal_quality;
 pub mod jxrlib;

@@ -61,6 +61,17 @@ enum Command {
     /// rows decode files written by jxrlib's JxrEncApp (if on PATH, else "not installed"), with
     /// jxrlib's JxrDecApp as the peer decoder.
     Bench(BenchArgs),
+    /// Convert every image below IN_DIR into OUT_DIR, keeping the folders, in one format.
+    ///
+    /// Files no codec recognises are skipped; a file that fails is reported (one line on
+    /// stderr, and in the manifest) and the batch goes on; the exit status is non-zero if any
+    /// failed. Outputs newer than their source are up to date and kept (`--force` redoes them).
+    /// Outputs are written under a temporary name and renamed when whole, so an interrupted
+    /// batch leaves no partial output; the next run removes what it left and converts only the
+    /// missing files. The manifest (default OUT_DIR/manifest.jsonl) gets one JSON line per file
+    /// converted or failed: source, output, bytes_in, bytes_out, pu21_psnr (the output decoded
+    /// back against the source), seconds, error.
+    Batch(BatchArgs),
     /// The project's generated corpus of synthetic HDR scenes.
     #[command(subcommand)]
     Corpus(CorpusCommand),
@@ -100,6 +111,52 @@ struct ConvertArgs {
     /// display whose HDR white is H times its SDR white (`hdrcodec codecs` lists each codec's).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+struct BatchArgs {
+    /// The directory of images to convert (walked recursively).
+    in_dir: PathBuf,
+    /// Where the outputs go (created if missing), in IN_DIR's folder structure.
+    out_dir: PathBuf,
+    /// Output format: a codec name (`hdrcodec codecs` lists them) or a file extension.
+    #[arg(long, value_name = "FORMAT")]
+    to: String,
+    /// Quality 0-100 for lossy codecs.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=100))]
+    quality: Option<u8>,
+    /// Encoder effort 0-9 (0 fastest).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=9))]
+    effort: Option<u8>,
+    /// Codec-specific option key=value (repeatable), as for `convert`.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
+    /// Files converted at once at most (default: one per worker thread); the memory budget
+    /// may allow fewer.
+    #[arg(long, default_value_t = 0, hide_default_value = true)]
+    jobs: usize,
+    /// Worker threads of the one pool shared by files and codecs (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Memory the images in flight may take, e.g. 8G or 500M (default: half of the physical
+    /// memory or of the cgroup's limit). A single image larger than this still runs, alone.
+    #[arg(long, value_name = "BYTES")]
+    memory: Option<String>,
+    /// Convert again even when an output is newer than its source.
+    #[arg(long)]
+    force: bool,
+    /// Convert only shard K of N (K from 0): the files whose path hash modulo N is K. Without
+    /// it, SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT or JOB_COMPLETION_INDEX with
+    /// HDRCODEC_SHARD_COUNT choose the shard when set.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Print the summary as one JSON object on stdout (and no progress bar).
+    #[arg(long)]
+    json: bool,
+    /// The JSON-lines manifest (default: OUT_DIR/manifest.jsonl; OUT_DIR/manifest-K-of-N.jsonl
+    /// for a shard).
+    #[arg(long, value_name = "FILE")]
+    manifest: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -183,6 +240,35 @@ enum VideoCommand {
     },
 }
 
+/// The batch engine's options from the command line; the shard from `--shard`, else from the
+/// batch system's environment variables.
+fn batch_options(a: BatchArgs) -> hdrcodec::core::Result<(hdrcodec_cli::batch::BatchOptions, bool)> {
+    use hdrcodec_cli::batch::{self, Shard};
+    let shard = match &a.shard {
+        Some(text) => Some(Shard::parse(text)?),
+        None => Shard::from_env(|name| std::env::var(name).ok())?,
+    };
+    let memory_budget = match &a.memory {
+        Some(text) => batch::parse_bytes(text)?,
+        None => batch::default_memory_budget(),
+    };
+    let options = batch::BatchOptions {
+        in_dir: a.in_dir,
+        out_dir: a.out_dir,
+        to: a.to,
+        quality: a.quality,
+        effort: a.effort,
+        opts: a.opts,
+        jobs: a.jobs,
+        threads: a.threads,
+        memory_budget,
+        force: a.force,
+        shard,
+        manifest: a.manifest,
+    };
+    Ok((options, a.json))
+}
+
 fn main() -> ExitCode {
     cli::install_panic_hook();
     cli::run_catching_panics(run)
@@ -209,6 +295,7 @@ fn run() -> ExitCode {
             runs: if a.quick { 1 } else { a.runs.max(1) },
             quick: a.quick,
         }),
+        Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),
         Command::Video(VideoCommand::Encode { paths, transfer, quality, speed, threads }) => match paths.split_last() {
