@@ -14,7 +14,8 @@ use common::{require, run_ok, temp_dir, tool};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, HdrImage, MasteringDisplay};
 use hdrcodec_video::decode::{Av1DecodeOptions, Av1Decoder};
 use hdrcodec_video::encode::{encode_sequence, Av1Options};
-use hdrcodec_video::hdr10::{content_light_level, Transfer};
+use hdrcodec_video::hdr10::{content_light_level, Subsampling, Transfer};
+use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use serde_json::Value;
 use std::path::Path;
 use std::process::Command;
@@ -161,14 +162,40 @@ fn ffmpeg_dav1d_and_our_decoder_agree_bit_for_bit() {
 
 /// FFmpeg's (libdav1d's) decode of `path` as 10-bit 4:2:0 planes, hashed by `-f md5`.
 fn ffmpeg_md5(path: &Path) -> String {
-    let out = run_ok(Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(path).args([
-        "-f",
-        "md5",
-        "-pix_fmt",
-        "yuv420p10le",
-        "-",
-    ]));
+    ffmpeg_md5_as(path, "yuv420p10le")
+}
+
+/// FFmpeg's (libdav1d's) decode of `path` as planes of `pix_fmt`, hashed by `-f md5`.
+fn ffmpeg_md5_as(path: &Path, pix_fmt: &str) -> String {
+    let out = run_ok(
+        Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(path).args(["-f", "md5", "-pix_fmt", pix_fmt, "-"]),
+    );
     md5_in(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// L_p u'v' in 12-bit AV1 (profile 2, no colour description): FFmpeg decodes the planes to the
+/// same samples as our decoder, at 4:4:4 and 4:2:0.
+#[test]
+fn ffmpeg_decodes_our_12_bit_lpuv_planes_as_we_do() {
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_lpuv");
+    for (name, subsampling, pix_fmt) in
+        [("lpuv444.ivf", Subsampling::Yuv444, "yuv444p12le"), ("lpuv420.ivf", Subsampling::Yuv420, "yuv420p12le")]
+    {
+        let options = Av1Options {
+            lpuv: Some(LpuvStreamInfo::for_primaries(ColorPrimaries::Bt2020)),
+            low_latency: true,
+            subsampling,
+            quantizer: 10,
+            ..fast()
+        };
+        let path = write_stream(&dir, name, &options);
+        let (raw, count) = our_planes(&path);
+        assert_eq!(count, 4);
+        let ours = md5sum(&dir.join(format!("{name}.yuv")), &raw);
+        assert_eq!(ours, ffmpeg_md5_as(&path, pix_fmt), "{name}: our decode and FFmpeg's");
+    }
 }
 
 /// `md5sum` of `bytes`, written to `path` first.

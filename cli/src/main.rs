@@ -213,14 +213,18 @@ enum CorpusCommand {
 enum VideoCommand {
     /// Encode image files (one per frame, in order) to OUT.ivf: BT.2020, 10-bit 4:2:0 limited
     /// range, PQ with MaxCLL/MaxFALL (measured over all frames) and a BT.2020 1000 cd/m²
-    /// mastering display, or HLG for a 1000 cd/m² display.
+    /// mastering display, or HLG for a 1000 cd/m² display; or L_p u'v' (Mantiuk 2004, ψ at 11
+    /// bits) in 12-bit 4:4:4 planes, named by an hdrcodec-lpuv T.35 message.
     Encode {
         /// The frame files, then the output .ivf file.
         #[arg(required = true, num_args = 2.., value_name = "FRAMES... OUT.ivf")]
         paths: Vec<PathBuf>,
-        /// Transfer function: pq (HDR10) or hlg.
+        /// Transfer function: pq (HDR10), hlg, or mantiuk (L_p u'v', 12-bit AV1 profile 2).
         #[arg(long, default_value = "pq")]
         transfer: String,
+        /// Chroma planes: 420 or 444 (default: 420 for pq and hlg, 444 for mantiuk).
+        #[arg(long)]
+        chroma: Option<String>,
         /// Quality 0-100 (mapped linearly onto rav1e's quantizer 255-0).
         #[arg(long, value_parser = clap::value_parser!(u8).range(0..=100))]
         quality: Option<u8>,
@@ -298,13 +302,23 @@ fn run() -> ExitCode {
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),
-        Command::Video(VideoCommand::Encode { paths, transfer, quality, speed, threads }) => match paths.split_last() {
-            Some((output, frames)) => {
-                let args = video::VideoEncodeArgs { frames, output, transfer: &transfer, quality, speed, threads };
-                video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
+        Command::Video(VideoCommand::Encode { paths, transfer, chroma, quality, speed, threads }) => {
+            match paths.split_last() {
+                Some((output, frames)) => {
+                    let args = video::VideoEncodeArgs {
+                        frames,
+                        output,
+                        transfer: &transfer,
+                        chroma: chroma.as_deref(),
+                        quality,
+                        speed,
+                        threads,
+                    };
+                    video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
+                }
+                None => Err(hdrcodec::core::Error::invalid("video encode needs FRAMES... OUT.ivf")),
             }
-            None => Err(hdrcodec::core::Error::invalid("video encode needs FRAMES... OUT.ivf")),
-        },
+        }
         Command::Video(VideoCommand::Decode { input, out_dir }) => video::decode(&input, &out_dir),
         Command::Codecs { json } => cli::codecs(json),
     };

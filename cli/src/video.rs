@@ -1,10 +1,11 @@
-//! `hdrcodec video encode|decode`, and `hdrcodec info` on an AV1 `.ivf` file: HDR10 (PQ) or HLG
-//! AV1 through hdrcodec-video (rav1e to encode, libdav1d to decode).
+//! `hdrcodec video encode|decode`, and `hdrcodec info` on an AV1 `.ivf` file: HDR10 (PQ), HLG
+//! or L_p u'v' (Mantiuk 2004) AV1 through hdrcodec-video (rav1e to encode, libdav1d to decode).
 
 use hdrcodec::core::{Error, Limits, Result, ThreadPool};
 use hdrcodec_video::decode::{probe_ivf, Av1DecodeOptions, Av1Decoder};
 use hdrcodec_video::encode::{Av1Encoder, Av1Options};
-use hdrcodec_video::hdr10::{content_light_level, Transfer};
+use hdrcodec_video::hdr10::{content_light_level, Subsampling, Transfer};
+use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use hdrcodec_video::obu::chroma_sample_position;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -15,8 +16,10 @@ pub struct VideoEncodeArgs<'a> {
     pub frames: &'a [PathBuf],
     /// The `.ivf` file to write.
     pub output: &'a Path,
-    /// `pq` or `hlg`.
+    /// `pq`, `hlg` or `mantiuk`.
     pub transfer: &'a str,
+    /// `420` or `444`; `None`: 4:2:0 for PQ and HLG, 4:4:4 for Mantiuk.
+    pub chroma: Option<&'a str>,
     /// 0-100, mapped onto rav1e's quantizer.
     pub quality: Option<u8>,
     /// rav1e speed preset 0-10.
@@ -37,17 +40,26 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     if !is_ivf(a.output) {
         return Err(Error::unsupported(format!("'{}': video is written as .ivf", a.output.display())));
     }
-    let transfer = match a.transfer.to_ascii_lowercase().as_str() {
-        "pq" => Transfer::Pq,
-        "hlg" => Transfer::HLG_1000,
-        "mantiuk" => return Err(Error::unsupported("--transfer mantiuk is not implemented yet (issue 14)")),
-        other => return Err(Error::invalid(format!("--transfer {other}: expected pq or hlg"))),
+    let (transfer, mantiuk) = match a.transfer.to_ascii_lowercase().as_str() {
+        "pq" => (Transfer::Pq, false),
+        "hlg" => (Transfer::HLG_1000, false),
+        "mantiuk" => (Transfer::Pq, true),
+        other => return Err(Error::invalid(format!("--transfer {other}: expected pq, hlg or mantiuk"))),
+    };
+    // L_p u'v' chroma is nearly free at 4:4:4 (its codes span 0..255 of 4095) and keeps colour
+    // edges: the crate's README has the measurements.
+    let subsampling = match a.chroma {
+        None if mantiuk => Subsampling::Yuv444,
+        None | Some("420") => Subsampling::Yuv420,
+        Some("444") => Subsampling::Yuv444,
+        Some(other) => return Err(Error::invalid(format!("--chroma {other}: expected 420 or 444"))),
     };
     let first = a.frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
     let reg = hdrcodec::registry();
     let limits = Limits::default();
     let read = |path: &PathBuf| reg.read(path, &limits).map(|(_, image)| image);
-    let mut options = Av1Options { transfer, pool: ThreadPool::new(a.threads.unwrap_or(0))?, ..Av1Options::default() };
+    let mut options =
+        Av1Options { transfer, subsampling, pool: ThreadPool::new(a.threads.unwrap_or(0))?, ..Av1Options::default() };
     if let Some(q) = a.quality {
         options.quantizer = Av1Options::quantizer_for_quality(q);
     }
@@ -55,7 +67,11 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         options.speed = s;
     }
     let head = read(first)?;
-    if transfer == Transfer::Pq {
+    if mantiuk {
+        // The decoder returns the first frame's primaries; every T.35 must reach its frame.
+        options.lpuv = Some(LpuvStreamInfo::for_primaries(head.color.primaries));
+        options.low_latency = true;
+    } else if transfer == Transfer::Pq {
         let mut cll = content_light_level([&head], transfer);
         for path in &a.frames[1..] {
             let next = content_light_level([&read(path)?], transfer);
@@ -88,7 +104,7 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
 }
 
 /// `hdrcodec video decode IN.ivf OUT_DIR`: every frame as `frame_NNNNN.exr` (float, linear
-/// BT.2020, 1.0 = 100 cd/m²). On failure the frames written so far are removed.
+/// BT.2020, or for L_p u'v' the primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are removed.
 pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
     let data = hdrcodec::read_file(input)?;
     let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default())?;
@@ -137,6 +153,13 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
     };
     let cicp = c.color_description.map(|d| [d.color_primaries, d.transfer_characteristics, d.matrix_coefficients]);
     let hdr10 = summary.hdr10();
+    let lpuv = match &summary.first_t35 {
+        Some((country_code, payload)) => LpuvStreamInfo::from_t35(*country_code, payload)?,
+        None => None,
+    };
+    let lpuv_json = lpuv.map(|l| {
+        json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273})
+    });
     if as_json {
         let out = json!({
             "file": file.display().to_string(),
@@ -154,6 +177,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
             "full_range": c.full_range,
             "color_description": cicp,
             "hdr10": hdr10.map(crate::cli::hdr10_json),
+            "lpuv": lpuv_json,
             "t35_messages": summary.t35_per_temporal_unit.iter().map(|&n| u64::from(n)).sum::<u64>(),
         });
         println!("{out}");
@@ -172,6 +196,12 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
     match cicp {
         Some([p, t, m]) => println!("colour (H.273): primaries {p}, transfer {t}, matrix {m}"),
         None => println!("colour (H.273): not signalled"),
+    }
+    if let Some(l) = lpuv {
+        println!(
+            "planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits over {:e} … {:e} cd/m², u'v' ×410; RGB out in H.273 primaries {}",
+            l.curve, l.bits, l.min_nits, l.max_nits, l.primaries_h273
+        );
     }
     crate::cli::print_hdr10(hdr10);
     Ok(())

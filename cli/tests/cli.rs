@@ -678,7 +678,7 @@ fn video_encode_info_decode_round_trip() {
 
     // Bad input: one stderr line, no output file.
     must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mp4")], &dir, ".ivf");
-    must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq or hlg");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq, hlg or mantiuk");
     let other = corpus().join("sun-sky.exr");
     must_fail(&[&"video", &"encode", &frame, &other, &dir.join("y.ivf")], &dir, "512x256");
     let cut = dir.join("cut.ivf");
@@ -687,4 +687,37 @@ fn video_encode_info_decode_round_trip() {
     let empty = dir.join("none");
     must_fail(&[&"video", &"decode", &cut, &empty], &dir, "truncated");
     must_fail(&[&"info", &cut], &dir, "truncated");
+}
+
+#[test]
+fn video_mantiuk_encode_info_decode_round_trip() {
+    let dir = common::temp_dir("cli-video-mantiuk");
+    let frame = corpus().join("odd-257x129.exr");
+    let ivf = dir.join("lpuv.ivf");
+    ok(&hdrcodec(&[
+        &"video",
+        &"encode",
+        &frame,
+        &frame,
+        &ivf,
+        &"--transfer",
+        &"mantiuk",
+        &"--quality",
+        &"96",
+        &"--speed",
+        &"10",
+    ]));
+    let v = json(&hdrcodec(&[&"info", &ivf, &"--json"]));
+    assert_eq!((v["profile"].as_u64(), v["bit_depth"].as_u64()), (Some(2), Some(12)), "{v}");
+    assert_eq!((v["subsampling"].as_str(), v["color_description"].is_null()), (Some("4:4:4"), true), "{v}");
+    assert_eq!((v["lpuv"]["bits"].as_u64(), v["lpuv"]["max_nits"].as_f64()), (Some(11), Some(1e8)), "{v}");
+    assert_eq!(v["t35_messages"].as_u64(), Some(2), "{v}");
+    let frames = dir.join("frames");
+    ok(&hdrcodec(&[&"video", &"decode", &ivf, &frames]));
+    assert_eq!(names(&frames), ["frame_00000.exr", "frame_00001.exr"]);
+    let c = json(&hdrcodec(&[&"compare", &frame, &frames.join("frame_00001.exr"), &"--json"]));
+    let psnr = c["pu21_psnr"].as_f64().unwrap();
+    eprintln!("257x129 corpus frame, mantiuk, quality 96, speed 10: PU21-PSNR {psnr:.2} dB");
+    assert!(psnr > 35.0, "{c}");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("z.ivf"), &"--chroma", &"422"], &dir, "420 or 444");
 }

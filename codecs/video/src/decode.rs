@@ -4,9 +4,11 @@
 
 use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
 use crate::ivf::IvfReader;
+use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
+use crate::mantiuk::Psi04;
 use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
 use dav1d::{PixelLayout, PlanarImageComponent};
-use hdrcodec_core::{Channels, ColorPrimaries, Error, HdrImage, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
 
 /// How to decode.
 #[derive(Clone, Debug)]
@@ -40,15 +42,41 @@ pub fn probe_ivf(data: &[u8], limits: &Limits) -> Result<(crate::ivf::IvfHeader,
     Ok((header, summary))
 }
 
+/// The L_p u'v' description of a 12-bit stream, from its first T.35 message (our own parser
+/// reads it from the temporal units: dav1d 1.0.0 keeps only the last T.35 of a picture).
+fn lpuv_info(summary: &StreamSummary) -> Result<LpuvStreamInfo> {
+    let refuse = || {
+        Error::unsupported(
+            "a 12-bit AV1 stream without the hdrcodec-lpuv T.35 message: its planes are of an unknown kind",
+        )
+    };
+    let (country_code, payload) = summary.first_t35.as_ref().ok_or_else(refuse)?;
+    LpuvStreamInfo::from_t35(*country_code, payload)?.ok_or_else(refuse)
+}
+
+/// The subsampling a sequence header declares, if we can decode it.
+fn stream_subsampling(seq: &SequenceHeader) -> Result<Subsampling> {
+    let c = &seq.color;
+    if c.mono_chrome {
+        return Err(Error::unsupported("monochrome AV1"));
+    }
+    match (c.subsampling_x, c.subsampling_y) {
+        (true, true) => Ok(Subsampling::Yuv420),
+        (false, false) => Ok(Subsampling::Yuv444),
+        _ => Err(Error::unsupported("4:2:2 AV1")),
+    }
+}
+
 /// The transfer, range and subsampling a sequence header declares, if we can decode it.
 fn stream_format(seq: &SequenceHeader, hlg_peak_nits: f64) -> Result<(Transfer, Range, Subsampling)> {
     let c = &seq.color;
     if u32::from(c.bit_depth) != BIT_DEPTH {
-        return Err(Error::unsupported(format!("{}-bit AV1 (this decoder returns HDR10/HLG 10-bit)", c.bit_depth)));
+        return Err(Error::unsupported(format!(
+            "{}-bit AV1 (this decoder returns HDR10/HLG 10-bit and hdrcodec-lpuv 12-bit)",
+            c.bit_depth
+        )));
     }
-    if c.mono_chrome {
-        return Err(Error::unsupported("monochrome AV1"));
-    }
+    let subsampling = stream_subsampling(seq)?;
     let transfer = match c.color_description {
         Some(ColorDescription { color_primaries: 9, transfer_characteristics: 16, matrix_coefficients: 9 }) => {
             Transfer::Pq
@@ -61,11 +89,6 @@ fn stream_format(seq: &SequenceHeader, hlg_peak_nits: f64) -> Result<(Transfer, 
                 "AV1 colour description {other:?} (this decoder returns BT.2020 PQ or HLG, 9/16/9 or 9/18/9)"
             )))
         }
-    };
-    let subsampling = match (c.subsampling_x, c.subsampling_y) {
-        (true, true) => Subsampling::Yuv420,
-        (false, false) => Subsampling::Yuv444,
-        _ => return Err(Error::unsupported("4:2:2 AV1")),
     };
     Ok((transfer, if c.full_range { Range::Full } else { Range::Limited }, subsampling))
 }
@@ -91,6 +114,9 @@ pub struct Av1Decoder<'a> {
     range: Range,
     subsampling: Subsampling,
     siting: ChromaSiting,
+    /// The stream's L_p u'v' description and luma curve, when it is one (12-bit).
+    lpuv: Option<(LpuvStreamInfo, Psi04)>,
+    bit_depth: u32,
     options: Av1DecodeOptions,
     width: u32,
     height: u32,
@@ -108,7 +134,14 @@ impl<'a> Av1Decoder<'a> {
         if summary.changed_sequence_headers > 0 {
             return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
         }
-        let (transfer, range, subsampling) = stream_format(&seq, options.hlg_peak_nits)?;
+        let (transfer, range, subsampling, lpuv) = if u32::from(seq.color.bit_depth) == LPUV_BIT_DEPTH {
+            let info = lpuv_info(&summary)?;
+            // Transfer and range are unused for L_p u'v' planes.
+            (Transfer::Pq, Range::Full, stream_subsampling(&seq)?, Some((info, info.psi()?)))
+        } else {
+            let (transfer, range, subsampling) = stream_format(&seq, options.hlg_peak_nits)?;
+            (transfer, range, subsampling, None)
+        };
         let (width, height) = (seq.max_frame_width, seq.max_frame_height);
         options.limits.check_dimensions(width.into(), height.into())?;
         let mut settings = dav1d::Settings::new();
@@ -131,6 +164,8 @@ impl<'a> Av1Decoder<'a> {
             } else {
                 ChromaSiting::Left
             },
+            lpuv,
+            bit_depth: seq.color.bit_depth.into(),
             options: options.clone(),
             width,
             height,
@@ -149,7 +184,12 @@ impl<'a> Av1Decoder<'a> {
         self.transfer
     }
 
-    /// The next frame's 10-bit planes as coded, or `None` after the last.
+    /// The L_p u'v' description of the stream, if it is one.
+    pub fn lpuv(&self) -> Option<&LpuvStreamInfo> {
+        self.lpuv.as_ref().map(|(info, _)| info)
+    }
+
+    /// The next frame's 10-bit (12-bit for L_p u'v') planes as coded, or `None` after the last.
     pub fn next_planes(&mut self) -> Result<Option<YuvFrame>> {
         // Each round either returns, takes input, or notices that neither side moves.
         let mut stalled = 0;
@@ -194,9 +234,18 @@ impl<'a> Av1Decoder<'a> {
         }
     }
 
-    /// The next frame as scene-linear BT.2020 light, with the stream's HDR10 metadata.
+    /// The next frame as scene-linear light: BT.2020 with the stream's HDR10 metadata, or for
+    /// L_p u'v' the primaries its T.35 names.
     pub fn next_frame(&mut self) -> Result<Option<HdrImage>> {
         let Some(yuv) = self.next_planes()? else { return Ok(None) };
+        if let Some((info, psi)) = &self.lpuv {
+            let color = ColorInfo {
+                primaries: info.primaries()?,
+                nits_per_unit: self.options.nits_per_unit,
+                ..ColorInfo::default()
+            };
+            return lpuv_yuv_to_frame(psi, &yuv, color).map(Some);
+        }
         let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
         image.color.primaries = ColorPrimaries::Bt2020;
         image.color.hdr10 = self.summary.hdr10();
@@ -216,7 +265,7 @@ impl<'a> Av1Decoder<'a> {
             PixelLayout::I444 => Subsampling::Yuv444,
             other => return Err(Error::unsupported(format!("dav1d picture layout {other:?}"))),
         };
-        if layout != self.subsampling || picture.bit_depth() != BIT_DEPTH as usize {
+        if layout != self.subsampling || picture.bit_depth() != self.bit_depth as usize {
             return Err(Error::invalid("a decoded picture does not match the sequence header"));
         }
         let (cw, ch) = YuvFrame::chroma_size(w, h, layout);

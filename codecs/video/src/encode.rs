@@ -10,6 +10,10 @@
 
 use crate::hdr10::{content_light_level, frame_to_yuv, ClipReport, Range, Subsampling, Transfer, BIT_DEPTH};
 use crate::ivf::{IvfHeader, IvfWriter};
+use crate::lpuv_av1::{
+    frame_to_lpuv_yuv, LpuvStreamInfo, LPUV_BIT_DEPTH, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION,
+};
+use crate::mantiuk::Psi04;
 use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
@@ -66,6 +70,11 @@ pub struct Av1Options {
     pub content_light: Option<ContentLightLevel>,
     /// A T.35 message for every frame (e.g. identifying the stream).
     pub t35: Option<T35Message>,
+    /// Code L_p u'v' (Mantiuk et al. 2004) instead of Y'CbCr: 12-bit planes of the curve and
+    /// primaries given, no colour description, our T.35 on every frame ([`crate::lpuv_av1`]).
+    /// `transfer`, `range`, the mastering display and the content light are then unused; set
+    /// `low_latency` so that every frame keeps its T.35.
+    pub lpuv: Option<LpuvStreamInfo>,
     /// The caller's worker threads, lent to rav1e.
     pub pool: ThreadPool,
 }
@@ -87,6 +96,7 @@ impl Default for Av1Options {
             mastering_display: MasteringDisplay::bt2020(1000.0, 0.0001),
             content_light: None,
             t35: None,
+            lpuv: None,
             pool: ThreadPool::single(),
         }
     }
@@ -162,6 +172,10 @@ fn rav1e_error(what: &str, e: impl std::fmt::Display) -> Error {
 pub struct Av1Encoder<W: Write> {
     ctx: Context<u16>,
     ivf: IvfWriter<W>,
+    /// The luma curve when the planes are L_p u'v'.
+    psi: Option<Psi04>,
+    /// The T.35 messages every frame carries.
+    t35: Vec<T35Message>,
     options: Av1Options,
     width: u32,
     height: u32,
@@ -180,26 +194,29 @@ impl<W: Write> Av1Encoder<W> {
             (Ok(w), Ok(h)) => (w, h),
             _ => return Err(Error::unsupported(format!("{width}x{height}: IVF records at most 65535x65535"))),
         };
-        let pq = options.transfer == Transfer::Pq;
+        let pq = options.transfer == Transfer::Pq && options.lpuv.is_none();
         let fps = options.fps.max(1);
         let mut enc = EncoderConfig::with_speed_preset(options.speed.min(10));
         enc.width = width as usize;
         enc.height = height as usize;
         enc.time_base = Rational::new(1, u64::from(fps));
-        enc.bit_depth = BIT_DEPTH as usize;
+        enc.bit_depth = if options.lpuv.is_some() { LPUV_BIT_DEPTH } else { BIT_DEPTH } as usize;
         enc.chroma_sampling = match options.subsampling {
             Subsampling::Yuv420 => ChromaSampling::Cs420,
             Subsampling::Yuv444 => ChromaSampling::Cs444,
         };
         enc.chroma_sample_position = match options.subsampling {
-            Subsampling::Yuv420 => ChromaSamplePosition::Colocated,
-            Subsampling::Yuv444 => ChromaSamplePosition::Unknown,
+            // L_p u'v' averages each 2x2 block: centred, which AV1 cannot signal.
+            Subsampling::Yuv420 if options.lpuv.is_none() => ChromaSamplePosition::Colocated,
+            _ => ChromaSamplePosition::Unknown,
         };
         enc.pixel_range = match options.range {
+            // L_p u'v' codes use the whole range from 0.
+            _ if options.lpuv.is_some() => PixelRange::Full,
             Range::Limited => PixelRange::Limited,
             Range::Full => PixelRange::Full,
         };
-        enc.color_description = Some(ColorDescription {
+        enc.color_description = options.lpuv.is_none().then_some(ColorDescription {
             color_primaries: ColorPrimaries::BT2020,
             transfer_characteristics: if pq {
                 TransferCharacteristics::SMPTE2084
@@ -235,7 +252,18 @@ impl<W: Write> Av1Encoder<W> {
             bytes: crate::ivf::FILE_HEADER_LEN as u64,
             ..EncodeSummary::default()
         };
-        Ok(Av1Encoder { ctx, ivf, options: options.clone(), width, height, frames_in: 0, summary })
+        let psi = options.lpuv.as_ref().map(LpuvStreamInfo::psi).transpose()?;
+        let mut t35: Vec<T35Message> = options
+            .lpuv
+            .iter()
+            .map(|info| T35Message {
+                country_code: T35_COUNTRY_CODE,
+                country_code_extension: T35_COUNTRY_CODE_EXTENSION,
+                payload: info.to_t35_payload(),
+            })
+            .collect();
+        t35.extend(options.t35.iter().cloned());
+        Ok(Av1Encoder { ctx, ivf, psi, t35, options: options.clone(), width, height, frames_in: 0, summary })
     }
 
     /// Codes one frame (same size as the stream's).
@@ -250,23 +278,30 @@ impl<W: Write> Av1Encoder<W> {
                 self.height
             )));
         }
-        let (yuv, clipped) = frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
-        self.summary.clipped.add(&clipped);
+        let yuv = match &self.psi {
+            Some(psi) => frame_to_lpuv_yuv(psi, frame, self.options.subsampling)?,
+            None => {
+                let (yuv, clipped) =
+                    frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
+                self.summary.clipped.add(&clipped);
+                yuv
+            }
+        };
         let mut f = self.ctx.new_frame();
         let (cw, _) = crate::hdr10::YuvFrame::chroma_size(yuv.width, yuv.height, yuv.subsampling);
         for (plane, (data, w)) in f.planes.iter_mut().zip([(&yuv.y, yuv.width), (&yuv.cb, cw), (&yuv.cr, cw)]) {
             let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
             plane.copy_from_raw_u8(&bytes, 2 * w, 2);
         }
-        let t35 = match &self.options.t35 {
-            Some(m) => vec![rav1e::prelude::T35 {
+        let t35 = self
+            .t35
+            .iter()
+            .map(|m| rav1e::prelude::T35 {
                 country_code: m.country_code,
                 country_code_extension_byte: m.country_code_extension,
                 data: m.payload.clone().into_boxed_slice(),
-            }]
-            .into_boxed_slice(),
-            None => Box::default(),
-        };
+            })
+            .collect();
         let params = FrameParameters { t35_metadata: t35, ..FrameParameters::default() };
         match self.ctx.send_frame((f, params)) {
             Ok(()) => {}
@@ -324,7 +359,7 @@ impl<W: Write + Send> VideoEncoder for Av1Encoder<W> {
 pub fn encode_sequence<W: Write>(frames: &[HdrImage], options: &Av1Options, out: W) -> Result<(EncodeSummary, W)> {
     let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
     let mut options = options.clone();
-    if options.transfer == Transfer::Pq && options.content_light.is_none() {
+    if options.transfer == Transfer::Pq && options.lpuv.is_none() && options.content_light.is_none() {
         options.content_light = Some(content_light_level(frames, options.transfer));
     }
     let count = u32::try_from(frames.len()).unwrap_or(0);

@@ -13,7 +13,8 @@
 //! The AV1 path: HDR10 frames ([`hdr10`]: BT.2020 NCL Y'CbCr on PQ or HLG), encoded with rav1e
 //! (`encode`, feature `encode`), stored as IVF ([`ivf`]), read back by our OBU parser ([`obu`]:
 //! sequence header, HDR10 and T.35 metadata) and decoded with libdav1d (`decode`, feature
-//! `decode`).
+//! `decode`). The Mantiuk transfer in AV1 ([`lpuv_av1`]): L_p u'v' codes in 12-bit planes,
+//! named by our own T.35 message on every frame.
 
 /// The README's example is compiled and run as a doc test.
 #[cfg(doctest)]
@@ -28,6 +29,7 @@ pub mod encode;
 pub mod gsdf;
 pub mod hdr10;
 pub mod ivf;
+pub mod lpuv_av1;
 pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;
