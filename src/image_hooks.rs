@@ -19,13 +19,14 @@
 //! `image::DynamicImage::from_decoder`.
 
 use crate::core::sink::RowSink;
-use crate::core::{Channels, ColorPrimaries, DecodeOptions, Error, ImageInfo, Limits, Result};
+use crate::core::{Channels, ColorPrimaries, DecodeOptions, Error, ImageCodec, ImageInfo, Limits, Result};
 use crate::Registry;
 use image::error::{DecodingError, ImageFormatHint, LimitError, LimitErrorKind};
 use image::hooks::{register_decoding_hook, register_format_detection_hook, DecodingHook, GenericReader};
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageResult};
 use std::io::{Cursor, Read};
 use std::path::Path;
+use std::sync::Arc;
 
 /// The extensions hooked, with `image`'s own format for that extension where it has one (the
 /// files our decoders do not take in HDR go there).
@@ -111,6 +112,7 @@ fn decoding_error(ext: &str, error: Error) -> ImageError {
 /// from the header; no pixel decoded) and decoded when `image` asks for the pixels.
 pub struct HdrDecoder {
     ext: &'static str,
+    codec: Arc<dyn ImageCodec>,
     data: Vec<u8>,
     info: ImageInfo,
     limits: Limits,
@@ -123,15 +125,15 @@ impl HdrDecoder {
         let limits = Limits::default();
         let registry = Registry::default();
         let path = format!("file.{ext}");
-        let info = match registry.probe(Path::new(&path), &data, &limits) {
-            Ok((codec, info)) if takes_in_hdr(codec.name(), &info) => info,
+        let (codec, info) = match registry.probe(Path::new(&path), &data, &limits) {
+            Ok((codec, info)) if takes_in_hdr(codec.name(), &info) => (codec, info),
             Ok((codec, _)) => {
                 let why = Error::unsupported(format!("{}: not an HDR file (left to image's decoder)", codec.name()));
                 return Err((data, why));
             }
             Err(e) => return Err((data, e)),
         };
-        Ok(HdrDecoder { ext, data, info, limits })
+        Ok(HdrDecoder { ext, codec, data, info, limits })
     }
 
     /// What the header says: size, channels, colour (primaries, `nits_per_unit`), metadata.
@@ -195,12 +197,10 @@ impl ImageDecoder for HdrDecoder {
                 Error::invalid(format!("a buffer of {} bytes for an image of {expected}", buf.len())),
             ));
         }
-        let registry = Registry::default();
-        let path = format!("file.{}", self.ext);
-        let codec = registry.for_input(Path::new(&path), &self.data).map_err(|e| decoding_error(self.ext, e))?;
+        // The codec that probed the file decodes it.
         let options = DecodeOptions::new(self.limits.clone());
         let mut sink = ByteSink { buf, row_bytes: 0, info: &self.info };
-        codec.decode_rows(&self.data, &options, &mut sink).map_err(|e| decoding_error(self.ext, e))
+        self.codec.decode_rows(&self.data, &options, &mut sink).map_err(|e| decoding_error(self.ext, e))
     }
 
     fn read_image_boxed(self: Box<Self>, buf: &mut [u8]) -> ImageResult<()> {
