@@ -6,6 +6,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Line tables only (backtraces keep file:line), not full debug info: the suite links dozens
+# of test binaries against rav1e, dav1d and the codecs, and full DWARF makes every link slower.
+export CARGO_PROFILE_DEV_DEBUG="${CARGO_PROFILE_DEV_DEBUG:-line-tables-only}"
+
 step() { printf '\n== %s\n' "$*"; }
 
 step "reference tools"
