@@ -25,7 +25,7 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 11] = [
+pub const TARGETS: [(&str, Target); 12] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
@@ -35,6 +35,7 @@ pub const TARGETS: [(&str, Target); 11] = [
     ("jpeg_metadata", jpeg_metadata),
     ("jxr", jxr),
     ("logluv", logluv),
+    ("mp4", mp4),
     ("pfm", pfm),
     ("rgbe", rgbe),
 ];
@@ -178,17 +179,69 @@ pub fn ivf_obu(data: &[u8]) {
     }
     for obu in ObuReader::new(data).flatten() {
         let _ = SequenceHeader::parse(obu.payload);
-        if let Ok(Metadata::MasteringDisplay(units)) = Metadata::parse(obu.payload) {
-            let mut again = vec![hdrcodec_video::obu::metadata_type::HDR_MDCV as u8];
-            again.extend_from_slice(&mdcv_body(&units));
-            assert_eq!(Metadata::parse(&again).ok(), Some(Metadata::MasteringDisplay(units)), "MDCV write-back");
+        match Metadata::parse(obu.payload) {
+            Ok(Metadata::MasteringDisplay(units)) => {
+                let mut again = vec![hdrcodec_video::obu::metadata_type::HDR_MDCV as u8];
+                again.extend_from_slice(&mdcv_body(&units));
+                assert_eq!(Metadata::parse(&again).ok(), Some(Metadata::MasteringDisplay(units)), "MDCV write-back");
+            }
+            Ok(Metadata::ItuT35 { country_code, payload, .. }) => lpuv_t35(country_code, payload),
+            _ => {}
         }
+    }
+    // The L_p u'v' T.35 parser on the raw bytes too: country code first, then the payload.
+    if let Some((&country_code, payload)) = data.split_first() {
+        lpuv_t35(country_code, payload);
     }
     let _ = StreamSummary::default().add_temporal_unit(data);
     if let Ok((value, len)) = read_leb128(data) {
         let mut out = Vec::new();
         write_leb128(&mut out, value);
         assert!(out.len() <= len && read_leb128(&out).ok() == Some((value, out.len())), "leb128 write-back");
+    }
+}
+
+/// The L_p u'v' T.35 message parser: what it accepts, written back, parses to the same.
+fn lpuv_t35(country_code: u8, payload: &[u8]) {
+    use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
+    if let Ok(Some(info)) = LpuvStreamInfo::from_t35(country_code, payload) {
+        let again = LpuvStreamInfo::from_t35(country_code, &info.to_t35_payload());
+        assert_eq!(again.ok().flatten(), Some(info), "L_p u'v' T.35 write-back");
+    }
+}
+
+/// MP4 (ISO base media file) reading: the box walker, the video track's sample table (every
+/// sample within the input and the limits), the whole probe (AV1 OBUs or HEVC parameter sets
+/// and SEI), and the HEVC parsers on the raw input; what `mdcv` parsing accepts writes back
+/// to the same bytes.
+pub fn mp4(data: &[u8]) {
+    use hdrcodec_video::hevc::{hvcc_nal_units, sample_nal_units, HevcHdrSei, HevcSps};
+    use hdrcodec_video::mp4::{mdcv_body, parse_mdcv, probe_mp4, BoxReader, Mp4Track};
+    let limits = Limits::fuzzing();
+    if let Ok(track) = Mp4Track::first_video(data, &limits) {
+        for sample in track.samples().results() {
+            match sample {
+                Ok(s) => assert!(s.len() as u64 <= limits.max_alloc_bytes),
+                Err(_) => break,
+            }
+        }
+    }
+    let _ = probe_mp4(data, &limits);
+    let _ = BoxReader::new(data).boxes().count();
+    let _ = HevcSps::parse(data);
+    let mut sei = HevcHdrSei::default();
+    let _ = sei.add_nal(data);
+    for nal in sample_nal_units(data, 4).take(64) {
+        match nal {
+            Ok(nal) => {
+                let _ = sei.add_nal(nal);
+            }
+            Err(_) => break,
+        }
+    }
+    let _ = hvcc_nal_units(data);
+    if let Ok(units) = parse_mdcv(data) {
+        assert_eq!(mdcv_body(&units)[..], data[..24], "mdcv write-back");
     }
 }
 

@@ -13,7 +13,7 @@ mod common;
 use common::{require, run_ok, temp_dir, tool};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, HdrImage, MasteringDisplay};
 use hdrcodec_video::decode::{Av1DecodeOptions, Av1Decoder};
-use hdrcodec_video::encode::{encode_sequence, Av1Options};
+use hdrcodec_video::encode::{encode_sequence, encode_sequence_mp4, Av1Options};
 use hdrcodec_video::hdr10::{content_light_level, Subsampling, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use serde_json::Value;
@@ -255,4 +255,120 @@ fn we_read_an_svt_av1_hdr10_stream_as_ffmpeg_does() {
     let (raw, count) = our_planes(&path);
     assert_eq!(count, 5);
     assert_eq!(md5sum(&dir.join("ours.yuv"), &raw), ffmpeg_md5(&path));
+}
+
+/// AV1 in MP4 (our own ISO-BMFF writer): ffprobe reads the stream's colour signalling from the
+/// `colr` box and the sequence header, the mastering display and content light level from the
+/// `mdcv` and `clli` boxes (SEI units: over 50000 and 10000) and from the metadata OBUs on
+/// every decoded frame (AV1 units), all exactly ours; FFmpeg decodes every frame to the same
+/// samples as from the IVF of the same encode, and as our decoder reading the MP4.
+#[test]
+fn ffprobe_reads_our_mp4_hdr_boxes_and_ffmpeg_decodes_it_as_the_ivf() {
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_mp4");
+    let md = MasteringDisplay::p3_d65_1000();
+    let options = Av1Options { mastering_display: md, ..fast() };
+    let (_, mp4) = encode_sequence_mp4(&frames(), &options, std::io::Cursor::new(Vec::new())).unwrap();
+    let path = dir.join("pq.mp4");
+    std::fs::write(&path, mp4.into_inner()).unwrap();
+    let ivf = write_stream(&dir, "pq.ivf", &options);
+
+    let probe = ffprobe_json(&["-select_streams", "v:0", "-show_streams"], &path);
+    let s = &probe["streams"][0];
+    assert_eq!(s["codec_name"], "av1");
+    assert_eq!(s["codec_tag_string"], "av01");
+    assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(96), Some(64)));
+    assert_eq!(s["nb_frames"], "4");
+    assert_eq!(s["color_transfer"], "smpte2084");
+    assert_eq!(s["color_primaries"], "bt2020");
+    assert_eq!(s["color_space"], "bt2020nc");
+    assert_eq!(s["color_range"], "tv");
+    // The boxes carry the SEI units: the stream's AV1 values through core's conversion.
+    let st2086 = MasteringDisplay::from_av1(&md.to_av1()).to_st2086();
+    let cll = content_light_level(&frames(), Transfer::Pq);
+    let side = s["side_data_list"].as_array().expect("stream side data from mdcv and clli");
+    let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("mdcv");
+    for (i, colour) in ["red", "green", "blue"].iter().enumerate() {
+        assert_eq!(mdcv[format!("{colour}_x")], format!("{}/50000", st2086.primaries[i][0]), "{colour}_x");
+        assert_eq!(mdcv[format!("{colour}_y")], format!("{}/50000", st2086.primaries[i][1]), "{colour}_y");
+    }
+    assert_eq!(mdcv["white_point_x"], format!("{}/50000", st2086.white[0]));
+    assert_eq!(mdcv["white_point_y"], format!("{}/50000", st2086.white[1]));
+    assert_eq!(mdcv["max_luminance"], format!("{}/10000", st2086.max_luminance));
+    assert_eq!(mdcv["min_luminance"], format!("{}/10000", st2086.min_luminance));
+    let light = side.iter().find(|d| d["side_data_type"] == "Content light level metadata").expect("clli");
+    assert_eq!(light["max_content"], u64::from(cll.max_cll));
+    assert_eq!(light["max_average"], u64::from(cll.max_fall));
+
+    let frames_json = ffprobe_json(
+        &["-select_streams", "v:0", "-show_frames", "-show_entries", "frame=color_transfer:frame_side_data_list"],
+        &path,
+    );
+    let decoded = frames_json["frames"].as_array().expect("frames");
+    assert_eq!(decoded.len(), 4, "FFmpeg (libdav1d) decodes every frame of the MP4");
+    let units = md.to_av1();
+    for f in decoded {
+        let side = f["side_data_list"].as_array().expect("HDR10 side data on every frame");
+        let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("MDCV");
+        assert_eq!(mdcv["red_x"], format!("{}/65536", units.primaries[0][0]));
+        assert_eq!(mdcv["max_luminance"], format!("{}/256", units.luminance_max));
+    }
+
+    let from_mp4 = ffmpeg_md5(&path);
+    assert_eq!(from_mp4, ffmpeg_md5(&ivf), "FFmpeg decodes the MP4 and the IVF of one encode alike");
+    let (raw, count) = our_planes(&path);
+    assert_eq!(count, 4);
+    assert_eq!(md5sum(&dir.join("ours_mp4.yuv"), &raw), from_mp4, "our decode of the MP4 and FFmpeg's");
+}
+
+/// The corpus HDR10 HEVC clip in MP4 (no `colr`, `mdcv` or `clli` box: HDR is signalled only
+/// in the HEVC VUI and SEI): our probe reads what FFmpeg reads — codec, size, frames, the VUI
+/// colour description and range, the mastering display (as stored) and content light level
+/// SEI — and reports the mastering display as malformed (VIDEO-NOTES §4: primaries written
+/// R, G, B where the SEI wants G, B, R; nits where it counts 0.0001 cd/m²).
+#[test]
+fn we_read_the_corpus_hevc_mp4_as_ffprobe_does_and_flag_its_mastering_display() {
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let Some(corpus) = require(common::corpus_dir(), "the shared corpus") else { return };
+    let path = corpus.join("video/hdr10-video-with-sdr-container.mp4");
+    let data = std::fs::read(&path).unwrap();
+    let info = hdrcodec_video::mp4::probe_mp4(&data, &Default::default()).unwrap();
+
+    let probe = ffprobe_json(&["-select_streams", "v:0", "-show_streams"], &path);
+    let s = &probe["streams"][0];
+    assert_eq!(s["codec_tag_string"], String::from_utf8_lossy(&info.codec).as_ref());
+    assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(info.width.into()), Some(info.height.into())));
+    assert_eq!(s["nb_frames"], info.frames.to_string());
+    assert_eq!(info.bit_depth, Some(10));
+    let (cicp, source) = info.colour.expect("the VUI's colour description");
+    assert_eq!(source, "HEVC VUI");
+    assert_eq!((s["color_primaries"].as_str(), cicp[0]), (Some("bt2020"), 9));
+    assert_eq!((s["color_transfer"].as_str(), cicp[1]), (Some("smpte2084"), 16));
+    assert_eq!((s["color_space"].as_str(), cicp[2]), (Some("bt2020nc"), 9));
+    assert_eq!((s["color_range"].as_str(), info.full_range), (Some("tv"), Some(false)));
+
+    let frames = ffprobe_json(
+        &["-select_streams", "v:0", "-read_intervals", "%+#1", "-show_frames", "-show_entries", "frame_side_data_list"],
+        &path,
+    );
+    let side = frames["frames"][0]["side_data_list"].as_array().expect("side data");
+    let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("MDCV SEI");
+    let (md, source) = info.mastering_display.expect("the mastering display SEI");
+    assert_eq!(source, "HEVC SEI");
+    let units = md.to_st2086();
+    for (i, colour) in ["red", "green", "blue"].iter().enumerate() {
+        assert_eq!(mdcv[format!("{colour}_x")], format!("{}/50000", units.primaries[i][0]), "{colour}_x");
+        assert_eq!(mdcv[format!("{colour}_y")], format!("{}/50000", units.primaries[i][1]), "{colour}_y");
+    }
+    assert_eq!(mdcv["max_luminance"], format!("{}/10000", units.max_luminance));
+    assert_eq!(mdcv["min_luminance"], format!("{}/10000", units.min_luminance));
+    let light = side.iter().find(|d| d["side_data_type"] == "Content light level metadata").expect("CLL SEI");
+    let (cll, _) = info.content_light.expect("the content light level SEI");
+    assert_eq!((light["max_content"].as_u64(), light["max_average"].as_u64()), (Some(1000), Some(200)));
+    assert_eq!((cll.max_cll, cll.max_fall), (1000, 200));
+    // Both faults of the notes, and nothing else.
+    assert_eq!(info.problems.len(), 2, "{:?}", info.problems);
+    assert!(info.problems[0].contains("primaries out of order"), "{:?}", info.problems);
+    assert!(info.problems[1].contains("0.1 cd/m²"), "{:?}", info.problems);
 }

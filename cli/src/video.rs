@@ -1,11 +1,12 @@
 //! `hdrcodec video encode|decode`, and `hdrcodec info` on an AV1 `.ivf` file: HDR10 (PQ), HLG
 //! or L_p u'v' (Mantiuk 2004) AV1 through hdrcodec-video (rav1e to encode, libdav1d to decode).
 
-use hdrcodec::core::{Error, Limits, Result, ThreadPool};
+use hdrcodec::core::{Error, Hdr10Metadata, HdrImage, Limits, Result, ThreadPool};
 use hdrcodec_video::decode::{probe_ivf, Av1DecodeOptions, Av1Decoder};
-use hdrcodec_video::encode::{Av1Encoder, Av1Options};
+use hdrcodec_video::encode::{Av1Encoder, Av1Options, EncodeSummary, TemporalUnitSink};
 use hdrcodec_video::hdr10::{content_light_level, Subsampling, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
+use hdrcodec_video::mp4::probe_mp4;
 use hdrcodec_video::obu::chroma_sample_position;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 pub struct VideoEncodeArgs<'a> {
     /// Frame image files, in order.
     pub frames: &'a [PathBuf],
-    /// The `.ivf` file to write.
+    /// The `.ivf` or `.mp4` file to write.
     pub output: &'a Path,
     /// `pq`, `hlg` or `mantiuk`.
     pub transfer: &'a str,
@@ -28,18 +29,44 @@ pub struct VideoEncodeArgs<'a> {
     pub threads: Option<usize>,
 }
 
-fn is_ivf(path: &Path) -> bool {
-    path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("ivf"))
+/// The lower-case extension of `path`.
+fn extension(path: &Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
 }
 
-/// `hdrcodec video encode FRAMES... OUT.ivf`. Frames are decoded twice, once to measure
+fn is_ivf(path: &Path) -> bool {
+    extension(path) == "ivf"
+}
+
+/// MP4 and its ISO base media siblings that `info` and `video decode` read.
+fn is_mp4(path: &Path) -> bool {
+    matches!(extension(path).as_str(), "mp4" | "m4v" | "mov")
+}
+
+/// Codes every frame after the first (already read) into `encoder` and completes the file.
+fn encode_frames<S: TemporalUnitSink>(
+    mut encoder: Av1Encoder<S>,
+    head: &HdrImage,
+    rest: &[PathBuf],
+    read: impl Fn(&PathBuf) -> Result<HdrImage>,
+) -> Result<EncodeSummary> {
+    encoder.push_frame(head)?;
+    for path in rest {
+        encoder.push_frame(&read(path)?).map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
+    }
+    Ok(encoder.finish()?.0)
+}
+
+/// `hdrcodec video encode FRAMES... OUT.ivf|OUT.mp4` (the container from the extension). Frames are decoded twice, once to measure
 /// MaxCLL/MaxFALL (needed before the stream's first header) and once to encode, so that no
 /// more than the first frame and one other are held at a time. The file is written atomically.
 /// Returns notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
-    if !is_ivf(a.output) {
-        return Err(Error::unsupported(format!("'{}': video is written as .ivf", a.output.display())));
-    }
+    let mp4 = match extension(a.output).as_str() {
+        "ivf" => false,
+        "mp4" => true,
+        _ => return Err(Error::unsupported(format!("'{}': video is written as .ivf or .mp4", a.output.display()))),
+    };
     let (transfer, mantiuk) = match a.transfer.to_ascii_lowercase().as_str() {
         "pq" => (Transfer::Pq, false),
         "hlg" => (Transfer::HLG_1000, false),
@@ -81,13 +108,13 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         options.content_light = Some(cll);
     }
     let count = u32::try_from(a.frames.len()).unwrap_or(0);
+    let (w, h, rest) = (head.width(), head.height(), &a.frames[1..]);
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        let mut encoder = Av1Encoder::begin(head.width(), head.height(), count, &options, out)?;
-        encoder.push_frame(&head)?;
-        for path in &a.frames[1..] {
-            encoder.push_frame(&read(path)?).map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
+        if mp4 {
+            encode_frames(Av1Encoder::begin_mp4(w, h, &options, out)?, &head, rest, read)
+        } else {
+            encode_frames(Av1Encoder::begin(w, h, count, &options, out)?, &head, rest, read)
         }
-        Ok(encoder.finish()?.0)
     })?;
     let c = summary.clipped;
     let mut notes = Vec::new();
@@ -103,7 +130,7 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     Ok(notes)
 }
 
-/// `hdrcodec video decode IN.ivf OUT_DIR`: every frame as `frame_NNNNN.exr` (float, linear
+/// `hdrcodec video decode IN.ivf|IN.mp4 OUT_DIR` (AV1 only): every frame as `frame_NNNNN.exr` (float, linear
 /// BT.2020, or for L_p u'v' the primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are removed.
 pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
     let data = hdrcodec::read_file(input)?;
@@ -134,10 +161,13 @@ pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
     result
 }
 
-/// `hdrcodec info FILE.ivf`: the IVF header, the sequence header's colour signalling and the
+/// `hdrcodec info FILE.ivf|FILE.mp4`: the IVF header, the sequence header's colour signalling and the
 /// HDR10 metadata, read by our own parsers without decoding.
 pub fn info(file: &Path, as_json: bool) -> Result<()> {
     let data = hdrcodec::read_file(file)?;
+    if is_mp4(file) {
+        return mp4_info(file, &data, as_json);
+    }
     let (header, summary) = probe_ivf(&data, &Limits::default())?;
     let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
     let c = seq.color;
@@ -209,5 +239,105 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
 
 /// True for a file `info` reads through [`info`] rather than the image registry.
 pub fn handles(file: &Path) -> bool {
-    is_ivf(file)
+    is_ivf(file) || is_mp4(file)
+}
+
+/// H.273 code points with their names, as `info` prints them.
+fn cicp_text([p, t, m]: [u8; 3]) -> String {
+    let primaries = match p {
+        1 => "BT.709",
+        9 => "BT.2020",
+        12 => "P3-D65",
+        2 => "unspecified",
+        _ => "other",
+    };
+    let transfer = match t {
+        1 => "BT.709",
+        16 => "PQ (SMPTE ST 2084)",
+        18 => "HLG",
+        2 => "unspecified",
+        _ => "other",
+    };
+    let matrix = match m {
+        1 => "BT.709",
+        9 => "BT.2020 NCL",
+        0 => "identity",
+        2 => "unspecified",
+        _ => "other",
+    };
+    format!("primaries {p} ({primaries}), transfer {t} ({transfer}), matrix {m} ({matrix})")
+}
+
+/// `hdrcodec info FILE.mp4`: the first video track, from the boxes and the bitstream's headers
+/// (AV1 or HEVC), without decoding; a mastering display that cannot be right is reported.
+fn mp4_info(file: &Path, data: &[u8], as_json: bool) -> Result<()> {
+    let info = probe_mp4(data, &Limits::default())?;
+    let codec = String::from_utf8_lossy(&info.codec).into_owned();
+    let lpuv = match info.av1.as_ref().and_then(|s| s.first_t35.as_ref()) {
+        Some((country_code, payload)) => LpuvStreamInfo::from_t35(*country_code, payload)?,
+        None => None,
+    };
+    if as_json {
+        let out = json!({
+            "file": file.display().to_string(),
+            "container": "mp4",
+            "codec": codec,
+            "file_size": data.len(),
+            "frames": info.frames,
+            "frame_rate": info.frame_rate,
+            "width": info.width,
+            "height": info.height,
+            "bit_depth": info.bit_depth,
+            "color_description": info.colour.map(|(c, _)| c),
+            "color_description_source": info.colour.map(|(_, s)| s),
+            "full_range": info.full_range,
+            "hdr10": crate::cli::hdr10_json(Hdr10Metadata {
+                mastering_display: info.mastering_display.map(|(m, _)| m),
+                content_light_level: info.content_light.map(|(c, _)| c),
+            }),
+            "mastering_display_source": info.mastering_display.map(|(_, s)| s),
+            "content_light_source": info.content_light.map(|(_, s)| s),
+            "lpuv": lpuv.map(|l| json!({"curve": format!("{:?}", l.curve), "bits": l.bits})),
+            "problems": info.problems,
+        });
+        println!("{out}");
+        return Ok(());
+    }
+    println!("file:          {} ({} bytes, {codec} in MP4)", file.display(), data.len());
+    println!("frames:        {}", info.frames);
+    if let Some(rate) = info.frame_rate {
+        println!("frame rate:    {rate:.3} per second (mean)");
+    }
+    println!("dimensions:    {} x {}", info.width, info.height);
+    if let Some(bits) = info.bit_depth {
+        println!("bit depth:     {bits}");
+    }
+    match info.colour {
+        Some((c, source)) => println!(
+            "colour (H.273): {} ({}, {source})",
+            cicp_text(c),
+            if info.full_range == Some(true) { "full range" } else { "limited range" }
+        ),
+        None => println!("colour (H.273): not signalled"),
+    }
+    if let Some(l) = lpuv {
+        println!("planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits", l.curve, l.bits);
+    }
+    match info.mastering_display {
+        Some((m, source)) => println!(
+            "mastering display: R {:?} G {:?} B {:?} W {:?}, {}-{} cd/m² ({source})",
+            m.primaries[0], m.primaries[1], m.primaries[2], m.white, m.min_luminance, m.max_luminance
+        ),
+        None => println!("mastering display: none"),
+    }
+    match info.content_light {
+        Some((l, source)) => {
+            println!("content light level: MaxCLL {} MaxFALL {} cd/m² ({source})", l.max_cll, l.max_fall)
+        }
+        None => println!("content light level: none"),
+    }
+    for p in &info.problems {
+        println!("malformed:     {p}");
+    }
+    Ok(())
 }

@@ -1,11 +1,12 @@
-//! AV1 (in IVF) back to scene-linear frames, decoded by the system's libdav1d through the safe
-//! `dav1d` crate. The colour description and HDR10 metadata come from our own OBU parser
-//! ([`crate::obu`]): the `dav1d` 0.9 crate exposes neither.
+//! AV1 (in IVF or MP4) back to scene-linear frames, decoded by the system's libdav1d through
+//! the safe `dav1d` crate. The colour description and HDR10 metadata come from our own OBU
+//! parser ([`crate::obu`]): the `dav1d` 0.9 crate exposes neither.
 
 use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
 use crate::ivf::IvfReader;
 use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
 use crate::mantiuk::Psi04;
+use crate::mp4::{is_mp4, Mp4Samples, Mp4Track};
 use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
 use dav1d::{PixelLayout, PlanarImageComponent};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
@@ -25,6 +26,85 @@ impl Default for Av1DecodeOptions {
     fn default() -> Self {
         Av1DecodeOptions { limits: Limits::default(), nits_per_unit: 100.0, hlg_peak_nits: 1000.0 }
     }
+}
+
+/// The temporal units of an AV1 stream, from an IVF file or the video track of an MP4 file.
+#[derive(Clone, Debug)]
+pub enum TemporalUnits<'a> {
+    /// IVF frames.
+    Ivf(IvfReader<'a>),
+    /// MP4 samples (temporal units without their delimiter).
+    Mp4 {
+        /// The track's samples.
+        samples: Mp4Samples<'a>,
+        /// The `av1C` configuration OBUs, sent first when the samples carry no sequence header.
+        prefix: Option<&'a [u8]>,
+        /// Samples read so far (their presentation index).
+        index: u64,
+    },
+}
+
+impl<'a> TemporalUnits<'a> {
+    /// Opens `data` as IVF (`DKIF`) or MP4 (`ftyp` first); anything else is an error.
+    pub fn open(data: &'a [u8], limits: &Limits) -> Result<Self> {
+        if is_mp4(data) {
+            let track = Mp4Track::first_video(data, limits)?;
+            if &track.codec != b"av01" {
+                return Err(Error::unsupported(format!(
+                    "MP4 video of type '{}': only AV1 ('av01') is decoded",
+                    String::from_utf8_lossy(&track.codec)
+                )));
+            }
+            // av1C: 4 bytes of fields, then the configuration OBUs.
+            let prefix = track.config.and_then(|c| c.get(4..)).filter(|obus| !obus.is_empty());
+            return Ok(TemporalUnits::Mp4 { samples: track.samples(), prefix, index: 0 });
+        }
+        let reader = IvfReader::new(data, limits)?;
+        if !reader.is_av1() {
+            let f = reader.header().fourcc;
+            return Err(Error::unsupported(format!("IVF FourCC {:?}: only AV01 is read", String::from_utf8_lossy(&f))));
+        }
+        Ok(TemporalUnits::Ivf(reader))
+    }
+
+    /// The next temporal unit and its presentation index, `None` at the end.
+    pub fn next_unit(&mut self) -> Result<Option<(u64, &'a [u8])>> {
+        match self {
+            TemporalUnits::Ivf(reader) => Ok(reader.next_frame()?.map(|f| (f.pts, f.data))),
+            TemporalUnits::Mp4 { samples, index, .. } => {
+                let sample = samples.next_sample()?;
+                let pts = *index;
+                *index += sample.is_some() as u64;
+                Ok(sample.map(|s| (pts, s)))
+            }
+        }
+    }
+
+    /// The MP4 track's configuration OBUs, if this is one.
+    fn config_obus(&self) -> Option<&'a [u8]> {
+        match self {
+            TemporalUnits::Mp4 { prefix, .. } => *prefix,
+            TemporalUnits::Ivf(_) => None,
+        }
+    }
+}
+
+/// Reads the colour signalling and HDR10 metadata of an AV1 stream in IVF or MP4 without
+/// decoding it. When MP4 samples carry no sequence header, the one of `av1C` is taken.
+pub fn probe_stream(data: &[u8], limits: &Limits) -> Result<StreamSummary> {
+    let mut units = TemporalUnits::open(data, limits)?;
+    let mut summary = StreamSummary::default();
+    while let Some((_, unit)) = units.next_unit()? {
+        summary.add_temporal_unit(unit)?;
+    }
+    if summary.sequence_header.is_none() {
+        if let Some(obus) = units.config_obus() {
+            let mut config = StreamSummary::default();
+            config.add_temporal_unit(obus)?;
+            summary.sequence_header = config.sequence_header;
+        }
+    }
+    Ok(summary)
 }
 
 /// Reads the colour signalling and HDR10 metadata of an IVF/AV1 stream without decoding it.
@@ -105,9 +185,11 @@ fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize) -> Result<Vec<u16
     Ok(out)
 }
 
-/// Decodes an IVF/AV1 stream frame by frame.
+/// Decodes an AV1 stream in IVF or MP4 frame by frame.
 pub struct Av1Decoder<'a> {
-    reader: IvfReader<'a>,
+    units: TemporalUnits<'a>,
+    /// MP4 configuration OBUs still to send before the first sample.
+    prefix: Option<&'a [u8]>,
     decoder: dav1d::Decoder,
     summary: StreamSummary,
     transfer: Transfer,
@@ -126,10 +208,10 @@ pub struct Av1Decoder<'a> {
 }
 
 impl<'a> Av1Decoder<'a> {
-    /// Opens a stream: reads the IVF header and every temporal unit's headers and metadata
-    /// (cheap, no decoding), checks the frame size against the limits.
+    /// Opens a stream (IVF or MP4): reads the container and every temporal unit's headers and
+    /// metadata (cheap, no decoding), checks the frame size against the limits.
     pub fn new(data: &'a [u8], options: &Av1DecodeOptions) -> Result<Self> {
-        let (_, summary) = probe_ivf(data, &options.limits)?;
+        let summary = probe_stream(data, &options.limits)?;
         let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
         if summary.changed_sequence_headers > 0 {
             return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
@@ -150,8 +232,12 @@ impl<'a> Av1Decoder<'a> {
         settings.set_max_frame_delay(1);
         settings.set_frame_size_limit(u32::try_from(options.limits.max_pixels).unwrap_or(u32::MAX));
         let decoder = dav1d::Decoder::with_settings(&settings).map_err(|e| Error::invalid(format!("dav1d: {e}")))?;
+        let units = TemporalUnits::open(data, &options.limits)?;
+        // Samples that carry their own sequence header need no prefix.
+        let prefix = units.config_obus().filter(|_| !summary_has_inline_header(data, &options.limits));
         Ok(Av1Decoder {
-            reader: IvfReader::new(data, &options.limits)?,
+            units,
+            prefix,
             decoder,
             summary,
             transfer,
@@ -213,10 +299,15 @@ impl<'a> Av1Decoder<'a> {
             if self.flushed {
                 return Ok(None);
             }
-            match self.reader.next_frame()? {
-                Some(frame) => {
-                    let timestamp = i64::try_from(frame.pts).ok();
-                    let result = self.decoder.send_data(frame.data.to_vec(), None, timestamp, None);
+            if let Some(obus) = self.prefix.take() {
+                let result = self.decoder.send_data(obus.to_vec(), None, None, None);
+                self.pending = self.accepted(result)?;
+                continue;
+            }
+            match self.units.next_unit()? {
+                Some((pts, data)) => {
+                    let timestamp = i64::try_from(pts).ok();
+                    let result = self.decoder.send_data(data.to_vec(), None, timestamp, None);
                     self.pending = self.accepted(result)?;
                 }
                 // No more input: what dav1d still holds comes out of get_picture.
@@ -283,7 +374,15 @@ impl<'a> Av1Decoder<'a> {
     }
 }
 
-/// Decodes every frame of an IVF/AV1 stream.
+/// True when the first temporal unit of the stream holds a sequence header.
+fn summary_has_inline_header(data: &[u8], limits: &Limits) -> bool {
+    let first = TemporalUnits::open(data, limits).ok().and_then(|mut u| u.next_unit().ok().flatten());
+    first.is_some_and(|(_, unit)| {
+        crate::obu::ObuReader::new(unit).flatten().any(|o| o.obu_type == crate::obu::obu_type::SEQUENCE_HEADER)
+    })
+}
+
+/// Decodes every frame of an AV1 stream in IVF or MP4.
 pub fn decode_ivf(data: &[u8], options: &Av1DecodeOptions) -> Result<Vec<HdrImage>> {
     let mut decoder = Av1Decoder::new(data, options)?;
     let (mut frames, mut charges) = (Vec::new(), Vec::new());

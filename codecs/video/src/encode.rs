@@ -14,15 +14,16 @@ use crate::lpuv_av1::{
     frame_to_lpuv_yuv, LpuvStreamInfo, LPUV_BIT_DEPTH, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION,
 };
 use crate::mantiuk::Psi04;
+use crate::mp4::Mp4Writer;
 use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
     MasteringDisplay as Rav1eMasteringDisplay, MatrixCoefficients, PixelRange, TransferCharacteristics,
 };
 use rav1e::config::{Config, EncoderConfig, RateControlConfig};
-use rav1e::data::{EncoderStatus, FrameParameters, Rational};
+use rav1e::data::{EncoderStatus, FrameParameters, FrameType, Rational};
 use rav1e::Context;
-use std::io::Write;
+use std::io::{Seek, Write};
 
 /// An ITU-T T.35 message to attach to every frame (AV1 `metadata_itut_t35`, §5.8.2).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -119,7 +120,7 @@ pub struct EncodeSummary {
     pub clipped: ClipReport,
     /// The content light level written, if any.
     pub content_light: Option<ContentLightLevel>,
-    /// Bytes of the IVF file.
+    /// Bytes of the file written.
     pub bytes: u64,
 }
 
@@ -168,10 +169,41 @@ fn rav1e_error(what: &str, e: impl std::fmt::Display) -> Error {
     Error::invalid(format!("rav1e {what}: {e}"))
 }
 
-/// Encodes frames of scene-linear light as they come, to IVF.
-pub struct Av1Encoder<W: Write> {
+/// Where coded temporal units go: an IVF file ([`IvfWriter`]) or an MP4 track ([`Mp4Writer`]).
+pub trait TemporalUnitSink {
+    /// What [`finish`](Self::finish) hands back (the writer's output).
+    type Output;
+    /// Stores one temporal unit shown at frame `pts`; `keyframe` when it starts with a key frame.
+    fn write_temporal_unit(&mut self, pts: u64, data: &[u8], keyframe: bool) -> Result<()>;
+    /// Completes the file; returns the output and the file's length in bytes.
+    fn finish(self) -> Result<(Self::Output, u64)>;
+}
+
+impl<W: Write> TemporalUnitSink for IvfWriter<W> {
+    type Output = W;
+    fn write_temporal_unit(&mut self, pts: u64, data: &[u8], _keyframe: bool) -> Result<()> {
+        self.write_frame(pts, data)
+    }
+    fn finish(self) -> Result<(W, u64)> {
+        let bytes = self.bytes_written();
+        Ok((IvfWriter::finish(self)?, bytes))
+    }
+}
+
+impl<W: Write + Seek> TemporalUnitSink for Mp4Writer<W> {
+    type Output = W;
+    fn write_temporal_unit(&mut self, _pts: u64, data: &[u8], keyframe: bool) -> Result<()> {
+        Mp4Writer::write_temporal_unit(self, data, keyframe)
+    }
+    fn finish(self) -> Result<(W, u64)> {
+        Mp4Writer::finish(self)
+    }
+}
+
+/// Encodes frames of scene-linear light as they come, to IVF (or any [`TemporalUnitSink`]).
+pub struct Av1Encoder<S: TemporalUnitSink> {
     ctx: Context<u16>,
-    ivf: IvfWriter<W>,
+    sink: S,
     /// The luma curve when the planes are L_p u'v'.
     psi: Option<Psi04>,
     /// The T.35 messages every frame carries.
@@ -183,17 +215,33 @@ pub struct Av1Encoder<W: Write> {
     summary: EncodeSummary,
 }
 
-impl<W: Write> Av1Encoder<W> {
-    /// Starts a stream of `width` × `height` frames; `frame_count` goes into the IVF header
-    /// (0 when unknown). The content light level is `options.content_light` (none if `None`).
+impl<W: Write> Av1Encoder<IvfWriter<W>> {
+    /// Starts a stream of `width` × `height` frames to IVF; `frame_count` goes into the IVF
+    /// header (0 when unknown). The content light level is `options.content_light` (none if `None`).
     pub fn begin(width: u32, height: u32, frame_count: u32, options: &Av1Options, out: W) -> Result<Self> {
-        if width == 0 || height == 0 {
-            return Err(Error::invalid(format!("frames of {width}x{height} pixels")));
-        }
         let (ivf_w, ivf_h) = match (u16::try_from(width), u16::try_from(height)) {
             (Ok(w), Ok(h)) => (w, h),
             _ => return Err(Error::unsupported(format!("{width}x{height}: IVF records at most 65535x65535"))),
         };
+        let ivf = IvfWriter::new(out, &IvfHeader::av1(ivf_w, ivf_h, options.fps.max(1), frame_count))?;
+        Self::with_sink(width, height, options, ivf)
+    }
+}
+
+impl<W: Write + Seek> Av1Encoder<Mp4Writer<W>> {
+    /// Starts a stream of `width` × `height` frames to an MP4 file with the HDR boxes.
+    pub fn begin_mp4(width: u32, height: u32, options: &Av1Options, out: W) -> Result<Self> {
+        let mp4 = Mp4Writer::new(out, options.fps.max(1))?;
+        Self::with_sink(width, height, options, mp4)
+    }
+}
+
+impl<S: TemporalUnitSink> Av1Encoder<S> {
+    /// Starts a stream of `width` × `height` frames whose temporal units go to `sink`.
+    pub fn with_sink(width: u32, height: u32, options: &Av1Options, sink: S) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!("frames of {width}x{height} pixels")));
+        }
         let pq = options.transfer == Transfer::Pq && options.lpuv.is_none();
         let fps = options.fps.max(1);
         let mut enc = EncoderConfig::with_speed_preset(options.speed.min(10));
@@ -246,12 +294,8 @@ impl<W: Write> Av1Encoder<W> {
             cfg = cfg.with_threads(1);
         }
         let ctx = cfg.new_context::<u16>().map_err(|e| rav1e_error("configuration", e))?;
-        let ivf = IvfWriter::new(out, &IvfHeader::av1(ivf_w, ivf_h, fps, frame_count))?;
-        let summary = EncodeSummary {
-            content_light: if pq { options.content_light } else { None },
-            bytes: crate::ivf::FILE_HEADER_LEN as u64,
-            ..EncodeSummary::default()
-        };
+        let summary =
+            EncodeSummary { content_light: if pq { options.content_light } else { None }, ..EncodeSummary::default() };
         let psi = options.lpuv.as_ref().map(LpuvStreamInfo::psi).transpose()?;
         let mut t35: Vec<T35Message> = options
             .lpuv
@@ -263,7 +307,7 @@ impl<W: Write> Av1Encoder<W> {
             })
             .collect();
         t35.extend(options.t35.iter().cloned());
-        Ok(Av1Encoder { ctx, ivf, psi, t35, options: options.clone(), width, height, frames_in: 0, summary })
+        Ok(Av1Encoder { ctx, sink, psi, t35, options: options.clone(), width, height, frames_in: 0, summary })
     }
 
     /// Codes one frame (same size as the stream's).
@@ -316,9 +360,9 @@ impl<W: Write> Av1Encoder<W> {
         loop {
             match self.ctx.receive_packet() {
                 Ok(packet) => {
-                    self.ivf.write_frame(packet.input_frameno, &packet.data)?;
+                    let keyframe = packet.frame_type == FrameType::KEY;
+                    self.sink.write_temporal_unit(packet.input_frameno, &packet.data, keyframe)?;
                     self.summary.frames += 1;
-                    self.summary.bytes += (crate::ivf::FRAME_HEADER_LEN + packet.data.len()) as u64;
                 }
                 Err(EncoderStatus::Encoded) => {}
                 Err(EncoderStatus::NeedMoreData) | Err(EncoderStatus::LimitReached) => return Ok(()),
@@ -328,7 +372,7 @@ impl<W: Write> Av1Encoder<W> {
     }
 
     /// Flushes rav1e and returns the summary and the output.
-    pub fn finish(mut self) -> Result<(EncodeSummary, W)> {
+    pub fn finish(mut self) -> Result<(EncodeSummary, S::Output)> {
         self.ctx.flush();
         self.drain()?;
         if self.summary.frames != self.frames_in {
@@ -337,13 +381,14 @@ impl<W: Write> Av1Encoder<W> {
                 self.summary.frames, self.frames_in
             )));
         }
-        let out = self.ivf.finish()?;
+        let (out, bytes) = self.sink.finish()?;
+        self.summary.bytes = bytes;
         Ok((self.summary, out))
     }
 }
 
 /// The family's stream-encoder trait (begin with [`Av1Encoder::begin`], push frames, finish).
-impl<W: Write + Send> VideoEncoder for Av1Encoder<W> {
+impl<S: TemporalUnitSink + Send> VideoEncoder for Av1Encoder<S> {
     fn push_frame(&mut self, frame: &HdrImage) -> Result<()> {
         Av1Encoder::push_frame(self, frame)
     }
@@ -353,21 +398,46 @@ impl<W: Write + Send> VideoEncoder for Av1Encoder<W> {
     }
 }
 
+/// `options` with MaxCLL and MaxFALL measured over `frames` when a PQ stream needs them and
+/// they are not given (on the values that are coded: BT.2020, cd/m², after clipping).
+fn with_content_light(frames: &[HdrImage], options: &Av1Options) -> Av1Options {
+    let mut options = options.clone();
+    if options.transfer == Transfer::Pq && options.lpuv.is_none() && options.content_light.is_none() {
+        options.content_light = Some(content_light_level(frames, options.transfer));
+    }
+    options
+}
+
+/// Codes every frame into `encoder` and completes its file.
+fn encode_all<S: TemporalUnitSink>(
+    mut encoder: Av1Encoder<S>,
+    frames: &[HdrImage],
+) -> Result<(EncodeSummary, S::Output)> {
+    for f in frames {
+        encoder.push_frame(f)?;
+    }
+    encoder.finish()
+}
+
 /// Encodes a whole sequence to IVF. When `options.content_light` is `None` (and the transfer is
 /// PQ) MaxCLL and MaxFALL are first measured over all frames on the values that are coded
 /// (BT.2020, cd/m², after clipping).
 pub fn encode_sequence<W: Write>(frames: &[HdrImage], options: &Av1Options, out: W) -> Result<(EncodeSummary, W)> {
     let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
-    let mut options = options.clone();
-    if options.transfer == Transfer::Pq && options.lpuv.is_none() && options.content_light.is_none() {
-        options.content_light = Some(content_light_level(frames, options.transfer));
-    }
+    let options = with_content_light(frames, options);
     let count = u32::try_from(frames.len()).unwrap_or(0);
-    let mut encoder = Av1Encoder::begin(first.width(), first.height(), count, &options, out)?;
-    for f in frames {
-        encoder.push_frame(f)?;
-    }
-    encoder.finish()
+    encode_all(Av1Encoder::begin(first.width(), first.height(), count, &options, out)?, frames)
+}
+
+/// [`encode_sequence`] to an MP4 file (`av01` with `av1C`, `colr`, `mdcv`, `clli`).
+pub fn encode_sequence_mp4<W: Write + Seek>(
+    frames: &[HdrImage],
+    options: &Av1Options,
+    out: W,
+) -> Result<(EncodeSummary, W)> {
+    let first = frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
+    let options = with_content_light(frames, options);
+    encode_all(Av1Encoder::begin_mp4(first.width(), first.height(), &options, out)?, frames)
 }
 
 #[cfg(test)]

@@ -65,13 +65,14 @@ impl IvfHeader {
 pub struct IvfWriter<W: Write> {
     out: W,
     frames: u64,
+    bytes: u64,
 }
 
 impl<W: Write> IvfWriter<W> {
     /// Writes the file header and returns a writer for the frames.
     pub fn new(mut out: W, header: &IvfHeader) -> Result<Self> {
         out.write_all(&header.to_bytes()).map_err(Error::Io)?;
-        Ok(IvfWriter { out, frames: 0 })
+        Ok(IvfWriter { out, frames: 0, bytes: FILE_HEADER_LEN as u64 })
     }
 
     /// Writes one frame (for AV1, one temporal unit) with presentation time `pts`.
@@ -84,12 +85,18 @@ impl<W: Write> IvfWriter<W> {
         self.out.write_all(&head).map_err(Error::Io)?;
         self.out.write_all(payload).map_err(Error::Io)?;
         self.frames += 1;
+        self.bytes += (FRAME_HEADER_LEN + payload.len()) as u64;
         Ok(())
     }
 
     /// Frames written so far.
     pub fn frames_written(&self) -> u64 {
         self.frames
+    }
+
+    /// Bytes written so far, the file header included.
+    pub fn bytes_written(&self) -> u64 {
+        self.bytes
     }
 
     /// Flushes and returns the output.

@@ -128,6 +128,8 @@ pub struct Obu<'a> {
     pub extension: Option<(u8, u8)>,
     /// The payload (`obu_size` bytes).
     pub payload: &'a [u8],
+    /// The whole OBU as it stands in the data: header, size field and payload.
+    pub raw: &'a [u8],
 }
 
 /// Walks the OBUs of a temporal unit (or any run of OBUs, e.g. an IVF frame's payload).
@@ -175,9 +177,10 @@ impl<'a> ObuReader<'a> {
         if size > rest.len() as u64 {
             return Err(Error::truncated(format!("an OBU of type {obu_type} declaring {size} bytes")));
         }
+        let raw = &self.data[..pos + size as usize];
         let (payload, after) = rest.split_at(size as usize);
         self.data = after;
-        Ok(Some(Obu { obu_type, extension, payload }))
+        Ok(Some(Obu { obu_type, extension, payload, raw }))
     }
 }
 
@@ -600,7 +603,7 @@ impl StreamSummary {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The MDCV body of an SVT-AV1 stream for a P3-D65 1000 / 0.0001 cd/m² display
@@ -665,7 +668,7 @@ mod tests {
     /// A hand-assembled Main-profile sequence header: reduced_still_picture_header = 0, no
     /// timing info, one operating point at level 8 (4.0) tier 0, 96x64, order hints on,
     /// 10-bit, colour description 9/16/9, studio range, chroma_sample_position colocated.
-    fn hdr10_sequence_header() -> Vec<u8> {
+    pub(crate) fn hdr10_sequence_header() -> Vec<u8> {
         let mut bits: Vec<(u32, u32)> = vec![
             (0, 3), // seq_profile
             (0, 1), // still_picture
