@@ -19,12 +19,8 @@ if [ "${1:-}" = "--check" ]; then
 fi
 width=${1:-3712}
 height=${2:-3624}
-if [ -n "${HDRCODEC_BIN:-}" ]; then
-  bin=$(realpath "$HDRCODEC_BIN")
-else
-  cargo build --release --quiet -p hdrcodec-cli --bin hdrcodec
-  bin=$PWD/target/release/hdrcodec
-fi
+source scripts/bench-binary.sh
+bin=$(hdrcodec_bin)
 dir=$(mktemp -d "${TMPDIR:-/tmp}/hdrcodec-mem.XXXXXX")
 trap 'rm -rf "$dir"' EXIT
 

@@ -52,6 +52,10 @@ HDRCODEC_CPU=scalar cargo test --workspace --lib \
 step "peak memory (scripts/memory-bench.sh --check)"
 cargo build --quiet -p hdrcodec-cli --bin hdrcodec
 HDRCODEC_BIN=target/debug/hdrcodec bash scripts/memory-bench.sh --check 2048 1536
+# A batch within --memory: 3 images of 3 MP to RGBE, unbounded, two and one in flight (issue 16;
+# the README has the 12 MP table).
+step "batch peak memory (scripts/batch-memory-bench.sh --check)"
+HDRCODEC_BIN=target/debug/hdrcodec bash scripts/batch-memory-bench.sh --check 3 2048 1536 hdr
 
 step "fuzz smoke run"
 bash scripts/fuzz-smoke.sh

@@ -416,7 +416,7 @@ pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) 
     let io =
         |e: std::io::Error, what: &Path| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", what.display())));
     let result = (|| {
-        let f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| io(e, path))?;
+        let f = temps_in_flight::create(&tmp).map_err(|e| io(e, path))?;
         let mut buffered = std::io::BufWriter::with_capacity(1 << 20, f);
         let value = write(&mut buffered).map_err(|e| match e {
             Error::Io(e) => io(e, path),
@@ -431,7 +431,65 @@ pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) 
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    temps_in_flight::forget(&tmp);
     result
+}
+
+/// Removes the temporary files that [`write_atomic_with`] is writing at this moment, in every
+/// thread, and makes every later call fail (before creating anything) with
+/// [`std::io::ErrorKind::Interrupted`]: what a signal handler calls just before the process
+/// ends, so that an interrupted run leaves no temporary file. Returns how many were removed.
+///
+/// No file can slip through: a temporary file is created and recorded under one lock, and
+/// this function takes the same lock. A writer that renames its file into place just before
+/// leaves a whole output, which is fine; one still writing loses its file and fails.
+pub fn remove_temp_files_in_flight() -> usize {
+    temps_in_flight::remove_all()
+}
+
+/// The temporary files of [`write_atomic_with`] in flight, for [`remove_temp_files_in_flight`].
+mod temps_in_flight {
+    use std::path::{Path, PathBuf};
+    use std::sync::{Mutex, MutexGuard};
+
+    struct InFlight {
+        paths: Vec<PathBuf>,
+        /// Set by [`remove_all`]: the process is stopping, nothing new may be created.
+        stopping: bool,
+    }
+
+    static IN_FLIGHT: Mutex<InFlight> = Mutex::new(InFlight { paths: Vec::new(), stopping: false });
+
+    /// The list even if a thread panicked while holding it: it holds paths only, always valid.
+    fn lock() -> MutexGuard<'static, InFlight> {
+        IN_FLIGHT.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Creates `tmp` (which must not exist) and records it, both under the lock.
+    pub(super) fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
+        let mut in_flight = lock();
+        if in_flight.stopping {
+            return Err(std::io::Error::new(std::io::ErrorKind::Interrupted, "the process is stopping"));
+        }
+        let file = std::fs::OpenOptions::new().write(true).create_new(true).open(tmp)?;
+        in_flight.paths.push(tmp.to_path_buf());
+        Ok(file)
+    }
+
+    /// `tmp` was renamed into place or removed.
+    pub(super) fn forget(tmp: &Path) {
+        let mut in_flight = lock();
+        if let Some(i) = in_flight.paths.iter().position(|p| p == tmp) {
+            in_flight.paths.swap_remove(i);
+        }
+    }
+
+    pub(super) fn remove_all() -> usize {
+        let mut in_flight = lock();
+        in_flight.stopping = true;
+        let paths = std::mem::take(&mut in_flight.paths);
+        paths.iter().filter(|p| std::fs::remove_file(p).is_ok()).count()
+    }
 }
 
 /// The name of the temporary file [`write_atomic_with`] writes for the file called `name`, in

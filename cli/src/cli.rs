@@ -57,6 +57,27 @@ pub fn run_catching_panics(f: impl FnOnce() -> ExitCode) -> ExitCode {
     }
 }
 
+/// From now on SIGINT (Ctrl-C), SIGTERM (`kill`, a batch system stopping a job) and SIGHUP (the
+/// terminal closed) remove the temporary files being written
+/// ([`hdrcodec::remove_temp_files_in_flight`]) and then end the process by that same signal, as
+/// if it had not been caught: the shell reports 130, 143 or 129 (128 + the signal), and a
+/// script looping over `hdrcodec convert` stops too instead of going on to the next file.
+/// SIGKILL cannot be caught; `batch` removes what a killed run left when it is run again.
+pub fn remove_temp_files_on_signal() -> Result<()> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP])?;
+    std::thread::Builder::new().name("hdrcodec-signals".into()).spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            hdrcodec::remove_temp_files_in_flight();
+            // Restores the default action and raises the signal again; it returns only if that
+            // failed, and then the status says the same thing.
+            let _ = signal_hook::low_level::emulate_default_handler(signal);
+            std::process::exit(128 + signal);
+        }
+    })?;
+    Ok(())
+}
+
 /// Help and version go to stdout as usual; a usage error becomes the one-line failure.
 pub fn clap_error(e: clap::Error) -> ExitCode {
     use clap::error::ErrorKind;
@@ -80,9 +101,16 @@ pub fn clap_error(e: clap::Error) -> ExitCode {
     }
 }
 
-/// A progress bar on stderr when stdout is a terminal and the output is not JSON; else hidden.
+/// Whether progress is drawn: on stderr, so when stderr is a terminal (whatever stdout is:
+/// `hdrcodec batch ... > summary.txt` still shows it, `2> log` keeps the log free of it), and
+/// never with `--json`.
+fn progress_visible(json: bool) -> bool {
+    !json && std::io::stderr().is_terminal()
+}
+
+/// A progress bar on stderr when [`progress_visible`]; else hidden.
 fn progress_bar(len: usize, json: bool) -> ProgressBar {
-    if json || !std::io::stdout().is_terminal() {
+    if !progress_visible(json) {
         return ProgressBar::hidden();
     }
     let pb = ProgressBar::new(len as u64);
@@ -383,8 +411,7 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     Ok(())
 }
 
-/// The batch's progress bar on stderr (with an ETA), when stderr is a terminal and the output
-/// is not JSON; per-file failures as `hdrcodec: FILE: reason` lines above it.
+/// The batch's progress bar on stderr (with an ETA), when [`progress_visible`]; per-file failures as `hdrcodec: FILE: reason` lines above it.
 struct BatchProgress {
     bar: ProgressBar,
     visible: bool,
@@ -412,8 +439,7 @@ impl batch::Progress for BatchProgress {
 
 /// `hdrcodec batch`: prints the summary (text, or one JSON object); fails when a file failed.
 pub fn batch(options: &batch::BatchOptions, json: bool) -> Result<()> {
-    let visible = !json && std::io::stderr().is_terminal();
-    let mut progress = BatchProgress { bar: ProgressBar::hidden(), visible };
+    let mut progress = BatchProgress { bar: ProgressBar::hidden(), visible: progress_visible(json) };
     let summary = batch::run(options, &mut progress);
     progress.bar.finish_and_clear();
     let s = summary?;

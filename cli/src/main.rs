@@ -283,6 +283,10 @@ fn run() -> ExitCode {
         Ok(a) => a,
         Err(e) => return cli::clap_error(e),
     };
+    if let Err(e) = cli::remove_temp_files_on_signal() {
+        cli::fail(&format!("cannot install the signal handler: {e}"));
+        return ExitCode::FAILURE;
+    }
     let result = match args.command {
         Command::Convert(a) => {
             cli::convert(&a.input, &a.output, a.codec.as_deref(), a.quality, a.effort, a.threads, &a.opts)

@@ -263,15 +263,52 @@ fn a_killed_batch_resumes_with_only_the_missing_files_and_leaves_no_partial_file
         let o = hdrcodec(&[&"corpus", &"large", &f, &"--width", &"640", &"--height", &"480"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    // kill -9, a batch system's SIGTERM, Ctrl-C's SIGINT: the process ends at once in each case
-    // (no handler), and the outputs' temporary names keep it safe.
+    // kill -9 ends the process at once: its temporary file stays, and the rerun removes it.
+    // A batch system's SIGTERM and Ctrl-C's SIGINT are caught: the temporary files in flight
+    // are removed before the process ends by that signal.
     for signal in ["KILL", "TERM", "INT"] {
         stop_and_resume(&input, signal);
     }
 }
 
+/// Our temporary files below `dir` (`.NAME.PID.tmp`).
+fn temp_files(dir: &Path) -> BTreeSet<String> {
+    files(dir)
+        .into_iter()
+        .filter(|f| f.rsplit('/').next().is_some_and(|name| name.starts_with('.') && name.ends_with(".tmp")))
+        .collect()
+}
+
+/// Waits until `child` is writing a temporary file below `out` (after `ready` holds), then
+/// stops it with `signal` (a `kill` name) and returns how it ended.
+fn stop_while_writing(
+    child: &mut std::process::Child,
+    out: &Path,
+    signal: &str,
+    ready: impl Fn() -> bool,
+) -> std::process::ExitStatus {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while !ready() || temp_files(out).is_empty() {
+        assert!(std::time::Instant::now() < deadline, "nothing written after 60 s");
+        assert!(child.try_wait().unwrap().is_none(), "finished before it could be stopped while writing");
+    }
+    let killed = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    child.wait().unwrap()
+}
+
+/// The signal number of a `kill` name.
+fn signal_number(signal: &str) -> i32 {
+    match signal {
+        "INT" => 2,
+        "KILL" => 9,
+        "TERM" => 15,
+        other => panic!("no number for SIG{other}"),
+    }
+}
+
 /// Starts a batch of the 10 images of `input`, stops it with `signal` once it has converted a
-/// file, resumes it, and checks what each run did and what it left.
+/// file and is writing the next, resumes it, and checks what each run did and what it left.
 fn stop_and_resume(input: &Path, signal: &str) {
     let out = common::temp_dir(&format!("batch-kill-out-{signal}"));
     let manifest_path = out.join("manifest.jsonl");
@@ -283,14 +320,14 @@ fn stop_and_resume(input: &Path, signal: &str) {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while manifest(&manifest_path).is_empty() {
-        assert!(std::time::Instant::now() < deadline, "no manifest line after 60 s");
-        std::thread::sleep(std::time::Duration::from_millis(2));
+    let status = stop_while_writing(&mut child, &out, signal, || !manifest(&manifest_path).is_empty());
+    // Ended by the signal itself (a shell shows 128 + its number), not by an exit status.
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(status.signal(), Some(signal_number(signal)), "{status:?}");
+    let left = temp_files(&out);
+    if signal != "KILL" {
+        assert!(left.is_empty(), "SIG{signal} left {left:?}");
     }
-    let killed = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
-    assert!(killed.success());
-    let _ = child.wait();
     let done_before: BTreeSet<String> =
         files(&out).into_iter().filter(|f| f.ends_with(".exr") && !f.starts_with('.') && !f.contains("/.")).collect();
     assert!(
@@ -305,6 +342,7 @@ fn stop_and_resume(input: &Path, signal: &str) {
 
     let (s, ok, stderr) = batch(&[&input, &out, &"--to", &"exr"]);
     assert!(ok, "{stderr}");
+    assert_eq!(count(&s, "stale_temp_files_removed") as usize, left.len(), "{s}");
     assert_eq!(count(&s, "up_to_date") as usize, done_before.len(), "{s}");
     assert_eq!(count(&s, "converted") as usize, 10 - done_before.len(), "{s}");
     // The resumed run's conversions are exactly the missing files (an output renamed into place
@@ -325,6 +363,30 @@ fn stop_and_resume(input: &Path, signal: &str) {
 }
 
 #[test]
+fn a_stopped_convert_leaves_no_temporary_file() {
+    let dir = common::temp_dir("convert-stop");
+    let source = dir.join("big.exr");
+    let o = hdrcodec(&[&"corpus", &"large", &source, &"--width", &"1536", &"--height", &"1024"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for signal in ["TERM", "INT"] {
+        let out = dir.join(format!("out-{signal}"));
+        std::fs::create_dir_all(&out).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+            .args(["convert", "--threads", "1"])
+            .arg(&source)
+            .arg(out.join("big.jxr"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let status = stop_while_writing(&mut child, &out, signal, || true);
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(status.signal(), Some(signal_number(signal)), "{status:?}");
+        assert_eq!(files(&out), BTreeSet::new(), "SIG{signal}");
+    }
+}
+
+#[test]
 fn a_tiny_memory_budget_runs_one_image_at_a_time() {
     let input = input_tree("batch-memory-in");
     let out = common::temp_dir("batch-memory-out");
@@ -336,4 +398,127 @@ fn a_tiny_memory_budget_runs_one_image_at_a_time() {
     assert!(ok);
     assert!(count(&s, "peak_in_flight_files") > 1, "{s}");
     assert!(count(&s, "peak_in_flight_cost") <= 1 << 30, "{s}");
+}
+
+/// Runs `hdrcodec ARGS` with stderr on a pseudo-terminal of 120 columns and stdout on a pipe;
+/// returns what reached the terminal and what reached stdout.
+fn run_on_terminal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (String, String) {
+    use rustix::pty::{grantpt, ioctl_tiocgptpeer, openpt, unlockpt, OpenptFlags};
+    use std::io::Read;
+    let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY | OpenptFlags::CLOEXEC).unwrap();
+    grantpt(&master).unwrap();
+    unlockpt(&master).unwrap();
+    let terminal = ioctl_tiocgptpeer(&master, OpenptFlags::RDWR | OpenptFlags::NOCTTY).unwrap();
+    let size = rustix::termios::Winsize { ws_row: 24, ws_col: 120, ws_xpixel: 0, ws_ypixel: 0 };
+    rustix::termios::tcsetwinsize(&terminal, size).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(args.iter().map(|a| a.as_ref()))
+        .env("TERM", "xterm-256color")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(terminal))
+        .spawn()
+        .unwrap();
+    // Read while it runs (a full terminal buffer would block it); the read fails (EIO) once
+    // the child, the terminal's last user, has closed it.
+    let mut master = std::fs::File::from(master);
+    let screen = std::thread::spawn(move || {
+        let mut all = Vec::new();
+        let mut chunk = [0u8; 4096];
+        while let Ok(n @ 1..) = master.read(&mut chunk) {
+            all.extend_from_slice(&chunk[..n]);
+        }
+        all
+    });
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{:?}", out.status);
+    let screen = String::from_utf8_lossy(&screen.join().unwrap()).into_owned();
+    (screen, String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+#[test]
+fn the_progress_bar_is_drawn_on_a_terminal_only() {
+    let input = input_tree("batch-progress-in");
+    // stderr a terminal, stdout a pipe: the bar, its ETA and its count are drawn on stderr.
+    let out = common::temp_dir("batch-progress-out-terminal");
+    let (screen, stdout) = run_on_terminal(&[&"batch", &input, &out, &"--to", &"hdr", &"--jobs", &"1"]);
+    assert!(screen.contains("ETA "), "no ETA on the terminal: {screen:?}");
+    assert!((1..=9).any(|k| screen.contains(&format!(" {k}/9 "))), "no count of 9 files: {screen:?}");
+    assert!(stdout.contains("converted:   9") && !stdout.contains("ETA"), "{stdout}");
+    // --json: nothing on the terminal, one JSON object on stdout.
+    let out = common::temp_dir("batch-progress-out-json");
+    let (screen, stdout) = run_on_terminal(&[&"batch", &"--json", &input, &out, &"--to", &"hdr", &"--jobs", &"1"]);
+    assert_eq!(screen, "", "--json drew on the terminal");
+    let summary: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(count(&summary, "converted"), 9);
+    // stderr a pipe: nothing of the bar.
+    let out = common::temp_dir("batch-progress-out-pipe");
+    let o = hdrcodec(&[&"batch", &input, &out, &"--to", &"hdr", &"--jobs", &"1"]);
+    assert!(o.status.success());
+    assert_eq!(String::from_utf8_lossy(&o.stderr), "", "stderr is not a terminal");
+}
+
+/// Crops of at most 48x40 pixels from the middle of images of the shared corpus, one per kind
+/// (wide-gamut ACES with alpha, CIE XYZ, negative values over 8 decades, RGBE, JPEG XR float
+/// with alpha, an Ultra HDR gain map), written as float OpenEXR (exact, colour kept), plus
+/// the generated 1x1 and 3x5 scenes; `None` (skipped, or a failure in CI) without the corpus.
+fn corpus_crops() -> Option<&'static Path> {
+    static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let corpus = common::require(common::corpus_dir(), "the shared HDR corpus")?;
+        let dir = common::temp_dir("batch-corpus-crops");
+        let registry = hdrcodec::registry();
+        let exr = registry.by_name("exr").unwrap();
+        let float = hdrcodec::core::EncodeSettings::default().with_option("pixel", "float");
+        for source in [
+            "exr/Carrots.exr",
+            "exr/XYZ.exr",
+            "exr/Desk.exr",
+            "hdr/hall.hdr",
+            "jxr/StillLife_128bppRGBAFloat_q0.9.jxr",
+            "jpeg/sky_ultrahdr.jpg",
+        ] {
+            let (_, image) = registry.read(&corpus.join(source), &hdrcodec::core::Limits::default()).unwrap();
+            let (w, h) = (image.width().min(48), image.height().min(40));
+            let (x0, y0) = ((image.width() - w) / 2, (image.height() - h) / 2);
+            let n = image.channels().count();
+            let samples: Vec<f32> =
+                (y0..y0 + h).flat_map(|y| image.row(y)[x0 as usize * n..(x0 + w) as usize * n].to_vec()).collect();
+            let crop = hdrcodec::core::HdrImage::new(w, h, image.channels(), samples, image.color.clone()).unwrap();
+            let to = dir.join(source).with_extension("exr");
+            std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+            std::fs::write(&to, exr.encode(&crop, &float).unwrap()).unwrap();
+        }
+        for (from, to) in [("tiny-1x1.exr", "tiny/one.exr"), ("odd-3x5.exr", "tiny/odd.exr")] {
+            std::fs::create_dir_all(dir.join("tiny")).unwrap();
+            std::fs::copy(scenes().join(from), dir.join(to)).unwrap();
+        }
+        Some(dir)
+    })
+    .as_deref()
+}
+
+#[test]
+fn a_batch_runs_through_every_output_format() {
+    let Some(crops) = corpus_crops() else { return };
+    let registry = hdrcodec::registry();
+    let limits = hdrcodec::core::Limits::default();
+    let formats: Vec<&str> = registry.codecs().iter().filter(|c| c.can_encode()).map(|c| c.name()).collect();
+    assert!(formats.len() >= 10, "{formats:?}");
+    for name in formats {
+        let out = common::temp_dir(&format!("batch-every-{name}"));
+        let (s, ok, stderr) = batch(&[&crops, &out, &"--to", &name]);
+        assert!(ok, "--to {name}: {stderr}");
+        assert_eq!((count(&s, "converted"), count(&s, "failed")), (8, 0), "--to {name}: {s}");
+        for line in manifest(&out.join("manifest.jsonl")) {
+            // Every output is a whole file of the format, of its source's size, measured.
+            let output = Path::new(line["output"].as_str().unwrap());
+            let extension = output.extension().unwrap().to_str().unwrap();
+            assert!(registry.by_name(name).unwrap().extensions().contains(&extension), "--to {name}: {line}");
+            let (_, back) = registry.read(output, &limits).unwrap();
+            let (_, source) = registry.read(Path::new(line["source"].as_str().unwrap()), &limits).unwrap();
+            assert_eq!((back.width(), back.height()), (source.width(), source.height()), "--to {name}: {line}");
+            assert!(line["pu21_psnr"].is_f64() || line["identical"] == true, "--to {name}: {line}");
+        }
+    }
 }

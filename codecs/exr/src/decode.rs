@@ -12,7 +12,7 @@ use exr::block::chunk::{Chunk, CompressedBlock};
 use exr::block::reader::ChunksReader;
 use exr::block::UncompressedBlock;
 use exr::meta::attribute::SampleType;
-use exr::meta::header::Header;
+use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
 use exr::meta::MetaData;
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
@@ -413,8 +413,14 @@ fn clean(v: f32) -> f64 {
 
 fn color_info(meta: &MetaData) -> ColorInfo {
     let header = &meta.headers[0];
+    colour_from_attributes(&header.shared_attributes, &header.own_attributes)
+}
+
+/// The colour that a file's attributes record: `chromaticities` (absent: BT.709) and
+/// `whiteLuminance` (absent, zero or not finite: 100 nits per unit).
+pub(crate) fn colour_from_attributes(shared: &ImageAttributes, layer: &LayerAttributes) -> ColorInfo {
     let mut color = ColorInfo::default();
-    if let Some(c) = header.shared_attributes.chromaticities {
+    if let Some(c) = shared.chromaticities {
         let xy = |v: exr::math::Vec2<f32>| [clean(v.x()), clean(v.y())];
         color.primaries = ColorPrimaries::from_chromaticities(Chromaticities {
             red: xy(c.red),
@@ -423,7 +429,7 @@ fn color_info(meta: &MetaData) -> ColorInfo {
             white: xy(c.white),
         });
     }
-    if let Some(l) = header.own_attributes.white_luminance {
+    if let Some(l) = layer.white_luminance {
         if l.is_finite() && l > 0.0 {
             color.nits_per_unit = l;
         }

@@ -18,8 +18,8 @@ use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
 use exr::meta::{BlockDescription, Headers, MetaData};
 use exr::prelude::{f16, SmallVec};
 use hdrcodec_core::{
-    Channels, ColorPrimaries, EncodeReport, Error, HdrImage, ImageInfo, PendingHeader, RangeCount, Result, RowCounter,
-    RowEncoder, ThreadPool, WriteSeek,
+    Channels, ColorInfo, ColorPrimaries, EncodeReport, Error, HdrImage, ImageInfo, PendingHeader, RangeCount, Result,
+    RowCounter, RowEncoder, ThreadPool, WriteSeek,
 };
 use rayon::prelude::*;
 use std::io::{Cursor, SeekFrom};
@@ -253,22 +253,28 @@ fn header_for(info: &ImageInfo, options: &ExrEncodeOptions) -> Header {
     channels.sort_unstable_by(|a, b| a.name.cmp(&b.name));
     let size = Vec2(info.width as usize, info.height as usize);
     let mut attributes = LayerAttributes::default();
-    if info.color.nits_per_unit != 100.0 {
-        attributes.white_luminance = Some(info.color.nits_per_unit);
-    }
     let mut shared = ImageAttributes::with_size(size);
-    // Without the attribute OpenEXR means BT.709 primaries; unspecified samples are written that
-    // way too (the attribute cannot say "unknown").
-    if !matches!(info.color.primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified) {
-        let c = info.color.primaries.chromaticities();
-        let xy = |v: [f64; 2]| Vec2(v[0] as f32, v[1] as f32);
-        shared.chromaticities =
-            Some(ExrChromaticities { red: xy(c.red), green: xy(c.green), blue: xy(c.blue), white: xy(c.white) });
-    }
+    set_colour_attributes(&info.color, &mut shared, &mut attributes);
     Header::new(Text::default(), size, channels)
         .with_encoding(options.compression.to_exr(), BlockDescription::ScanLines, LineOrder::Increasing)
         .with_attributes(attributes)
         .with_shared_attributes(shared)
+}
+
+/// Records `color` in a file's attributes: `whiteLuminance` when `nits_per_unit` is not 100,
+/// `chromaticities` when the primaries are not BT.709 (what OpenEXR means without the
+/// attribute; unspecified samples are written that way too, as the attribute cannot say
+/// "unknown"). The inverse of [`crate::decode::colour_from_attributes`].
+pub(crate) fn set_colour_attributes(color: &ColorInfo, shared: &mut ImageAttributes, layer: &mut LayerAttributes) {
+    if color.nits_per_unit != 100.0 {
+        layer.white_luminance = Some(color.nits_per_unit);
+    }
+    if !matches!(color.primaries, ColorPrimaries::Bt709 | ColorPrimaries::Unspecified) {
+        let c = color.primaries.chromaticities();
+        let xy = |v: [f64; 2]| Vec2(v[0] as f32, v[1] as f32);
+        shared.chromaticities =
+            Some(ExrChromaticities { red: xy(c.red), green: xy(c.green), blue: xy(c.blue), white: xy(c.white) });
+    }
 }
 
 /// The uncompressed bytes of one block of whole rows as `exr` lays them out: line by line, and

@@ -36,6 +36,7 @@ struct ReadmeDoctests;
 
 mod decode;
 mod encode;
+pub mod interop;
 
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
