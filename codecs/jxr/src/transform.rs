@@ -33,6 +33,20 @@
 //! HD Photo 1.0 codestreams (sub-version 0) use older overlap operators, a DC-leakage clamp
 //! and no corner operators: [`OperatorSet::HdPhoto`], implemented in the `legacy` submodule.
 
+/// Applies the operator `$f` (a function or closure on an array) to the elements of the
+/// array `$x` (a `&mut`) at the indices `$i`. A macro, so that `$f` is called directly: an
+/// operator passed as `impl Fn` reached the AVX2 twins through a `Fn::call` shim that LLVM
+/// did not inline, compiled without AVX2, its lanes passed through memory.
+macro_rules! ap {
+    ($x:expr, $i:expr, $f:expr) => {{
+        let (x, i) = ($x, $i);
+        let v = $f(i.map(|k: usize| x[k]));
+        for (k, y) in i.into_iter().zip(v) {
+            x[k] = y;
+        }
+    }};
+}
+
 mod legacy;
 pub use legacy::DcLeakage;
 
@@ -509,15 +523,6 @@ fn fwd_scale<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
     [a, b]
 }
 
-/// Applies `f` to the elements of `x` at indices `i`.
-#[inline(always)]
-fn ap<T: Lane, const N: usize, const M: usize>(x: &mut [T; N], i: [usize; M], f: impl Fn([T; M]) -> [T; M]) {
-    let v = f(i.map(|k| x[k]));
-    for (k, y) in i.into_iter().zip(v) {
-        x[k] = y;
-    }
-}
-
 /// `_jxr_4x4IPCT`: 16 coefficients (DC first) to 16 samples in raster order.
 #[inline(always)]
 fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
@@ -526,14 +531,14 @@ fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     for (i, &v) in c.iter().enumerate() {
         t[INV_PERMUTE[i]] = v;
     }
-    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
-    ap(&mut t, [2, 3, 6, 7], inv_t_odd);
-    ap(&mut t, [8, 12, 9, 13], inv_t_odd);
-    ap(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
-    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap!(&mut t, [2, 3, 6, 7], inv_t_odd);
+    ap!(&mut t, [8, 12, 9, 13], inv_t_odd);
+    ap!(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
+    ap!(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
     t
 }
 
@@ -542,14 +547,14 @@ fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
 fn pct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     const FWD_PERMUTE: [usize; 16] = [0, 8, 4, 6, 2, 10, 14, 12, 1, 11, 15, 13, 9, 3, 7, 5];
     let mut t = c;
-    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
-    ap(&mut t, [2, 3, 6, 7], fwd_t_odd);
-    ap(&mut t, [8, 12, 9, 13], fwd_t_odd);
-    ap(&mut t, [10, 11, 14, 15], fwd_t_odd_odd);
+    ap!(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap!(&mut t, [2, 3, 6, 7], fwd_t_odd);
+    ap!(&mut t, [8, 12, 9, 13], fwd_t_odd);
+    ap!(&mut t, [10, 11, 14, 15], fwd_t_odd_odd);
     let mut out = t;
     for (i, &v) in t.iter().enumerate() {
         out[FWD_PERMUTE[i]] = v;
@@ -570,23 +575,23 @@ fn pct4x4(c: &mut [i32; 16]) {
 #[inline(always)]
 fn post4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
     let mut x = x;
-    ap(&mut x, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut x, [13, 12], inv_rotate);
-    ap(&mut x, [9, 8], inv_rotate);
-    ap(&mut x, [7, 3], inv_rotate);
-    ap(&mut x, [6, 2], inv_rotate);
-    ap(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
-    ap(&mut x, [0, 15], inv_scale);
-    ap(&mut x, [1, 14], inv_scale);
-    ap(&mut x, [4, 11], inv_scale);
-    ap(&mut x, [5, 10], inv_scale);
-    ap(&mut x, [0, 3, 12, 15], t2x2h_post);
-    ap(&mut x, [1, 2, 13, 14], t2x2h_post);
-    ap(&mut x, [4, 7, 8, 11], t2x2h_post);
-    ap(&mut x, [5, 6, 9, 10], t2x2h_post);
+    ap!(&mut x, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut x, [13, 12], inv_rotate);
+    ap!(&mut x, [9, 8], inv_rotate);
+    ap!(&mut x, [7, 3], inv_rotate);
+    ap!(&mut x, [6, 2], inv_rotate);
+    ap!(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
+    ap!(&mut x, [0, 15], inv_scale);
+    ap!(&mut x, [1, 14], inv_scale);
+    ap!(&mut x, [4, 11], inv_scale);
+    ap!(&mut x, [5, 10], inv_scale);
+    ap!(&mut x, [0, 3, 12, 15], t2x2h_post);
+    ap!(&mut x, [1, 2, 13, 14], t2x2h_post);
+    ap!(&mut x, [4, 7, 8, 11], t2x2h_post);
+    ap!(&mut x, [5, 6, 9, 10], t2x2h_post);
     x
 }
 
@@ -594,23 +599,23 @@ fn post4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
 #[inline(always)]
 fn pre4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
     let mut x = x;
-    ap(&mut x, [0, 3, 12, 15], t2x2h_enc);
-    ap(&mut x, [1, 2, 13, 14], t2x2h_enc);
-    ap(&mut x, [4, 7, 8, 11], t2x2h_enc);
-    ap(&mut x, [5, 6, 9, 10], t2x2h_enc);
-    ap(&mut x, [0, 15], fwd_scale);
-    ap(&mut x, [1, 14], fwd_scale);
-    ap(&mut x, [4, 11], fwd_scale);
-    ap(&mut x, [5, 10], fwd_scale);
-    ap(&mut x, [13, 12], fwd_rotate);
-    ap(&mut x, [9, 8], fwd_rotate);
-    ap(&mut x, [7, 3], fwd_rotate);
-    ap(&mut x, [6, 2], fwd_rotate);
-    ap(&mut x, [10, 11, 14, 15], fwd_t_odd_odd_pre);
-    ap(&mut x, [0, 12, 3, 15], |v| t2x2h(v, 0));
-    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut x, [0, 3, 12, 15], t2x2h_enc);
+    ap!(&mut x, [1, 2, 13, 14], t2x2h_enc);
+    ap!(&mut x, [4, 7, 8, 11], t2x2h_enc);
+    ap!(&mut x, [5, 6, 9, 10], t2x2h_enc);
+    ap!(&mut x, [0, 15], fwd_scale);
+    ap!(&mut x, [1, 14], fwd_scale);
+    ap!(&mut x, [4, 11], fwd_scale);
+    ap!(&mut x, [5, 10], fwd_scale);
+    ap!(&mut x, [13, 12], fwd_rotate);
+    ap!(&mut x, [9, 8], fwd_rotate);
+    ap!(&mut x, [7, 3], fwd_rotate);
+    ap!(&mut x, [6, 2], fwd_rotate);
+    ap!(&mut x, [10, 11, 14, 15], fwd_t_odd_odd_pre);
+    ap!(&mut x, [0, 12, 3, 15], |v| t2x2h(v, 0));
+    ap!(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
     x
 }
 
@@ -1150,7 +1155,8 @@ pub fn inverse_band(
     let mut scratch = BandScratch::default();
     let request = BandRequest { params, kind, channel, mb_w, mb_h, coeffs: &source, rows };
     let start = inverse_band_rows(&request, &mut scratch)?;
-    let band = &scratch.data[start..];
+    let (bx, by) = kind.blocks();
+    let band = &scratch.data[start..][..4 * bx * mb_w * 4 * by * request.rows.len()];
     out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
     Ok(())
 }
@@ -1196,8 +1202,18 @@ impl<'a> MbRows<'a> {
 pub struct BandScratch {
     dc: Vec<i32>,
     cm: Vec<i32>,
-    /// The band's samples, with a halo of a block row above and below.
+    /// The band's samples, with a halo of a block row above and below (and past them,
+    /// whatever a longer band left there: the buffer only grows, so that a band does not
+    /// zero what the band before it truncated).
     pub data: Vec<i32>,
+}
+
+/// Makes `buf` at least `len` long. Bands overwrite every sample they read, so the values a
+/// reused buffer holds do not matter; only a first use (or a longer band) zero-fills.
+pub(super) fn grow(buf: &mut Vec<i32>, len: usize) {
+    if buf.len() < len {
+        buf.resize(len, 0);
+    }
 }
 
 /// One band of one channel to inverse-transform: what [`inverse_band_rows`] needs besides
@@ -1271,7 +1287,7 @@ pub(super) fn stage2_band(request: &BandRequest, halo: usize, dc: &mut Vec<i32>)
     }
     let double = params.scaled && channel > 0;
     let dw = bx * mb_w;
-    dc.resize(dw * by * (s1 - s0), 0);
+    grow(dc, dw * by * (s1 - s0));
     let mut v = [0i32; 16];
     for my in s0..s1 {
         for mx in 0..mb_w {
@@ -1335,7 +1351,7 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     // those rows are still in cache: every POT operation touches samples no other one does,
     // so it only has to come after the PCT of the blocks it reads.
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
-    data.resize(width * 4 * (b1 - b0), 0);
+    grow(data, width * 4 * (b1 - b0));
     let n = scratch_stride(dw);
     let unit = 4 * by;
     let pot = if params.overlap == OverlapMode::None {
@@ -1391,7 +1407,6 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     }
     // The bottom edge of the image (or of a hard tile ending there).
     pot_seams(data, cm, 4 * b1);
-    data.truncate((unit * r1 - 4 * b0) * width);
     Ok((unit * r0 - 4 * b0) * width)
 }
 
