@@ -937,6 +937,46 @@ fn four_rows(quad: &mut [i32], n: usize, count: usize) -> [&mut [i32]; 4] {
     std::array::from_fn(|_| rows.next().unwrap_or_default())
 }
 
+/// The transpose of a 4×4 matrix in raster order: `out[4i + j] = m[4j + i]`. On x86-64 with
+/// SSE2's unpack instructions (part of the architecture's baseline, so in the portable code
+/// too): the compiler made the index-by-index version sixteen scalar loads and stores, which
+/// cost the stage-1 gathers and scatters more than the transform's arithmetic.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn transpose4x4(m: &[i32; 16]) -> [i32; 16] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_loadu_si128, _mm_storeu_si128, _mm_unpackhi_epi32, _mm_unpackhi_epi64, _mm_unpacklo_epi32,
+            _mm_unpacklo_epi64,
+        };
+        let mut out = [0i32; 16];
+        // SAFETY: SSE2 is part of x86-64; each load and store is of 4 values of the 16 of
+        // `m` or `out` (unaligned accesses).
+        unsafe {
+            let row = |i: usize| _mm_loadu_si128(m.as_ptr().add(4 * i).cast::<__m128i>());
+            let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+            let (t0, t1) = (_mm_unpacklo_epi32(r0, r1), _mm_unpacklo_epi32(r2, r3));
+            let (t2, t3) = (_mm_unpackhi_epi32(r0, r1), _mm_unpackhi_epi32(r2, r3));
+            let p = out.as_mut_ptr().cast::<__m128i>();
+            _mm_storeu_si128(p, _mm_unpacklo_epi64(t0, t1));
+            _mm_storeu_si128(p.add(1), _mm_unpackhi_epi64(t0, t1));
+            _mm_storeu_si128(p.add(2), _mm_unpacklo_epi64(t2, t3));
+            _mm_storeu_si128(p.add(3), _mm_unpackhi_epi64(t2, t3));
+        }
+        out
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    transpose4x4_scalar(m)
+}
+
+/// [`transpose4x4`] index by index (its twin on other architectures, and its test's reference).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn transpose4x4_scalar(m: &[i32; 16]) -> [i32; 16] {
+    std::array::from_fn(|k| m[4 * (k % 4) + k / 4])
+}
+
 /// `dst[i][w] = src[4w + i]`: four interleaved streams split, four pixels (a 4×4 transpose,
 /// which the compiler turns into vector shuffles) at a time.
 #[inline(always)]
@@ -947,11 +987,11 @@ fn deinterleave4(src: &[i32], dst: [&mut [i32]; 4]) {
     let dsts = d0[..whole].chunks_exact_mut(4).zip(d1[..whole].chunks_exact_mut(4));
     let dsts = dsts.zip(d2[..whole].chunks_exact_mut(4).zip(d3[..whole].chunks_exact_mut(4)));
     for (s, ((a, b), (c, d))) in src.chunks_exact(16).zip(dsts) {
-        let s: &[i32; 16] = s.try_into().expect("16 values");
-        a.copy_from_slice(&[s[0], s[4], s[8], s[12]]);
-        b.copy_from_slice(&[s[1], s[5], s[9], s[13]]);
-        c.copy_from_slice(&[s[2], s[6], s[10], s[14]]);
-        d.copy_from_slice(&[s[3], s[7], s[11], s[15]]);
+        let t = transpose4x4(s.try_into().expect("16 values"));
+        a.copy_from_slice(&t[0..4]);
+        b.copy_from_slice(&t[4..8]);
+        c.copy_from_slice(&t[8..12]);
+        d.copy_from_slice(&t[12..16]);
     }
     for w in whole..count {
         d0[w] = src[4 * w];
@@ -970,9 +1010,12 @@ fn interleave4(src: [&[i32]; 4], dst: &mut [i32]) {
     let srcs = s0[..whole].chunks_exact(4).zip(s1[..whole].chunks_exact(4));
     let srcs = srcs.zip(s2[..whole].chunks_exact(4).zip(s3[..whole].chunks_exact(4)));
     for (d, ((a, b), (c, e))) in dst.chunks_exact_mut(16).zip(srcs) {
-        d.copy_from_slice(&[
-            a[0], b[0], c[0], e[0], a[1], b[1], c[1], e[1], a[2], b[2], c[2], e[2], a[3], b[3], c[3], e[3],
-        ]);
+        let mut m = [0i32; 16];
+        m[0..4].copy_from_slice(a);
+        m[4..8].copy_from_slice(b);
+        m[8..12].copy_from_slice(c);
+        m[12..16].copy_from_slice(e);
+        d.copy_from_slice(&transpose4x4(&m));
     }
     for w in whole..count {
         dst[4 * w..4 * w + 4].copy_from_slice(&[s0[w], s1[w], s2[w], s3[w]]);
@@ -1381,10 +1424,19 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
             if bx == 4 {
                 // Full planes: a macroblock's four blocks of the block row are 60 consecutive
                 // coefficients, transposed into four consecutive columns of each row.
+                // A 4×15 transpose, as 4×4 ones: coefficients k0 .. k0 + 4 of the four blocks
+                // (the last group overlaps the one before, k 11..15, rather than read past).
                 for mx in 0..mb_w {
                     let quad: &[i32; 60] = mb(mx, my)[hp(4 * jy, 1)..][..60].try_into().expect("four blocks");
-                    for (k, row) in rows[1..].iter_mut().enumerate() {
-                        row[4 * mx..4 * mx + 4].copy_from_slice(&[quad[k], quad[15 + k], quad[30 + k], quad[45 + k]]);
+                    for k0 in [0, 4, 8, 11] {
+                        let mut m = [0i32; 16];
+                        for (b, part) in m.chunks_exact_mut(4).enumerate() {
+                            part.copy_from_slice(&quad[15 * b + k0..][..4]);
+                        }
+                        let t = transpose4x4(&m);
+                        for (row, part) in rows[1 + k0..1 + k0 + 4].iter_mut().zip(t.chunks_exact(4)) {
+                            row[4 * mx..4 * mx + 4].copy_from_slice(part);
+                        }
                     }
                 }
             } else {
@@ -1712,6 +1764,19 @@ mod tests {
                 };
             }
             assert_eq!(a, b, "{dir:?}");
+        }
+    }
+
+    /// The SSE2 transpose is the index-by-index one (and its own inverse).
+    #[test]
+    fn transpose_twins_agree() {
+        let mut r = rng(7);
+        for _ in 0..100 {
+            let m: [i32; 16] = std::array::from_fn(|_| sample(&mut r, 31));
+            let t = transpose4x4(&m);
+            assert_eq!(t, transpose4x4_scalar(&m));
+            assert_eq!((t[1], t[4], t[7], t[13]), (m[4], m[1], m[13], m[7]));
+            assert_eq!(transpose4x4(&t), m);
         }
     }
 
