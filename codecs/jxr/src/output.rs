@@ -632,7 +632,34 @@ impl OutputParams {
     /// [`upsample_chroma_row`]), each at least `width` long; `alpha` the alpha row if the
     /// format has one. Writes [`row_bytes`](Self::row_bytes)`(width)` bytes to `out`: the pixel
     /// format's samples, little-endian, in its channel order, padding channels 0.
+    ///
+    /// On x86-64 with AVX2 (as [`hdrcodec_core::cpu`] allows) the same code runs compiled for
+    /// AVX2, where the colour transform and the sample conversions take eight pixels a step;
+    /// the bytes are the same (`format_row_twins_agree`).
+    #[allow(unsafe_code)]
     pub fn format_row(&self, channels: &[&[i32]], alpha: Option<&[i32]>, width: usize, out: &mut [u8]) -> Result<()> {
+        #[cfg(target_arch = "x86_64")]
+        if hdrcodec_core::cpu::avx2() {
+            // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
+            return unsafe { self.format_row_avx2((channels, alpha), width, out) };
+        }
+        self.format_row_portable((channels, alpha), width, out)
+    }
+
+    /// [`format_row_portable`](Self::format_row_portable) compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn format_row_avx2(&self, rows: RowSources, width: usize, out: &mut [u8]) -> Result<()> {
+        self.format_row_portable(rows, width, out)
+    }
+
+    /// The portable body of [`format_row`](Self::format_row).
+    #[inline(always)]
+    fn format_row_portable(&self, (channels, alpha): RowSources, width: usize, out: &mut [u8]) -> Result<()> {
         let n = self.internal.channels();
         let short = || Error::invalid("output row shorter than the image width");
         if channels.len() < n || channels[..n].iter().any(|c| c.len() < width) {
@@ -666,34 +693,47 @@ impl OutputParams {
             [r, g, b]
         };
         let convert = |x: usize| if gray_to_rgb { grey(x) } else { colour(x) };
-        let (ri, bi) = if self.format.bgr { (2, 0) } else { (0, 2) };
+        let (red, blue) = if self.format.bgr { (2, 0) } else { (0, 2) };
         let nl = u32::from(self.shift);
         let padded = self.format.padded;
-        macro_rules! rgb {
-            ($bytes:expr, $f:expr) => {
-                if gray_to_rgb {
-                    write_rgb::<$bytes>(out, spp, padded, (ri, bi), grey, $f)
-                } else {
-                    write_rgb::<$bytes>(out, spp, padded, (ri, bi), colour, $f)
-                }
-            };
-        }
+        let layout = RgbLayout { spp, padded, red, blue };
+        let yuv = [y, u, v];
 
         match (self.color, self.bit_depth) {
-            (C::Rgb, Bd8) => rgb!(1, |v: i32| [clip8(v >> s)]),
-            (C::Rgb, Bd16) => rgb!(2, |v: i32| ((v >> s).wrapping_shl(nl).clamp(0, 65535) as u16).to_le_bytes()),
-            (C::Rgb, Bd16S) => {
-                rgb!(2, |v: i32| ((v >> s).wrapping_shl(nl).clamp(-32768, 32767) as i16).to_le_bytes())
+            (C::Rgb, Bd8) => write_rgb_runs(out, layout, yuv, bias, gray_to_rgb, |v| clip8(v >> s), |b| [b]),
+            (C::Rgb, Bd16) => write_rgb_runs(
+                out,
+                layout,
+                yuv,
+                bias,
+                gray_to_rgb,
+                |v| (v >> s).wrapping_shl(nl).clamp(0, 65535) as u16,
+                u16::to_le_bytes,
+            ),
+            (C::Rgb, Bd16S) => write_rgb_runs(
+                out,
+                layout,
+                yuv,
+                bias,
+                gray_to_rgb,
+                |v| (v >> s).wrapping_shl(nl).clamp(-32768, 32767) as i16 as u16,
+                u16::to_le_bytes,
+            ),
+            (C::Rgb, Bd16F) => {
+                write_rgb_runs(out, layout, yuv, bias, gray_to_rgb, |v| int_to_half_bits(v >> s), u16::to_le_bytes)
             }
-            (C::Rgb, Bd16F) => rgb!(2, |v: i32| int_to_half_bits(v >> s).to_le_bytes()),
-            (C::Rgb, Bd32S) => rgb!(4, |v: i32| ((v >> s).wrapping_shl(nl)).to_le_bytes()),
+            (C::Rgb, Bd32S) => write_rgb_runs(
+                out,
+                layout,
+                yuv,
+                bias,
+                gray_to_rgb,
+                |v| (v >> s).wrapping_shl(nl) as u32,
+                u32::to_le_bytes,
+            ),
             (C::Rgb, Bd32F) => {
                 let f = |v: i32| int_to_float_bits(v >> s, self.exp_bias, nl);
-                if gray_to_rgb {
-                    write_rgb_runs(out, spp, padded, (ri, bi), grey, f)
-                } else {
-                    write_rgb_runs(out, spp, padded, (ri, bi), colour, f)
-                }
+                write_rgb_runs(out, layout, yuv, bias, gray_to_rgb, f, u32::to_le_bytes)
             }
             (C::Rgb, Bd5 | Bd565 | Bd10) => {
                 let (bits, gbits, shift_rb) = match self.bit_depth {
@@ -784,7 +824,9 @@ impl OutputParams {
         Ok(())
     }
 
-    /// Writes the alpha samples into the last channel of each pixel.
+    /// Writes the alpha samples into the last channel of each pixel (inlined, so that the
+    /// AVX2 twin of `format_row` has its own copy).
+    #[inline(always)]
     fn format_alpha(&self, params: AlphaParams, a: &[i32], spp: usize, out: &mut [u8]) {
         use OutputBitDepth::*;
         let s = Self::shift_amount(params.scaled);
@@ -836,63 +878,65 @@ impl OutputParams {
     }
 }
 
-/// Writes R, G, B (from `px(x)`, converted by `f` to `B` little-endian bytes each) for every
-/// pixel of `out` (`spp` samples of `B` bytes per pixel, R at `order.0`, B at `order.1`, a
-/// padding sample zeroed).
-#[inline(always)]
-fn write_rgb<const B: usize>(
-    out: &mut [u8],
+/// What [`OutputParams::format_row`] formats: the coded channels' rows and the alpha row.
+type RowSources<'a> = (&'a [&'a [i32]], Option<&'a [i32]>);
+
+/// Where R, G and B go in a pixel of `spp` samples: R at sample `red`, G at 1, B at `blue`,
+/// a padding sample after them zeroed when `padded`.
+#[derive(Clone, Copy)]
+struct RgbLayout {
     spp: usize,
     padded: bool,
-    order: (usize, usize),
-    px: impl Fn(usize) -> [i32; 3],
-    f: impl Fn(i32) -> [u8; B],
-) {
-    let (ri, bi) = order;
-    for (x, p) in out.chunks_exact_mut(B * spp).enumerate() {
-        let [r, g, b] = px(x);
-        p[ri * B..ri * B + B].copy_from_slice(&f(r));
-        p[B..2 * B].copy_from_slice(&f(g));
-        p[bi * B..bi * B + B].copy_from_slice(&f(b));
-        if padded {
-            p[3 * B..4 * B].fill(0);
-        }
-    }
+    red: usize,
+    blue: usize,
 }
 
-/// [`write_rgb`] for 4-byte conversions (single-precision output), in runs: the colour
-/// conversion of a run of pixels, then `f` over each channel's run (a loop the compiler can
-/// vectorise when `f` has no branches), then the bytes.
+/// Writes the R, G, B samples of every pixel of `out` from the rows `yuv` (Y, U, V; with
+/// `grey`, Y alone is each of R, G, B), Y biased by `bias`, each channel converted by `f` and
+/// stored as the `B` little-endian bytes `bytes` gives. In runs: the colour transform of a run
+/// of pixels, then `f` over each channel's run, then the bytes; the first two are lane-wise
+/// loops without bounds checks, which the compiler vectorises when `f` has no branches.
 #[inline(always)]
-fn write_rgb_runs(
+fn write_rgb_runs<T: Copy + Default, const B: usize>(
     out: &mut [u8],
-    spp: usize,
-    padded: bool,
-    order: (usize, usize),
-    px: impl Fn(usize) -> [i32; 3],
-    f: impl Fn(i32) -> u32,
+    layout: RgbLayout,
+    yuv: [&[i32]; 3],
+    bias: i32,
+    grey: bool,
+    f: impl Fn(i32) -> T,
+    bytes: impl Fn(T) -> [u8; B],
 ) {
     const RUN: usize = 64;
-    let (ri, bi) = order;
+    let RgbLayout { spp, padded, red, blue } = layout;
     let mut ints = [[0i32; RUN]; 3];
-    let mut bits = [[0u32; RUN]; 3];
-    for (run, chunk) in out.chunks_mut(4 * spp * RUN).enumerate() {
-        let n = chunk.len() / (4 * spp);
+    let mut converted = [[T::default(); RUN]; 3];
+    for (run, chunk) in out.chunks_mut(B * spp * RUN).enumerate() {
+        let n = chunk.len() / (B * spp);
+        let [ys, us, vs] = yuv.map(|plane| plane.get(run * RUN..).map_or(&[][..], |p| &p[..n.min(p.len())]));
         let [r_run, g_run, b_run] = &mut ints;
-        for (i, ((r, g), b)) in r_run.iter_mut().zip(g_run.iter_mut()).zip(b_run.iter_mut()).take(n).enumerate() {
-            [*r, *g, *b] = px(run * RUN + i);
+        let rgb = r_run.iter_mut().zip(g_run.iter_mut()).zip(b_run.iter_mut());
+        if grey {
+            for (((r, g), b), &y) in rgb.zip(ys) {
+                let v = y.wrapping_add(bias);
+                [*r, *g, *b] = [v, v, v];
+            }
+        } else {
+            for ((((r, g), b), &y), (&u, &v)) in rgb.zip(ys).zip(us.iter().zip(vs)) {
+                (*r, *g, *b) = inverse_cc(y.wrapping_add(bias), u, v);
+            }
         }
-        for (src, dst) in ints.iter().zip(&mut bits) {
+        for (src, dst) in ints.iter().zip(&mut converted) {
             for (d, &v) in dst.iter_mut().zip(src) {
                 *d = f(v);
             }
         }
-        for (i, p) in chunk.chunks_exact_mut(4 * spp).enumerate() {
-            p[ri * 4..ri * 4 + 4].copy_from_slice(&bits[0][i].to_le_bytes());
-            p[4..8].copy_from_slice(&bits[1][i].to_le_bytes());
-            p[bi * 4..bi * 4 + 4].copy_from_slice(&bits[2][i].to_le_bytes());
+        let [rs, gs, bs] = &converted;
+        for (p, ((&r, &g), &b)) in chunk.chunks_exact_mut(B * spp).zip(rs.iter().zip(gs).zip(bs)) {
+            p[red * B..red * B + B].copy_from_slice(&bytes(r));
+            p[B..2 * B].copy_from_slice(&bytes(g));
+            p[blue * B..blue * B + B].copy_from_slice(&bytes(b));
             if padded {
-                p[12..16].fill(0);
+                p[3 * B..4 * B].fill(0);
             }
         }
     }
@@ -1542,6 +1586,36 @@ mod tests {
     /// parameter error or rows written without a panic.
     #[test]
     fn every_format_formats_without_panicking() {
+        every_format_combination(|_, _| ());
+    }
+
+    /// The AVX2 twin of `format_row` writes the portable code's bytes, for every pixel
+    /// format, internal format and shift, on rows longer than two runs of the RGB path.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn format_row_twins_agree() {
+        use hdrcodec_core::cpu::{self, CpuLevel};
+        if !cpu::twin_test_can_run(CpuLevel::Avx2, "format_row_twins_agree") {
+            return;
+        }
+        let mut compared = 0;
+        every_format_combination(|p, rows| {
+            let width = rows[0].len();
+            let (mut a, mut b) = (vec![0u8; p.row_bytes(width)], vec![1u8; p.row_bytes(width)]);
+            p.format_row_portable((rows, Some(rows[7])), width, &mut a).unwrap();
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe { p.format_row_avx2((rows, Some(rows[7])), width, &mut b) }.unwrap();
+            assert_eq!(a, b, "{} {:?}", p.format.name, p.internal);
+            compared += 1;
+        });
+        assert!(compared > 150, "{compared} combinations compared");
+    }
+
+    /// Runs `each` on every combination of pixel format, internal format and shift that
+    /// `OutputParams::new` accepts, with 8 rows of 150 samples (extremes and random values of
+    /// every magnitude), then formats the row and converts it to linear f32.
+    fn every_format_combination(mut each: impl FnMut(&OutputParams, &[&[i32]])) {
         let internals = [
             InternalColorFormat::YOnly,
             InternalColorFormat::Yuv420,
@@ -1552,7 +1626,7 @@ mod tests {
             InternalColorFormat::NComponent(8),
         ];
         let mut r = rng(9);
-        let width = 13;
+        let width = 150;
         let rows: Vec<Vec<i32>> = (0..8)
             .map(|_| {
                 (0..width)
@@ -1575,6 +1649,7 @@ mod tests {
                         continue;
                     };
                     made += 1;
+                    each(&p, &refs);
                     let mut out = vec![0u8; p.row_bytes(width)];
                     p.format_row(&refs, Some(refs[7]), width, &mut out).unwrap();
                     if let Ok(n) = p.linear_channels() {

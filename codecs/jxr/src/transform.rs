@@ -33,6 +33,20 @@
 //! HD Photo 1.0 codestreams (sub-version 0) use older overlap operators, a DC-leakage clamp
 //! and no corner operators: [`OperatorSet::HdPhoto`], implemented in the `legacy` submodule.
 
+/// Applies the operator `$f` (a function or closure on an array) to the elements of the
+/// array `$x` (a `&mut`) at the indices `$i`. A macro, so that `$f` is called directly: an
+/// operator passed as `impl Fn` reached the AVX2 twins through a `Fn::call` shim that LLVM
+/// did not inline, compiled without AVX2, its lanes passed through memory.
+macro_rules! ap {
+    ($x:expr, $i:expr, $f:expr) => {{
+        let (x, i) = ($x, $i);
+        let v = $f(i.map(|k: usize| x[k]));
+        for (k, y) in i.into_iter().zip(v) {
+            x[k] = y;
+        }
+    }};
+}
+
 mod legacy;
 pub use legacy::DcLeakage;
 
@@ -509,15 +523,6 @@ fn fwd_scale<T: Lane>([mut a, mut b]: [T; 2]) -> [T; 2] {
     [a, b]
 }
 
-/// Applies `f` to the elements of `x` at indices `i`.
-#[inline(always)]
-fn ap<T: Lane, const N: usize, const M: usize>(x: &mut [T; N], i: [usize; M], f: impl Fn([T; M]) -> [T; M]) {
-    let v = f(i.map(|k| x[k]));
-    for (k, y) in i.into_iter().zip(v) {
-        x[k] = y;
-    }
-}
-
 /// `_jxr_4x4IPCT`: 16 coefficients (DC first) to 16 samples in raster order.
 #[inline(always)]
 fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
@@ -526,14 +531,14 @@ fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     for (i, &v) in c.iter().enumerate() {
         t[INV_PERMUTE[i]] = v;
     }
-    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
-    ap(&mut t, [2, 3, 6, 7], inv_t_odd);
-    ap(&mut t, [8, 12, 9, 13], inv_t_odd);
-    ap(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
-    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap!(&mut t, [2, 3, 6, 7], inv_t_odd);
+    ap!(&mut t, [8, 12, 9, 13], inv_t_odd);
+    ap!(&mut t, [10, 11, 14, 15], inv_t_odd_odd);
+    ap!(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
     t
 }
 
@@ -542,14 +547,14 @@ fn ipct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
 fn pct4x4_g<T: Lane>(c: [T; 16]) -> [T; 16] {
     const FWD_PERMUTE: [usize; 16] = [0, 8, 4, 6, 2, 10, 14, 12, 1, 11, 15, 13, 9, 3, 7, 5];
     let mut t = c;
-    ap(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
-    ap(&mut t, [2, 3, 6, 7], fwd_t_odd);
-    ap(&mut t, [8, 12, 9, 13], fwd_t_odd);
-    ap(&mut t, [10, 11, 14, 15], fwd_t_odd_odd);
+    ap!(&mut t, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut t, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut t, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut t, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut t, [0, 1, 4, 5], |v| t2x2h(v, 1));
+    ap!(&mut t, [2, 3, 6, 7], fwd_t_odd);
+    ap!(&mut t, [8, 12, 9, 13], fwd_t_odd);
+    ap!(&mut t, [10, 11, 14, 15], fwd_t_odd_odd);
     let mut out = t;
     for (i, &v) in t.iter().enumerate() {
         out[FWD_PERMUTE[i]] = v;
@@ -570,23 +575,23 @@ fn pct4x4(c: &mut [i32; 16]) {
 #[inline(always)]
 fn post4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
     let mut x = x;
-    ap(&mut x, [0, 3, 12, 15], |v| t2x2h(v, 0));
-    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
-    ap(&mut x, [13, 12], inv_rotate);
-    ap(&mut x, [9, 8], inv_rotate);
-    ap(&mut x, [7, 3], inv_rotate);
-    ap(&mut x, [6, 2], inv_rotate);
-    ap(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
-    ap(&mut x, [0, 15], inv_scale);
-    ap(&mut x, [1, 14], inv_scale);
-    ap(&mut x, [4, 11], inv_scale);
-    ap(&mut x, [5, 10], inv_scale);
-    ap(&mut x, [0, 3, 12, 15], t2x2h_post);
-    ap(&mut x, [1, 2, 13, 14], t2x2h_post);
-    ap(&mut x, [4, 7, 8, 11], t2x2h_post);
-    ap(&mut x, [5, 6, 9, 10], t2x2h_post);
+    ap!(&mut x, [0, 3, 12, 15], |v| t2x2h(v, 0));
+    ap!(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut x, [13, 12], inv_rotate);
+    ap!(&mut x, [9, 8], inv_rotate);
+    ap!(&mut x, [7, 3], inv_rotate);
+    ap!(&mut x, [6, 2], inv_rotate);
+    ap!(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
+    ap!(&mut x, [0, 15], inv_scale);
+    ap!(&mut x, [1, 14], inv_scale);
+    ap!(&mut x, [4, 11], inv_scale);
+    ap!(&mut x, [5, 10], inv_scale);
+    ap!(&mut x, [0, 3, 12, 15], t2x2h_post);
+    ap!(&mut x, [1, 2, 13, 14], t2x2h_post);
+    ap!(&mut x, [4, 7, 8, 11], t2x2h_post);
+    ap!(&mut x, [5, 6, 9, 10], t2x2h_post);
     x
 }
 
@@ -594,23 +599,23 @@ fn post4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
 #[inline(always)]
 fn pre4x4_g<T: Lane>(x: [T; 16]) -> [T; 16] {
     let mut x = x;
-    ap(&mut x, [0, 3, 12, 15], t2x2h_enc);
-    ap(&mut x, [1, 2, 13, 14], t2x2h_enc);
-    ap(&mut x, [4, 7, 8, 11], t2x2h_enc);
-    ap(&mut x, [5, 6, 9, 10], t2x2h_enc);
-    ap(&mut x, [0, 15], fwd_scale);
-    ap(&mut x, [1, 14], fwd_scale);
-    ap(&mut x, [4, 11], fwd_scale);
-    ap(&mut x, [5, 10], fwd_scale);
-    ap(&mut x, [13, 12], fwd_rotate);
-    ap(&mut x, [9, 8], fwd_rotate);
-    ap(&mut x, [7, 3], fwd_rotate);
-    ap(&mut x, [6, 2], fwd_rotate);
-    ap(&mut x, [10, 11, 14, 15], fwd_t_odd_odd_pre);
-    ap(&mut x, [0, 12, 3, 15], |v| t2x2h(v, 0));
-    ap(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
-    ap(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
-    ap(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
+    ap!(&mut x, [0, 3, 12, 15], t2x2h_enc);
+    ap!(&mut x, [1, 2, 13, 14], t2x2h_enc);
+    ap!(&mut x, [4, 7, 8, 11], t2x2h_enc);
+    ap!(&mut x, [5, 6, 9, 10], t2x2h_enc);
+    ap!(&mut x, [0, 15], fwd_scale);
+    ap!(&mut x, [1, 14], fwd_scale);
+    ap!(&mut x, [4, 11], fwd_scale);
+    ap!(&mut x, [5, 10], fwd_scale);
+    ap!(&mut x, [13, 12], fwd_rotate);
+    ap!(&mut x, [9, 8], fwd_rotate);
+    ap!(&mut x, [7, 3], fwd_rotate);
+    ap!(&mut x, [6, 2], fwd_rotate);
+    ap!(&mut x, [10, 11, 14, 15], fwd_t_odd_odd_pre);
+    ap!(&mut x, [0, 12, 3, 15], |v| t2x2h(v, 0));
+    ap!(&mut x, [1, 2, 13, 14], |v| t2x2h(v, 0));
+    ap!(&mut x, [4, 7, 8, 11], |v| t2x2h(v, 0));
+    ap!(&mut x, [5, 6, 9, 10], |v| t2x2h(v, 0));
     x
 }
 
@@ -932,6 +937,46 @@ fn four_rows(quad: &mut [i32], n: usize, count: usize) -> [&mut [i32]; 4] {
     std::array::from_fn(|_| rows.next().unwrap_or_default())
 }
 
+/// The transpose of a 4×4 matrix in raster order: `out[4i + j] = m[4j + i]`. On x86-64 with
+/// SSE2's unpack instructions (part of the architecture's baseline, so in the portable code
+/// too): the compiler made the index-by-index version sixteen scalar loads and stores, which
+/// cost the stage-1 gathers and scatters more than the transform's arithmetic.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn transpose4x4(m: &[i32; 16]) -> [i32; 16] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_loadu_si128, _mm_storeu_si128, _mm_unpackhi_epi32, _mm_unpackhi_epi64, _mm_unpacklo_epi32,
+            _mm_unpacklo_epi64,
+        };
+        let mut out = [0i32; 16];
+        // SAFETY: SSE2 is part of x86-64; each load and store is of 4 values of the 16 of
+        // `m` or `out` (unaligned accesses).
+        unsafe {
+            let row = |i: usize| _mm_loadu_si128(m.as_ptr().add(4 * i).cast::<__m128i>());
+            let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+            let (t0, t1) = (_mm_unpacklo_epi32(r0, r1), _mm_unpacklo_epi32(r2, r3));
+            let (t2, t3) = (_mm_unpackhi_epi32(r0, r1), _mm_unpackhi_epi32(r2, r3));
+            let p = out.as_mut_ptr().cast::<__m128i>();
+            _mm_storeu_si128(p, _mm_unpacklo_epi64(t0, t1));
+            _mm_storeu_si128(p.add(1), _mm_unpackhi_epi64(t0, t1));
+            _mm_storeu_si128(p.add(2), _mm_unpacklo_epi64(t2, t3));
+            _mm_storeu_si128(p.add(3), _mm_unpackhi_epi64(t2, t3));
+        }
+        out
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    transpose4x4_scalar(m)
+}
+
+/// [`transpose4x4`] index by index (its twin on other architectures, and its test's reference).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn transpose4x4_scalar(m: &[i32; 16]) -> [i32; 16] {
+    std::array::from_fn(|k| m[4 * (k % 4) + k / 4])
+}
+
 /// `dst[i][w] = src[4w + i]`: four interleaved streams split, four pixels (a 4×4 transpose,
 /// which the compiler turns into vector shuffles) at a time.
 #[inline(always)]
@@ -942,11 +987,11 @@ fn deinterleave4(src: &[i32], dst: [&mut [i32]; 4]) {
     let dsts = d0[..whole].chunks_exact_mut(4).zip(d1[..whole].chunks_exact_mut(4));
     let dsts = dsts.zip(d2[..whole].chunks_exact_mut(4).zip(d3[..whole].chunks_exact_mut(4)));
     for (s, ((a, b), (c, d))) in src.chunks_exact(16).zip(dsts) {
-        let s: &[i32; 16] = s.try_into().expect("16 values");
-        a.copy_from_slice(&[s[0], s[4], s[8], s[12]]);
-        b.copy_from_slice(&[s[1], s[5], s[9], s[13]]);
-        c.copy_from_slice(&[s[2], s[6], s[10], s[14]]);
-        d.copy_from_slice(&[s[3], s[7], s[11], s[15]]);
+        let t = transpose4x4(s.try_into().expect("16 values"));
+        a.copy_from_slice(&t[0..4]);
+        b.copy_from_slice(&t[4..8]);
+        c.copy_from_slice(&t[8..12]);
+        d.copy_from_slice(&t[12..16]);
     }
     for w in whole..count {
         d0[w] = src[4 * w];
@@ -965,9 +1010,12 @@ fn interleave4(src: [&[i32]; 4], dst: &mut [i32]) {
     let srcs = s0[..whole].chunks_exact(4).zip(s1[..whole].chunks_exact(4));
     let srcs = srcs.zip(s2[..whole].chunks_exact(4).zip(s3[..whole].chunks_exact(4)));
     for (d, ((a, b), (c, e))) in dst.chunks_exact_mut(16).zip(srcs) {
-        d.copy_from_slice(&[
-            a[0], b[0], c[0], e[0], a[1], b[1], c[1], e[1], a[2], b[2], c[2], e[2], a[3], b[3], c[3], e[3],
-        ]);
+        let mut m = [0i32; 16];
+        m[0..4].copy_from_slice(a);
+        m[4..8].copy_from_slice(b);
+        m[8..12].copy_from_slice(c);
+        m[12..16].copy_from_slice(e);
+        d.copy_from_slice(&transpose4x4(&m));
     }
     for w in whole..count {
         dst[4 * w..4 * w + 4].copy_from_slice(&[s0[w], s1[w], s2[w], s3[w]]);
@@ -1150,7 +1198,8 @@ pub fn inverse_band(
     let mut scratch = BandScratch::default();
     let request = BandRequest { params, kind, channel, mb_w, mb_h, coeffs: &source, rows };
     let start = inverse_band_rows(&request, &mut scratch)?;
-    let band = &scratch.data[start..];
+    let (bx, by) = kind.blocks();
+    let band = &scratch.data[start..][..4 * bx * mb_w * 4 * by * request.rows.len()];
     out.get_mut(..band.len()).ok_or_else(|| Error::invalid("band output buffer too small"))?.copy_from_slice(band);
     Ok(())
 }
@@ -1196,8 +1245,18 @@ impl<'a> MbRows<'a> {
 pub struct BandScratch {
     dc: Vec<i32>,
     cm: Vec<i32>,
-    /// The band's samples, with a halo of a block row above and below.
+    /// The band's samples, with a halo of a block row above and below (and past them,
+    /// whatever a longer band left there: the buffer only grows, so that a band does not
+    /// zero what the band before it truncated).
     pub data: Vec<i32>,
+}
+
+/// Makes `buf` at least `len` long. Bands overwrite every sample they read, so the values a
+/// reused buffer holds do not matter; only a first use (or a longer band) zero-fills.
+pub(super) fn grow(buf: &mut Vec<i32>, len: usize) {
+    if buf.len() < len {
+        buf.resize(len, 0);
+    }
 }
 
 /// One band of one channel to inverse-transform: what [`inverse_band_rows`] needs besides
@@ -1271,7 +1330,7 @@ pub(super) fn stage2_band(request: &BandRequest, halo: usize, dc: &mut Vec<i32>)
     }
     let double = params.scaled && channel > 0;
     let dw = bx * mb_w;
-    dc.resize(dw * by * (s1 - s0), 0);
+    grow(dc, dw * by * (s1 - s0));
     let mut v = [0i32; 16];
     for my in s0..s1 {
         for mx in 0..mb_w {
@@ -1335,7 +1394,7 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     // those rows are still in cache: every POT operation touches samples no other one does,
     // so it only has to come after the PCT of the blocks it reads.
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
-    data.resize(width * 4 * (b1 - b0), 0);
+    grow(data, width * 4 * (b1 - b0));
     let n = scratch_stride(dw);
     let unit = 4 * by;
     let pot = if params.overlap == OverlapMode::None {
@@ -1365,10 +1424,19 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
             if bx == 4 {
                 // Full planes: a macroblock's four blocks of the block row are 60 consecutive
                 // coefficients, transposed into four consecutive columns of each row.
+                // A 4×15 transpose, as 4×4 ones: coefficients k0 .. k0 + 4 of the four blocks
+                // (the last group overlaps the one before, k 11..15, rather than read past).
                 for mx in 0..mb_w {
                     let quad: &[i32; 60] = mb(mx, my)[hp(4 * jy, 1)..][..60].try_into().expect("four blocks");
-                    for (k, row) in rows[1..].iter_mut().enumerate() {
-                        row[4 * mx..4 * mx + 4].copy_from_slice(&[quad[k], quad[15 + k], quad[30 + k], quad[45 + k]]);
+                    for k0 in [0, 4, 8, 11] {
+                        let mut m = [0i32; 16];
+                        for (b, part) in m.chunks_exact_mut(4).enumerate() {
+                            part.copy_from_slice(&quad[15 * b + k0..][..4]);
+                        }
+                        let t = transpose4x4(&m);
+                        for (row, part) in rows[1 + k0..1 + k0 + 4].iter_mut().zip(t.chunks_exact(4)) {
+                            row[4 * mx..4 * mx + 4].copy_from_slice(part);
+                        }
                     }
                 }
             } else {
@@ -1391,7 +1459,6 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     }
     // The bottom edge of the image (or of a hard tile ending there).
     pot_seams(data, cm, 4 * b1);
-    data.truncate((unit * r1 - 4 * b0) * width);
     Ok((unit * r0 - 4 * b0) * width)
 }
 
@@ -1697,6 +1764,19 @@ mod tests {
                 };
             }
             assert_eq!(a, b, "{dir:?}");
+        }
+    }
+
+    /// The SSE2 transpose is the index-by-index one (and its own inverse).
+    #[test]
+    fn transpose_twins_agree() {
+        let mut r = rng(7);
+        for _ in 0..100 {
+            let m: [i32; 16] = std::array::from_fn(|_| sample(&mut r, 31));
+            let t = transpose4x4(&m);
+            assert_eq!(t, transpose4x4_scalar(&m));
+            assert_eq!((t[1], t[4], t[7], t[13]), (m[4], m[1], m[13], m[7]));
+            assert_eq!(transpose4x4(&t), m);
         }
     }
 

@@ -172,19 +172,19 @@ fn post4x4_hdp<T: Lane>(x: [T; 16]) -> [T; 16] {
     let mut x = x;
     // The four groups of samples symmetric about the window's centre.
     for g in GROUPS {
-        super::ap(&mut x, g, |v| t2x2h(v, 0));
+        ap!(&mut x, g, |v| t2x2h(v, 0));
     }
-    super::ap(&mut x, [13, 12], inv_rotate);
-    super::ap(&mut x, [9, 8], inv_rotate);
-    super::ap(&mut x, [7, 3], inv_rotate);
-    super::ap(&mut x, [6, 2], inv_rotate);
-    super::ap(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
-    super::ap(&mut x, [0, 15], scale_hdp);
-    super::ap(&mut x, [1, 14], scale_hdp);
-    super::ap(&mut x, [4, 11], scale_hdp);
-    super::ap(&mut x, [5, 10], scale_hdp);
+    ap!(&mut x, [13, 12], inv_rotate);
+    ap!(&mut x, [9, 8], inv_rotate);
+    ap!(&mut x, [7, 3], inv_rotate);
+    ap!(&mut x, [6, 2], inv_rotate);
+    ap!(&mut x, [10, 11, 14, 15], inv_t_odd_odd_post);
+    ap!(&mut x, [0, 15], scale_hdp);
+    ap!(&mut x, [1, 14], scale_hdp);
+    ap!(&mut x, [4, 11], scale_hdp);
+    ap!(&mut x, [5, 10], scale_hdp);
     for g in GROUPS {
-        super::ap(&mut x, g, t2x2h_post);
+        ap!(&mut x, g, t2x2h_post);
     }
     x
 }
@@ -417,7 +417,7 @@ pub(super) fn inverse_band(request: &BandRequest, leak: &DcLeakage, scratch: &mu
 
     // Stage-1 PCT of block rows b0..b1 (the band and a block row of halo each side).
     let (b0, b1) = ((by * r0).saturating_sub(1), (by * r1 + 1).min(by * mb_h));
-    data.resize(width * 4 * (b1 - b0), 0);
+    super::grow(data, width * 4 * (b1 - b0));
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
         for xb in 0..dw {
@@ -444,7 +444,6 @@ pub(super) fn inverse_band(request: &BandRequest, leak: &DcLeakage, scratch: &mu
         let mut p = Rows { data, stride: width, y_base: 4 * b0 };
         pot_region(&stage1, &mut p, whole(4 * bx, unit), &keys);
     }
-    data.truncate((unit * r1 - 4 * b0) * width);
     Ok((unit * r0 - 4 * b0) * width)
 }
 
