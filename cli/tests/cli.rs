@@ -676,8 +676,30 @@ fn video_encode_info_decode_round_trip() {
     eprintln!("257x129 corpus frame, quality 80, speed 10: PU21-PSNR {psnr:.2} dB");
     assert!(psnr > 35.0, "{c}");
 
+    // The same frames in MP4: the container follows the extension, and info reads it alike.
+    let mp4 = dir.join("clip.mp4");
+    ok(&hdrcodec(&[&"video", &"encode", &frame, &frame, &frame, &mp4, &"--quality", &"80", &"--speed", &"10"]));
+    let m = json(&hdrcodec(&[&"info", &mp4, &"--json"]));
+    assert_eq!((m["container"].as_str(), m["frames"].as_u64()), (Some("mp4"), Some(3)), "{m}");
+    assert_eq!(m["color_description"], v["color_description"], "{m}");
+    assert_eq!(m["hdr10"]["content_light_level"], v["hdr10"]["content_light_level"], "{m}");
+    // The mdcv box counts in 0.00002 (chromaticity) and 0.0001 cd/m², AV1's metadata OBU in
+    // 2^-16 and 2^-14 (minimum) steps: the same display within the coarser of the two.
+    let (box_md, obu_md) = (&m["hdr10"]["mastering_display"], &v["hdr10"]["mastering_display"]);
+    let numbers = |j: &serde_json::Value| -> Vec<f64> {
+        let p = &j["primaries"];
+        [&p[0][0], &p[0][1], &p[1][0], &p[1][1], &p[2][0], &p[2][1], &j["white"][0], &j["white"][1]]
+            .into_iter()
+            .chain([&j["max_luminance"], &j["min_luminance"]])
+            .map(|n| n.as_f64().unwrap())
+            .collect()
+    };
+    for (a, b) in numbers(box_md).into_iter().zip(numbers(obu_md)) {
+        assert!((a - b).abs() <= 1e-4, "mdcv {box_md} against the bitstream's {obu_md}");
+    }
+
     // Bad input: one stderr line, no output file.
-    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mp4")], &dir, ".ivf");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mkv")], &dir, ".ivf or .mp4");
     must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq, hlg or mantiuk");
     let other = corpus().join("sun-sky.exr");
     must_fail(&[&"video", &"encode", &frame, &other, &dir.join("y.ivf")], &dir, "512x256");
