@@ -98,7 +98,7 @@ pub struct Coefficients {
 /// Checks what can be checked before allocating: the size against the limits, and that the
 /// codestream is long enough for its macroblocks (each takes at least one bit, its DC flags:
 /// a short stream declaring a large image is truncated, whatever the limits allow).
-fn check_size(cs: &Codestream, data: &[u8], options: &DecodeOptions) -> Result<()> {
+pub(crate) fn check_size(cs: &Codestream, data: &[u8], options: &DecodeOptions) -> Result<()> {
     options.limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
     let mbs = u64::from(cs.image.mb_width) * u64::from(cs.image.mb_height);
     if mbs > data.len() as u64 * 8 {

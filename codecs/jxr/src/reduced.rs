@@ -318,13 +318,26 @@ impl<'a> Rows<'a> {
 
 /// The output columns (or rows) of a reduced decode: for each, the pixel it samples in
 /// extended (codestream) coordinates; and jxrlib's `cWidth`, the end of the columns it
-/// processes (which the chroma interpolation's right edge depends on).
-fn sample_positions(start: u32, count: u32, scale: u32, margin: u32, inscribed: u32, ext: u32) -> (Vec<usize>, usize) {
+/// processes (which the chroma interpolation's right edge depends on). `coded` is the coded
+/// width (or height) in pixels, 16 per macroblock: sampling at or past it is refused before the
+/// positions are allocated, since a damaged header can ask for billions of them.
+fn sample_positions(
+    start: u32,
+    count: u32,
+    scale: u32,
+    margin: u32,
+    inscribed: u32,
+    ext: u32,
+    coded: usize,
+) -> Result<(Vec<usize>, usize)> {
     // jxrlib: the region's first pixel in extended coordinates, rounded up to the scale.
     let roi0 = start as usize * scale as usize + margin as usize;
     let first = roi0.div_ceil(scale as usize) * scale as usize;
-    let end = (roi0 + count as usize * scale as usize).min((inscribed + ext) as usize);
-    ((0..count as usize).map(|k| first + k * scale as usize).collect(), end)
+    if count > 0 && first + (count as usize - 1) * scale as usize >= coded {
+        return Err(Error::unsupported("JPEG XR: a reduced decode sampling past the coded image (windowing)"));
+    }
+    let end = (roi0 + count as usize * scale as usize).min(inscribed as usize + ext as usize);
+    Ok(((0..count as usize).map(|k| first + k * scale as usize).collect(), end))
 }
 
 fn decode_request(
@@ -335,6 +348,9 @@ fn decode_request(
     raw_rows: &mut dyn FnMut(usize, &[u8]),
 ) -> Result<()> {
     let setup = Setup::new(data, sink.is_some(), request.resolution != Resolution::Full)?;
+    // The image's size against the limits and the codestream's length, before anything sized
+    // by the header is allocated (a reduced or windowed decode is no exception).
+    crate::decoder::check_size(&setup.cs, setup.data, options)?;
     let img = &setup.cs.image;
     let (ow, oh) = output_size(img.width, img.height, request)?;
     let region = request.region.unwrap_or(Rect { x: 0, y: 0, width: ow, height: oh });
@@ -476,11 +492,8 @@ fn decode_reduced(
     let scale = resolution.scale();
     let (mb_w, mb_h) = (img.mb_width as usize, img.mb_height as usize);
     let [top, left, bottom, right] = img.margins;
-    let (xs, c_width) = sample_positions(region.x, region.width, scale, left, img.width, left + right);
-    let (ys, _) = sample_positions(region.y, region.height, scale, top, img.height, top + bottom);
-    if xs.last().is_some_and(|&x| x >= 16 * mb_w) || ys.last().is_some_and(|&y| y >= 16 * mb_h) {
-        return Err(Error::unsupported("JPEG XR: a reduced decode sampling past the coded image (windowing)"));
-    }
+    let (xs, c_width) = sample_positions(region.x, region.width, scale, left, img.width, left + right, 16 * mb_w)?;
+    let (ys, _) = sample_positions(region.y, region.height, scale, top, img.height, top + bottom, 16 * mb_h)?;
     // jxrlib has a reduced path for CMYK, which this does not implement (yet); CMYKDIRECT and
     // YCC output it asserts against.
     if matches!(out.color, C::Cmyk | C::CmykDirect | C::Yuv420 | C::Yuv422) {
