@@ -383,6 +383,49 @@ fn bench_lists_the_outside_peers_as_not_installed_without_them() {
     }
 }
 
+#[cfg(unix)]
+#[test]
+fn a_failing_peer_tool_makes_an_error_row_with_its_message() {
+    use std::os::unix::fs::PermissionsExt;
+    // Stand-ins on PATH that fail as cjxl does (a banner line, then the error) or exit with
+    // success without writing the file.
+    let bin = common::temp_dir("cli-bench-failing-tools");
+    let stub = |name: &str, body: &str| {
+        let path = bin.join(name);
+        std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    };
+    stub("cjxl", "echo 'JPEG XL encoder v0.0.0' >&2; echo 'Reading image data failed.' >&2; exit 1");
+    ["djxl", "avifenc", "avifdec"].into_iter().for_each(|name| stub(name, "exit 0"));
+    let child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--quick", "--filter", "jxl(cjxl):d1,avif(avifenc):10bit-qp10", "--json"])
+        .env("PATH", &bin)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let v = json(&child.wait_with_output().unwrap());
+    let rows = v["rows"].as_array().unwrap();
+    assert!(!rows.is_empty());
+    for r in rows {
+        let e = r["error"].as_str().unwrap_or_else(|| panic!("no error: {r}"));
+        if r["config"].as_str().unwrap().starts_with("jxl") {
+            let expected = "cjxl failed (exit status: 1): JPEG XL encoder v0.0.0 | Reading image data failed.";
+            assert!(e.ends_with(expected), "{e}");
+        } else {
+            assert!(e.ends_with("avifenc wrote no file: no message"), "{r}");
+        }
+    }
+    // The failed rows left no temporary directory behind (`hdrcodec-bench-<peer>-<pid>-<n>`).
+    let left: Vec<String> = std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .filter_map(|e| Some(e.ok()?.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.starts_with("hdrcodec-bench-") && n.contains(&format!("-{pid}-")))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
 #[test]
 fn bench_has_jpeg_xl_avif_and_openexr_peer_rows() {
     let tools: Option<Vec<PathBuf>> = PEER_FAMILIES.iter().flat_map(|f| f.1.iter()).map(|t| common::tool(t)).collect();
