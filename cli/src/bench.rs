@@ -19,10 +19,15 @@
 //!
 //! The gain-map JPEG has peer rows of the same kind ([`Encoder::Libultrahdr`]): libultrahdr 1.4
 //! (through the reference venv's imagecodecs) writes the file, our decoder reads it.
+//!
+//! JPEG XL (`cjxl`/`djxl`), AVIF 10- and 12-bit PQ (`avifenc`/`avifdec`) and OpenEXR through
+//! OpenImageIO (`oiiotool`) are peers of the same kind ([`Encoder::Cjxl`], [`Encoder::Avifenc`],
+//! [`Encoder::Oiiotool`]; [`crate::peers`]): outside programs, "not installed" without them.
 
 use crate::equal_quality;
 use crate::jxrlib;
 use crate::libultrahdr;
+use crate::peers;
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
@@ -64,6 +69,28 @@ pub enum Encoder {
     /// Python process (interpreter start included; no pool figure); the configuration's codec
     /// decodes the file; no peer decode (benches/ultrahdr_decode.rs times libultrahdr's).
     Libultrahdr(u8),
+    /// libjxl's `cjxl` at this distance (`-d`; `"0"`: lossless) from linear PFM, `djxl` back to
+    /// PFM ([`peers::jxl`]). Encode and decode speeds are the wall times of those processes
+    /// (one thread; no pool figures); the configuration's codec (PFM) reads djxl's output.
+    Cjxl(&'static str),
+    /// libavif's `avifenc` at `depth` bits (10 or 12) and `quantizer` (0-63) from a 16-bit PQ
+    /// PNG in BT.2020, `avifdec` back to a 16-bit PNG ([`peers::avif`]). Encode and decode
+    /// speeds are the wall times of those processes (one thread; no pool figures).
+    Avifenc {
+        /// Bits per sample of the AV1 stream.
+        depth: u8,
+        /// `--min` and `--max` quantizer.
+        quantizer: u8,
+    },
+    /// OpenImageIO's `oiiotool` re-writing the input (our uncompressed float EXR) with this
+    /// OpenEXR compression and pixel type ([`peers::oiio`]): the encode speed is that process's
+    /// wall time; the configuration's codec decodes the file; oiiotool decoding it is the peer.
+    Oiiotool {
+        /// OpenEXR's compression name.
+        compression: &'static str,
+        /// `half` or `float`.
+        pixel: &'static str,
+    },
 }
 
 impl Encoder {
@@ -73,6 +100,7 @@ impl Encoder {
             Encoder::Hdrcodec => None,
             Encoder::Jxrlib(_) => Some(format!("jxrlib {} (outside program)", jxrlib::ENCODER)),
             Encoder::Libultrahdr(_) => Some("libultrahdr 1.4 ultrahdr_encode (imagecodecs, outside program)".into()),
+            e => peers::describe(e).0,
         }
     }
 }
@@ -88,6 +116,10 @@ const JXRLIB_SETTINGS: [(&str, &[&str]); 8] = [
     ("q0.4", &["-q", "0.4"]),
     ("q0.3", &["-q", "0.3"]),
 ];
+
+/// The OpenEXR rows written by oiiotool: compression and pixel type.
+const OIIOTOOL_SETTINGS: [(&str, &str); 6] =
+    [("zip", "half"), ("piz", "half"), ("b44", "half"), ("dwaa", "half"), ("zip", "float"), ("piz", "float")];
 
 /// Every configuration the bench runs, for the codecs present in `registry`. Each codec adds
 /// its rows here, **one line per codec**.
@@ -151,6 +183,30 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
         for (variant, args) in JXRLIB_SETTINGS {
             let (label, settings) = (format!("jxr(jxrlib-enc):{variant}"), EncodeSettings::default());
             let (encoder, lossless) = (Encoder::Jxrlib(args), args.is_empty());
+            out.push(Config { label, codec: codec.clone(), settings, encoder, lossless });
+        }
+    }
+    // Outside peers that are not formats of the family (see `crate::peers`): JPEG XL (lossless
+    // and a sweep of distances; our PFM decoder reads djxl's output) and AVIF PQ at 10 and 12
+    // bits (a sweep of quantizers).
+    if let Ok(codec) = registry.by_name("pfm") {
+        for d in ["0", "0.1", "0.25", "0.5", "1", "2", "4"] {
+            let label = if d == "0" { "jxl(cjxl):lossless".to_string() } else { format!("jxl(cjxl):d{d}") };
+            let (encoder, lossless, settings) = (Encoder::Cjxl(d), d == "0", EncodeSettings::default());
+            out.push(Config { label, codec: codec.clone(), settings, encoder, lossless });
+        }
+        for (depth, quantizer) in [10, 12].into_iter().flat_map(|d| [2, 10, 20, 30, 40].map(|q| (d, q))) {
+            let (label, settings) = (format!("avif(avifenc):{depth}bit-qp{quantizer}"), EncodeSettings::default());
+            let encoder = Encoder::Avifenc { depth, quantizer };
+            out.push(Config { label, codec: codec.clone(), settings, encoder, lossless: false });
+        }
+    }
+    // OpenEXR written by OpenImageIO (OpenEXR's C++ library) as the peer of the `exr:` rows.
+    if let Ok(codec) = registry.by_name("exr") {
+        for (compression, pixel) in OIIOTOOL_SETTINGS {
+            let (label, settings) = (format!("exr(oiiotool):{compression}-{pixel}"), EncodeSettings::default());
+            let encoder = Encoder::Oiiotool { compression, pixel };
+            let lossless = ["zip", "piz"].contains(&compression);
             out.push(Config { label, codec: codec.clone(), settings, encoder, lossless });
         }
     }
@@ -283,6 +339,10 @@ pub struct Row {
     /// The encoder, when it is not our codec's (then the encode speeds are that program's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub encoder: Option<String>,
+    /// The decoder, when it is not our codec's (JPEG XL, AVIF: then the decode speeds are that
+    /// program's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decoder: Option<String>,
     /// The peer's decode of the same file, if the row has one (JPEG XR: jxrlib's JxrDecApp).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peer: Option<PeerDecode>,
@@ -313,6 +373,7 @@ impl Row {
             encode_mps_all: 0.0,
             decode_mps_all: 0.0,
             encoder: None,
+            decoder: None,
             peer: None,
             notes: Vec::new(),
             error: None,
@@ -320,7 +381,7 @@ impl Row {
     }
 
     /// The file's size and its quality against the input.
-    fn set_size_and_quality(&mut self, bytes: usize, pixels: usize, cmp: &metrics::Comparison) {
+    pub(crate) fn set_size_and_quality(&mut self, bytes: usize, pixels: usize, cmp: &metrics::Comparison) {
         self.bytes = bytes;
         self.bpp = bytes as f64 * 8.0 / pixels as f64;
         // A file in other units than the input (JPEG XR's scRGB: 80 nits per unit) that
@@ -386,6 +447,9 @@ pub struct Summary {
     /// The encoder, when it is not our codec's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub encoder: Option<String>,
+    /// The decoder, when it is not our codec's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decoder: Option<String>,
     /// The peer's figures over the rows that have one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peer: Option<PeerSummary>,
@@ -421,7 +485,10 @@ const TIME_BUDGET: Duration = Duration::from_secs(2);
 
 /// The median of up to `runs` timings of `f` (which must succeed every time; at least one run,
 /// fewer than `runs` once [`TIME_BUDGET`] is spent), and its last result.
-fn timed<T>(runs: usize, mut f: impl FnMut() -> hdrcodec::core::Result<T>) -> hdrcodec::core::Result<(Duration, T)> {
+pub(crate) fn timed<T>(
+    runs: usize,
+    mut f: impl FnMut() -> hdrcodec::core::Result<T>,
+) -> hdrcodec::core::Result<(Duration, T)> {
     let mut times = Vec::with_capacity(runs);
     let mut last = None;
     let start = Instant::now();
@@ -438,7 +505,7 @@ fn timed<T>(runs: usize, mut f: impl FnMut() -> hdrcodec::core::Result<T>) -> hd
     Ok((times[times.len() / 2], last.expect("at least one run")))
 }
 
-fn mps(pixels: usize, t: Duration) -> f64 {
+pub(crate) fn mps(pixels: usize, t: Duration) -> f64 {
     pixels as f64 / 1e6 / t.as_secs_f64().max(1e-9)
 }
 
@@ -447,6 +514,11 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
     let pixels = input.image.pixel_count();
     let mut row = Row::blank(config.label.clone(), input.name.clone(), pixels, config.lossless);
     row.encoder = config.encoder.describe();
+    if peers::handles(config.encoder) {
+        row.decoder = peers::describe(config.encoder).1;
+        peers::measure(config, input, runs, pool, &mut row);
+        return row;
+    }
     if let Encoder::Jxrlib(args) = config.encoder {
         match jxrlib::tool(jxrlib::ENCODER) {
             None => {
@@ -531,7 +603,7 @@ fn peer_decode(
 }
 
 /// How a row whose encoder program is missing starts its error.
-const NOT_INSTALLED: &str = "not installed";
+pub(crate) const NOT_INSTALLED: &str = "not installed";
 
 /// A JPEG XR row ([`Encoder::Jxrlib`]): JxrEncApp (`enc`, with `args`) writes the input as a
 /// `.jxr` file in a temporary directory (removed on return, also on failure); our codec decodes
@@ -596,7 +668,7 @@ fn measure_jxrlib(
 
 /// Our decoder (`config`'s codec) on `bytes`, a file an outside encoder wrote in `enc_t`: the
 /// row's size, quality against the input, and speeds (the encoder's on one thread only).
-fn decode_peer_file(
+pub(crate) fn decode_peer_file(
     config: &Config,
     bytes: &[u8],
     input: &Input,
@@ -680,6 +752,7 @@ fn summarize(label: &str, rows: &[&Row]) -> Summary {
         encode_mps_all: speed(&|r| r.encode_mps_all),
         decode_mps_all: speed(&|r| r.decode_mps_all),
         encoder: rows.first().and_then(|r| r.encoder.clone()),
+        decoder: rows.first().and_then(|r| r.decoder.clone()),
         peer: peer_summary(&ok),
         unavailable: rows
             .first()
@@ -842,6 +915,7 @@ pub fn table(report: &Report) -> String {
             n = report.threads
         ));
     }
+    s.push_str(&peers::table_notes(report));
     for k in &report.skipped {
         s.push_str(&format!("skipped {}: {}\n", k.file, k.reason));
     }

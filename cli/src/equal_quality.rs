@@ -23,6 +23,11 @@ pub const COMPARISONS: &[(&str, &str)] = &[
     ("jxr:", "bc6h:effort2"),
     // Issue 13: our gain-map JPEG at least as small as libultrahdr's at equal PU21-PSNR.
     ("ultrahdr:", "ultrahdr(libultrahdr):"),
+    // Issue 15: our JPEG XR against the outside peers that are not in the family (ratios above
+    // 1: the peer needs fewer bytes at our PU21-PSNR).
+    ("jxr:", "jxl(cjxl):"),
+    ("jxr:", "avif(avifenc):10bit"),
+    ("jxr:", "avif(avifenc):12bit"),
 ];
 
 /// One subject row (or reference point) placed on the other side's curve.

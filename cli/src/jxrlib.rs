@@ -181,9 +181,13 @@ pub fn scrgb_half_tiff(image: &HdrImage) -> Result<(Vec<u8>, usize)> {
     Ok((float_tiff(image.width(), image.height(), channels as u16, 16, &samples)?, clipped))
 }
 
+/// The most of an outside program's message an error repeats, in characters.
+pub const MESSAGE_CHARS: usize = 400;
+
 /// Runs `program` with `args` and returns its wall time (process start included). A failure,
-/// or an exit status of success without the expected `output` file, is an error with the first
-/// line the program printed.
+/// or an exit status of success without the expected `output` file, is an error with what the
+/// program printed (stderr, then stdout; its lines joined, at most [`MESSAGE_CHARS`] characters:
+/// cjxl prints a banner line before its error).
 pub fn run(program: &Path, args: &[&std::ffi::OsStr], output: &Path) -> Result<Duration> {
     let name = program.file_name().map_or_else(|| program.display().to_string(), |n| n.to_string_lossy().into());
     let _ = std::fs::remove_file(output);
@@ -196,9 +200,14 @@ pub fn run(program: &Path, args: &[&std::ffi::OsStr], output: &Path) -> Result<D
     let made = std::fs::metadata(output).is_ok_and(|m| m.len() > 0);
     if !out.status.success() || !made {
         let text = String::from_utf8_lossy(&out.stderr).into_owned() + &String::from_utf8_lossy(&out.stdout);
-        let first = text.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("no message");
+        let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        let mut message = if lines.is_empty() { "no message".to_string() } else { lines.join(" | ") };
+        if let Some((cut, _)) = message.char_indices().nth(MESSAGE_CHARS) {
+            message.truncate(cut);
+            message.push_str(" ...");
+        }
         let what = if out.status.success() { "wrote no file".to_string() } else { format!("failed ({})", out.status) };
-        return Err(Error::Io(std::io::Error::other(format!("{name} {what}: {first}"))));
+        return Err(Error::Io(std::io::Error::other(format!("{name} {what}: {message}"))));
     }
     Ok(took)
 }

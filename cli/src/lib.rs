@@ -11,4 +11,5 @@ pub mod corpus;
 pub mod equal_quality;
 pub mod jxrlib;
 pub mod libultrahdr;
+pub mod peers;
 pub mod plot;

@@ -321,6 +321,215 @@ fn bench_has_jpeg_xr_rows_encoded_by_jxrlib_and_decoded_by_us() {
     assert!(table.contains("jxr(jxrlib-enc) rows: jxrlib's JxrEncApp writes the file"), "{table}");
 }
 
+/// The outside peers' row families (issue 15): label prefix, the programs each needs and the
+/// "not installed" message without them.
+const PEER_FAMILIES: [(&str, &[&str], &str); 3] = [
+    ("jxl(cjxl):", &["cjxl", "djxl"], "not installed: cjxl and djxl (Debian libjxl-tools) are not on PATH"),
+    (
+        "avif(avifenc):",
+        &["avifenc", "avifdec"],
+        "not installed: avifenc and avifdec (Debian libavif-bin) are not on PATH",
+    ),
+    ("exr(oiiotool):", &["oiiotool"], "not installed: oiiotool (Debian openimageio-tools) is not on PATH"),
+];
+/// Every peer row's label: JPEG XL lossless and at a sweep of distances, AVIF at 10 and 12 bits
+/// and a sweep of quantizers, OpenEXR written by oiiotool.
+const PEER_ROWS: [&str; 23] = [
+    "jxl(cjxl):lossless",
+    "jxl(cjxl):d0.1",
+    "jxl(cjxl):d0.25",
+    "jxl(cjxl):d0.5",
+    "jxl(cjxl):d1",
+    "jxl(cjxl):d2",
+    "jxl(cjxl):d4",
+    "avif(avifenc):10bit-qp2",
+    "avif(avifenc):10bit-qp10",
+    "avif(avifenc):10bit-qp20",
+    "avif(avifenc):10bit-qp30",
+    "avif(avifenc):10bit-qp40",
+    "avif(avifenc):12bit-qp2",
+    "avif(avifenc):12bit-qp10",
+    "avif(avifenc):12bit-qp20",
+    "avif(avifenc):12bit-qp30",
+    "avif(avifenc):12bit-qp40",
+    "exr(oiiotool):zip-half",
+    "exr(oiiotool):piz-half",
+    "exr(oiiotool):b44-half",
+    "exr(oiiotool):dwaa-half",
+    "exr(oiiotool):zip-float",
+    "exr(oiiotool):piz-float",
+];
+/// `--filter` for every peer row.
+const PEER_FILTER: &str = "jxl(cjxl),avif(avifenc),exr(oiiotool)";
+
+#[test]
+fn bench_lists_the_outside_peers_as_not_installed_without_them() {
+    let bench =
+        |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args).env("PATH", "").output().unwrap();
+    let v = json(&bench(&["bench", "--quick", "--filter", PEER_FILTER, "--json"]));
+    assert_eq!(labels(&v["rows"]), PEER_ROWS, "{v}");
+    for r in v["rows"].as_array().unwrap() {
+        let label = r["config"].as_str().unwrap();
+        let (_, _, why) = PEER_FAMILIES.iter().find(|f| label.starts_with(f.0)).unwrap();
+        assert_eq!(r["error"].as_str(), Some(*why), "{r}");
+    }
+    for s in v["summary"].as_array().unwrap() {
+        assert_eq!((s["images"].as_u64(), s["unavailable"].is_string()), (Some(0), true), "{s}");
+    }
+    let table = ok(&bench(&["bench", "--quick", "--filter", PEER_FILTER]));
+    for label in PEER_ROWS {
+        let line = table.lines().find(|l| l.starts_with(label)).unwrap_or_else(|| panic!("no {label} in {table}"));
+        assert!(line.contains("not installed: "), "{line}");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_failing_peer_tool_makes_an_error_row_with_its_message() {
+    use std::os::unix::fs::PermissionsExt;
+    // Stand-ins on PATH that fail as cjxl does (a banner line, then the error) or exit with
+    // success without writing the file.
+    let bin = common::temp_dir("cli-bench-failing-tools");
+    let stub = |name: &str, body: &str| {
+        let path = bin.join(name);
+        std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    };
+    stub("cjxl", "echo 'JPEG XL encoder v0.0.0' >&2; echo 'Reading image data failed.' >&2; exit 1");
+    ["djxl", "avifenc", "avifdec"].into_iter().for_each(|name| stub(name, "exit 0"));
+    let child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--quick", "--filter", "jxl(cjxl):d1,avif(avifenc):10bit-qp10", "--json"])
+        .env("PATH", &bin)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let v = json(&child.wait_with_output().unwrap());
+    let rows = v["rows"].as_array().unwrap();
+    assert!(!rows.is_empty());
+    for r in rows {
+        let e = r["error"].as_str().unwrap_or_else(|| panic!("no error: {r}"));
+        if r["config"].as_str().unwrap().starts_with("jxl") {
+            let expected = "cjxl failed (exit status: 1): JPEG XL encoder v0.0.0 | Reading image data failed.";
+            assert!(e.ends_with(expected), "{e}");
+        } else {
+            assert!(e.ends_with("avifenc wrote no file: no message"), "{r}");
+        }
+    }
+    // The failed rows left no temporary directory behind (`hdrcodec-bench-<peer>-<pid>-<n>`).
+    let left: Vec<String> = std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .filter_map(|e| Some(e.ok()?.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.starts_with("hdrcodec-bench-") && n.contains(&format!("-{pid}-")))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn bench_has_jpeg_xl_avif_and_openexr_peer_rows() {
+    let tools: Option<Vec<PathBuf>> = PEER_FAMILIES.iter().flat_map(|f| f.1.iter()).map(|t| common::tool(t)).collect();
+    if common::require(tools, "cjxl, djxl (libjxl-tools), avifenc, avifdec (libavif-bin) and oiiotool").is_none() {
+        return;
+    }
+    // A BT.709 image with alpha and a BT.2020 one: the colour paths of every peer.
+    let dir = common::temp_dir("cli-bench-peers");
+    for name in ["alpha.exr", "bt2020-ramps.exr"] {
+        std::fs::copy(corpus().join(name), dir.join(name)).unwrap();
+    }
+    let filter = format!("{PEER_FILTER},exr:piz-half,jxr:");
+    let v = json(&hdrcodec(&[&"bench", &dir, &"--runs", &"1", &"--filter", &filter, &"--json"]));
+    let rows = v["rows"].as_array().unwrap();
+    let peer_rows: Vec<&Value> = rows.iter().filter(|r| PEER_ROWS.contains(&r["config"].as_str().unwrap())).collect();
+    assert_eq!(peer_rows.len(), 2 * PEER_ROWS.len(), "{v}");
+    for r in &peer_rows {
+        assert!(r["error"].is_null(), "{r}");
+        assert!(r["bytes"].as_u64().unwrap() > 0 && r["encode_mps"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["decode_mps"].as_f64().unwrap() > 0.0 && r["encode_mps_all"].is_null(), "{r}");
+        let label = r["config"].as_str().unwrap();
+        let (encoder, decoder) = (r["encoder"].as_str().unwrap(), r["decoder"].as_str());
+        if label.starts_with("jxl(") {
+            assert!(encoder.starts_with("cjxl v") && decoder.unwrap().starts_with("djxl v"), "{r}");
+        } else if label.starts_with("avif(") {
+            assert!(encoder.starts_with("avifenc 0.") && decoder.unwrap().starts_with("avifdec 0."), "{r}");
+        } else {
+            // OpenEXR: our decoder reads oiiotool's file; OpenEXR's decode of it is the peer,
+            // and its samples are ours, bit for bit.
+            assert!(encoder.starts_with("oiiotool ") && encoder.contains("OpenEXR "), "{r}");
+            assert!(r["decode_mps_all"].as_f64().unwrap() > 0.0, "{r}");
+            assert_eq!(r["peer"]["matches"], Value::Bool(true), "{r}");
+        }
+    }
+    let row = |label: &str, image: &str| {
+        rows.iter().find(|r| r["config"] == label && r["image"] == image).unwrap_or_else(|| panic!("{label} {image}"))
+    };
+    let summary = v["summary"].as_array().unwrap();
+    let s = |label: &str| summary.iter().find(|s| s["config"] == label).unwrap_or_else(|| panic!("{label}: {v}"));
+    let bpp = |l: &str| s(l)["bpp"].as_f64().unwrap();
+    for image in ["alpha.exr", "bt2020-ramps.exr"] {
+        // cjxl -d 0 is lossless on float input (libjxl: modular mode); zip and piz of float samples
+        // are (OpenEXR technical introduction, "Data Compression").
+        for label in ["jxl(cjxl):lossless", "exr(oiiotool):zip-float", "exr(oiiotool):piz-float"] {
+            assert_eq!(row(label, image)["identical"], Value::Bool(true), "{label} {image}");
+        }
+        // OpenImageIO's PIZ of half samples: the same half rounding as ours, about our size.
+        let (theirs, ours) = (row("exr(oiiotool):piz-half", image), row("exr:piz-half", image));
+        assert_eq!(theirs["pu21_psnr"], ours["pu21_psnr"], "{image}");
+        let ratio = theirs["bytes"].as_f64().unwrap() / ours["bytes"].as_f64().unwrap();
+        assert!((0.98..1.02).contains(&ratio), "{image}: {ratio}");
+    }
+    // A coarser setting writes fewer bytes: a rate-quality curve per family.
+    for family in [&PEER_ROWS[1..7], &PEER_ROWS[7..12], &PEER_ROWS[12..17]] {
+        for w in family.windows(2) {
+            assert!(bpp(w[1]) < bpp(w[0]), "{w:?}: {v}");
+        }
+    }
+    // PQ in 12 bits at the finest quantizer: within a few ΔE ITP units of the input (one unit
+    // ≈ one JND, BT.2124) on both images, the BT.2020 one included.
+    for image in ["alpha.exr", "bt2020-ramps.exr"] {
+        let de = row("avif(avifenc):12bit-qp2", image)["de_itp_mean"].as_f64().unwrap();
+        assert!(de < 3.0, "{image}: {de}");
+    }
+    // Bytes at equal PU21-PSNR: our JPEG XR against each peer family.
+    let eq = v["equal_quality"].as_array().unwrap();
+    for reference in ["jxl(cjxl):", "avif(avifenc):10bit", "avif(avifenc):12bit"] {
+        let c = eq.iter().find(|c| c["subject"] == "jxr:" && c["reference"] == reference).expect(reference);
+        let lossy = rows
+            .iter()
+            .filter(|r| r["config"].as_str().unwrap().starts_with("jxr:"))
+            .filter(|r| r["identical"] == Value::Bool(false) && r["lossless"] == Value::Bool(false))
+            .count();
+        assert_eq!(c["points"].as_array().unwrap().len() + c["out_of_range"].as_u64().unwrap() as usize, lossy);
+    }
+    // The table names the tools and explains the rows; --plot draws with the peers in it.
+    let png = dir.join("rd.png");
+    let font = std::path::Path::new("/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf").is_file();
+    let small = "jxl(cjxl):d1,avif(avifenc):10bit-qp20,exr(oiiotool):dwaa";
+    let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"bench", &dir, &"--runs", &"1", &"--filter", &small];
+    if font {
+        args.extend([&"--plot" as &dyn AsRef<std::ffi::OsStr>, &png]);
+    }
+    let table = ok(&hdrcodec(&args));
+    for text in ["jxl(cjxl) rows: cjxl v", "avif(avifenc) rows:", "--cicp 9/16/9", "exr(oiiotool) rows: oiiotool "] {
+        assert!(table.contains(text), "{text}: {table}");
+    }
+    assert!(!table.contains("DIFFERS"), "{table}");
+    if font {
+        assert_eq!(&std::fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    // A file that records no primaries (PFM): BT.709 is assumed for JPEG XL's and AVIF's input,
+    // and the row says so instead of guessing silently.
+    let pfm_dir = common::temp_dir("cli-bench-peers-pfm");
+    ok(&hdrcodec(&[&"convert", &corpus().join("alpha.exr"), &pfm_dir.join("alpha.pfm")]));
+    let filter = "jxl(cjxl):d1,avif(avifenc):10bit-qp10";
+    let v = json(&hdrcodec(&[&"bench", &pfm_dir, &"--runs", &"1", &"--filter", &filter, &"--json"]));
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["error"].is_null() && r["pu21_psnr"].as_f64().unwrap() > 30.0, "{r}");
+        let notes = r["notes"].as_array().unwrap();
+        assert!(notes.iter().any(|n| n.as_str().unwrap().contains("no primaries: BT.709 assumed")), "{r}");
+    }
+}
+
 #[test]
 fn bench_on_a_directory_and_as_a_table() {
     let dir = common::temp_dir("cli-bench-dir");
