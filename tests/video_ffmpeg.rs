@@ -372,3 +372,42 @@ fn we_read_the_corpus_hevc_mp4_as_ffprobe_does_and_flag_its_mastering_display() 
     assert!(info.problems[0].contains("primaries out of order"), "{:?}", info.problems);
     assert!(info.problems[1].contains("0.1 cd/m²"), "{:?}", info.problems);
 }
+
+/// FFmpeg's Y4M muxer against our Y4M reader: `testsrc` written by FFmpeg as Y4M (8-bit
+/// `420jpeg`, `420p10`, `444p12`, with its `XCOLORRANGE=LIMITED`) and as raw planes; our reader
+/// returns exactly the raw planes, frame by frame, with the header's size and depth.
+#[test]
+fn we_read_ffmpeg_s_y4m_as_its_raw_planes() {
+    use hdrcodec_core::Limits;
+    use hdrcodec_video::y4m::Y4mReader;
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_y4m");
+    for (pix_fmt, bits, chroma) in [("yuv420p", 8, 4), ("yuv420p10le", 10, 4), ("yuv444p12le", 12, 1)] {
+        let (y4m, raw) = (dir.join(format!("{pix_fmt}.y4m")), dir.join(format!("{pix_fmt}.raw")));
+        for (out, format) in [(&y4m, "yuv4mpegpipe"), (&raw, "rawvideo")] {
+            run_ok(
+                Command::new("ffmpeg")
+                    .args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=18x10:rate=5", "-frames:v", "3"])
+                    .args(["-pix_fmt", pix_fmt, "-strict", "-1", "-f", format])
+                    .arg(out),
+            );
+        }
+        let data = std::fs::read(&y4m).unwrap();
+        let mut reader = Y4mReader::new(&data[..], &Limits::default()).unwrap();
+        let h = *reader.header();
+        assert_eq!((h.width, h.height, h.bit_depth, h.full_range), (18, 10, bits, false), "{pix_fmt}");
+        let mut ours = Vec::new();
+        while let Some(yuv) = reader.next_frame().unwrap() {
+            assert_eq!(yuv.cb.len(), 18 * 10 / chroma, "{pix_fmt}");
+            for plane in [&yuv.y, &yuv.cb, &yuv.cr] {
+                if bits == 8 {
+                    ours.extend(plane.iter().map(|&v| v as u8));
+                } else {
+                    ours.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
+                }
+            }
+        }
+        assert_eq!(reader.frames_read(), 3, "{pix_fmt}");
+        assert!(ours == std::fs::read(&raw).unwrap(), "{pix_fmt}: our planes differ from FFmpeg's raw output");
+    }
+}

@@ -186,13 +186,23 @@ fn quantize(e: f64, chroma: bool, range: Range) -> u16 {
 }
 
 /// The inverse of [`quantize`].
+#[cfg(test)]
 fn dequantize(d: u16, chroma: bool, range: Range) -> f64 {
+    dequantize_bits(d, BIT_DEPTH, chroma, range)
+}
+
+/// The inverse of BT.2100 Table 9's quantization at `bits` (8 to 16): limited range
+/// E' = (D/2^(n−8) − 16)/219 for luma and (D/2^(n−8) − 128)/224 for chroma; full range
+/// D/(2^n − 1) and (D − 2^(n−1))/(2^n − 1).
+fn dequantize_bits(d: u16, bits: u32, chroma: bool, range: Range) -> f64 {
     let d = f64::from(d);
+    let step = f64::from(1u32 << (bits - 8));
+    let max = f64::from((1u32 << bits) - 1);
     match (range, chroma) {
-        (Range::Limited, false) => (d / 4.0 - 16.0) / 219.0,
-        (Range::Limited, true) => (d / 4.0 - 128.0) / 224.0,
-        (Range::Full, false) => d / MAX_CODE,
-        (Range::Full, true) => (d - 512.0) / MAX_CODE,
+        (Range::Limited, false) => (d / step - 16.0) / 219.0,
+        (Range::Limited, true) => (d / step - 128.0) / 224.0,
+        (Range::Full, false) => d / max,
+        (Range::Full, true) => (d - f64::from(1u32 << (bits - 1))) / max,
     }
 }
 
@@ -243,6 +253,9 @@ pub enum ChromaSiting {
     /// Midway between luma rows 2j and 2j+1 (AV1 CSP_VERTICAL, "left"; MPEG-2's siting and
     /// H.273's default, so also what an unsignalled stream most likely means).
     Left,
+    /// Midway between luma rows and midway between luma columns (JPEG's and MPEG-1's siting,
+    /// YUV4MPEG2's `420jpeg`; AV1 cannot signal it).
+    Center,
 }
 
 /// Bilinear chroma upsampling: columns from chroma co-sited with the even luma columns (even
@@ -251,18 +264,25 @@ pub enum ChromaSiting {
 /// ([`ChromaSiting::Left`]). Edges repeat the last sample.
 fn upsample_420(plane: &[f64], width: usize, height: usize, siting: ChromaSiting) -> Vec<f64> {
     let (cw, ch) = YuvFrame::chroma_size(width, height, Subsampling::Yuv420);
-    let at = |cx: usize, cy: isize| plane[(cy.clamp(0, ch as isize - 1) as usize) * cw + cx.min(cw - 1)];
+    let at = |cx: isize, cy: isize| {
+        plane[(cy.clamp(0, ch as isize - 1) as usize) * cw + cx.clamp(0, cw as isize - 1) as usize]
+    };
     let mut out = Vec::with_capacity(width * height);
     for y in 0..height {
         let cy = (y / 2) as isize;
         for x in 0..width {
-            let cx = x / 2;
-            let h = |cy| if x % 2 == 0 { at(cx, cy) } else { (at(cx, cy) + at(cx + 1, cy)) / 2.0 };
+            let cx = (x / 2) as isize;
+            let h = |cy| match (siting, x % 2) {
+                (ChromaSiting::Center, 0) => 0.75 * at(cx, cy) + 0.25 * at(cx - 1, cy),
+                (ChromaSiting::Center, _) => 0.75 * at(cx, cy) + 0.25 * at(cx + 1, cy),
+                (_, 0) => at(cx, cy),
+                (_, _) => (at(cx, cy) + at(cx + 1, cy)) / 2.0,
+            };
             out.push(match (siting, y % 2) {
                 (ChromaSiting::Colocated, 0) => h(cy),
                 (ChromaSiting::Colocated, _) => (h(cy) + h(cy + 1)) / 2.0,
-                (ChromaSiting::Left, 0) => 0.75 * h(cy) + 0.25 * h(cy - 1),
-                (ChromaSiting::Left, _) => 0.75 * h(cy) + 0.25 * h(cy + 1),
+                (ChromaSiting::Left | ChromaSiting::Center, 0) => 0.75 * h(cy) + 0.25 * h(cy - 1),
+                (ChromaSiting::Left | ChromaSiting::Center, _) => 0.75 * h(cy) + 0.25 * h(cy + 1),
             });
         }
     }
@@ -305,6 +325,22 @@ pub fn yuv_to_frame(
     siting: ChromaSiting,
     nits_per_unit: f32,
 ) -> Result<HdrImage> {
+    yuv_to_frame_bits(yuv, BIT_DEPTH, transfer, range, siting, nits_per_unit)
+}
+
+/// [`yuv_to_frame`] for planes of `bits` bits (8 to 16) per sample.
+pub fn yuv_to_frame_bits(
+    yuv: &YuvFrame,
+    bits: u32,
+    transfer: Transfer,
+    range: Range,
+    siting: ChromaSiting,
+    nits_per_unit: f32,
+) -> Result<HdrImage> {
+    if !(8..=16).contains(&bits) {
+        return Err(Error::unsupported(format!("{bits}-bit Y'CbCr (8 to 16 bits are read)")));
+    }
+    let dequantize = |d, chroma, range| dequantize_bits(d, bits, chroma, range);
     let (width, height) = (yuv.width, yuv.height);
     let (cw, ch) = YuvFrame::chroma_size(width, height, yuv.subsampling);
     if yuv.y.len() != width * height || yuv.cb.len() != cw * ch || yuv.cr.len() != cw * ch {
@@ -397,5 +433,10 @@ mod tests {
         // Chroma rows at luma 0.5 and 2.5: luma rows 0..3 sit at chroma -0.25, 0.25, 0.75, 1.25.
         let left = upsample_420(&plane, 2, 4, ChromaSiting::Left);
         assert_eq!(left, [0.0, 0.0, 0.25, 0.25, 0.75, 0.75, 1.0, 1.0]);
+        // Two chroma columns, one row, for a 4x2 frame: centred chroma sits at luma x 0.5 and
+        // 2.5, so luma columns 0..3 sit at chroma -0.25, 0.25, 0.75, 1.25.
+        let center = upsample_420(&plane, 4, 2, ChromaSiting::Center);
+        assert_eq!(center, [0.0, 0.25, 0.75, 1.0, 0.0, 0.25, 0.75, 1.0]);
+        assert_eq!(upsample_420(&plane, 4, 2, ChromaSiting::Colocated), [0.0, 0.5, 1.0, 1.0, 0.0, 0.5, 1.0, 1.0]);
     }
 }
