@@ -411,3 +411,40 @@ fn we_read_ffmpeg_s_y4m_as_its_raw_planes() {
         assert!(ours == std::fs::read(&raw).unwrap(), "{pix_fmt}: our planes differ from FFmpeg's raw output");
     }
 }
+
+/// The SDR rendition (`Av1Options::sdr`, `hdrcodec video encode --sdr`): ffprobe reports 8-bit
+/// 4:2:0 BT.709 primaries and matrix, the sRGB transfer, limited range; FFmpeg (libdav1d)
+/// decodes the planes to the samples ours gives.
+#[test]
+fn ffprobe_reads_our_sdr_rendition_as_bt709_and_ffmpeg_decodes_it_as_we_do() {
+    use hdrcodec_video::sdr::SdrRendition;
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_sdr");
+    let options = Av1Options { sdr: Some(SdrRendition::new(200.0).unwrap()), ..fast() };
+    let path = write_stream(&dir, "sdr.ivf", &options);
+    let stream = ffprobe_json(
+        &[
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=codec_name,pix_fmt,color_range,color_space,color_transfer,color_primaries",
+        ],
+        &path,
+    );
+    let s = &stream["streams"][0];
+    let field = |k: &str| s[k].as_str().unwrap_or("").to_string();
+    assert_eq!(
+        [field("codec_name"), field("pix_fmt"), field("color_primaries"), field("color_space")],
+        ["av1", "yuv420p", "bt709", "bt709"],
+        "{s}"
+    );
+    assert_eq!([field("color_transfer"), field("color_range")], ["iec61966-2-1", "tv"], "{s}");
+    let (raw, count) = our_planes(&path);
+    assert_eq!(count, 4);
+    // Our planes are 8-bit samples held in u16: the low bytes are FFmpeg's yuv420p.
+    let bytes: Vec<u8> = raw.chunks_exact(2).map(|b| b[0]).collect();
+    assert!(raw.chunks_exact(2).all(|b| b[1] == 0));
+    let ours = md5sum(&dir.join("sdr.yuv"), &bytes);
+    assert_eq!(ours, ffmpeg_md5_as(&path, "yuv420p"), "our decode and FFmpeg's");
+}

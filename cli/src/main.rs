@@ -249,6 +249,15 @@ enum VideoCommand {
         /// Print one JSON object (output, frames, bytes, content light, notes) and no progress bar.
         #[arg(long)]
         json: bool,
+        /// Also write an SDR rendition of the same frames to this .ivf or .mp4: core's GT tone
+        /// curve for an SDR display of --sdr-peak cd/m² (scene 100 cd/m² is paper white), through
+        /// its LUT form, in BT.709, the sRGB OETF, 8-bit 4:2:0 limited range, signalled as
+        /// BT.709 primaries and matrix with the sRGB transfer (H.273 1/13/1).
+        #[arg(long, value_name = "OUT")]
+        sdr: Option<PathBuf>,
+        /// The SDR display's peak for --sdr, cd/m² (50 to 1000).
+        #[arg(long, default_value_t = 100.0)]
+        sdr_peak: f64,
     },
     /// Decode IN (.ivf, .mp4 or an .hdrc sequence) into OUT_DIR as frame_00000.exr, ... (linear;
     /// AV1 in BT.2020, 1.0 = 100 cd/m²). A progress bar is drawn on stderr when it is a terminal.
@@ -334,6 +343,8 @@ fn run() -> ExitCode {
             speed,
             threads,
             json,
+            sdr,
+            sdr_peak,
         }) => match paths.split_last() {
             Some((output, frames)) => {
                 let args = video::VideoEncodeArgs {
@@ -346,6 +357,8 @@ fn run() -> ExitCode {
                     speed,
                     threads,
                     json,
+                    sdr: sdr.as_deref(),
+                    sdr_peak,
                 };
                 video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
             }

@@ -3,15 +3,16 @@
 
 use hdrcodec::core::{
     ContentLightLevel, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, HdrImage, ImageInfo, Limits, Result,
-    ThreadPool, VideoCodec,
+    ThreadPool, VideoCodec, WriteSeek,
 };
 use hdrcodec_video::codec::Av1Codec;
 use hdrcodec_video::decode::probe_ivf;
-use hdrcodec_video::encode::{Av1Encoder, EncodeSummary, TemporalUnitSink};
+use hdrcodec_video::encode::{Av1Encoder, Av1Options, EncodeSummary, TemporalUnitSink};
 use hdrcodec_video::hdr10::{content_light_level, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use hdrcodec_video::mp4::probe_mp4;
 use hdrcodec_video::obu::chroma_sample_position;
+use hdrcodec_video::sdr::SdrRendition;
 use hdrcodec_video::y4m::Y4mReader;
 use indicatif::ProgressBar;
 use serde_json::json;
@@ -41,6 +42,10 @@ pub struct VideoEncodeArgs<'a> {
     pub threads: Option<usize>,
     /// Print a JSON summary, and no progress bar.
     pub json: bool,
+    /// Also write an SDR rendition of the same frames here (`.ivf` or `.mp4`).
+    pub sdr: Option<&'a Path>,
+    /// The SDR display's peak, cd/m².
+    pub sdr_peak: f64,
 }
 
 /// The lower-case extension of `path`.
@@ -204,16 +209,47 @@ fn encode_frames<S: TemporalUnitSink>(
     Ok(encoder.finish()?.0)
 }
 
+/// Whether `path` is written as MP4 (else IVF); other extensions are an error.
+fn is_mp4_output(path: &Path) -> Result<bool> {
+    match extension(path).as_str() {
+        "ivf" => Ok(false),
+        "mp4" => Ok(true),
+        _ => Err(Error::unsupported(format!("'{}': video is written as .ivf or .mp4", path.display()))),
+    }
+}
+
+/// The frames of one `video encode`, encoded once per output.
+struct Stream<'a> {
+    width: u32,
+    height: u32,
+    count: Option<u64>,
+    source: &'a FrameSource,
+    bar: &'a ProgressBar,
+}
+
+impl Stream<'_> {
+    /// Encodes every frame with `options` into `out`, as MP4 or IVF.
+    fn encode(&self, mp4: bool, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
+        let (w, h) = (self.width, self.height);
+        if mp4 {
+            encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar)
+        } else {
+            let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
+            encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
+        }
+    }
+}
+
 /// `hdrcodec video encode FRAMES... OUT.ivf|OUT.mp4` (the container from the extension). The
 /// options go through [`Av1Codec::av1_options`], as for any caller of the codec. Frames are
 /// read twice for PQ, once to measure MaxCLL/MaxFALL (needed before the stream's first
 /// header) and once to encode, one frame at a time. The file is written atomically. Returns
 /// notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
-    let mp4 = match extension(a.output).as_str() {
-        "ivf" => false,
-        "mp4" => true,
-        _ => return Err(Error::unsupported(format!("'{}': video is written as .ivf or .mp4", a.output.display()))),
+    let mp4 = is_mp4_output(a.output)?;
+    let sdr = match a.sdr {
+        Some(path) => Some((path, is_mp4_output(path)?, SdrRendition::new(a.sdr_peak)?)),
+        None => None,
     };
     let source = FrameSource::resolve(a.frames, a.input_transfer)?;
     let mut settings = EncodeSettings::default()
@@ -245,15 +281,17 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         options = Av1Codec::av1_options(&info, &settings)?;
     }
     let count = source.count();
-    let bar = crate::cli::progress_bar(count.unwrap_or(0) as usize, a.json);
-    let (w, h) = (info.width, info.height);
-    let ivf_count = count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
+    let passes = if sdr.is_some() { 2 } else { 1 };
+    let bar = crate::cli::progress_bar(count.unwrap_or(0) as usize * passes, a.json);
+    let stream = Stream { width: info.width, height: info.height, count, source: &source, bar: &bar };
+    // The SDR file is written inside the HDR file's atomic write: either both appear or neither.
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        if mp4 {
-            encode_frames(Av1Encoder::begin_mp4(w, h, &options, out)?, &source, &bar)
-        } else {
-            encode_frames(Av1Encoder::begin(w, h, ivf_count, &options, out)?, &source, &bar)
+        let summary = stream.encode(mp4, &options, out)?;
+        if let Some((path, sdr_mp4, rendition)) = &sdr {
+            let sdr_options = Av1Options { sdr: Some(rendition.clone()), ..options.clone() };
+            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_mp4, &sdr_options, sdr_out))?;
         }
+        Ok(summary)
     });
     bar.finish_and_clear();
     let summary = summary?;
@@ -274,6 +312,7 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
             "{}",
             json!({
                 "output": a.output.display().to_string(),
+                "sdr_output": a.sdr.map(|p| p.display().to_string()),
                 "frames": summary.frames,
                 "bytes": summary.bytes,
                 "content_light": cll,

@@ -848,6 +848,43 @@ fn video_encode_reads_a_pattern_a_directory_and_y4m() {
 }
 
 #[test]
+fn video_encode_writes_an_sdr_rendition_beside_the_hdr_stream() {
+    let dir = common::temp_dir("cli-video-sdr");
+    let seq = dir.join("seq");
+    write_light_frames(&seq, 2, |t| format!("f{t}.exr"));
+    let (hdr, sdr) = (dir.join("hdr.mp4"), dir.join("sdr.ivf"));
+    let v = json(&hdrcodec(&[
+        &"video",
+        &"encode",
+        &seq,
+        &hdr,
+        &"--sdr",
+        &sdr,
+        &"--sdr-peak",
+        &"200",
+        &"--speed",
+        &"10",
+        &"--json",
+    ]));
+    assert_eq!(v["sdr_output"].as_str(), Some(sdr.to_str().unwrap()), "{v}");
+    let h = json(&hdrcodec(&[&"info", &hdr, &"--json"]));
+    assert_eq!(h["color_description"], serde_json::json!([9, 16, 9]), "{h}");
+    let s = json(&hdrcodec(&[&"info", &sdr, &"--json"]));
+    assert_eq!((s["frames"].as_u64(), s["bit_depth"].as_u64()), (Some(2), Some(8)), "{s}");
+    assert_eq!(s["color_description"], serde_json::json!([1, 13, 1]), "{s}");
+    assert!(s["hdr10"].is_null(), "an SDR stream carries no HDR10 metadata: {s}");
+    let out = dir.join("sdr-frames");
+    ok(&hdrcodec(&[&"video", &"decode", &sdr, &out]));
+    let frame = decode(&out.join("frame_00001.exr"));
+    assert_eq!(frame.color.primaries, hdrcodec::core::ColorPrimaries::Bt709);
+    assert!(frame.samples().iter().all(|v| (0.0..=1.0).contains(v)), "display-linear, 1.0 = the peak");
+    // Bad SDR options: one line, neither file written.
+    let (hdr2, sdr2) = (dir.join("hdr2.ivf"), dir.join("sdr2.ivf"));
+    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &dir.join("sdr.mkv")], &dir, ".ivf or .mp4");
+    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &sdr2, &"--sdr-peak", &"5"], &dir, "50 to 1000");
+}
+
+#[test]
 fn video_progress_bars_are_drawn_on_a_terminal_only() {
     use terminal::run_on_terminal;
     let dir = common::temp_dir("cli-video-progress");

@@ -8,6 +8,7 @@ use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
 use crate::mantiuk::Psi04;
 use crate::mp4::{is_mp4, Mp4Samples, Mp4Track};
 use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
+use crate::sdr::{sdr_yuv_to_frame, SDR_BIT_DEPTH};
 use dav1d::{PixelLayout, PlanarImageComponent};
 use hdrcodec_core::{Allocation, Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result};
 use std::sync::Arc;
@@ -188,6 +189,7 @@ fn stream_info(
     transfer: Transfer,
     subsampling: Subsampling,
     lpuv: Option<&LpuvStreamInfo>,
+    sdr: bool,
     options: &Av1DecodeOptions,
 ) -> Result<ImageInfo> {
     let chroma = match subsampling {
@@ -195,6 +197,10 @@ fn stream_info(
         Subsampling::Yuv444 => "4:4:4",
     };
     let (color, format) = match lpuv {
+        None if sdr => (
+            ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: options.nits_per_unit, hdr10: None },
+            format!("AV1 8-bit {chroma} BT.709 sRGB (SDR)"),
+        ),
         Some(info) => (
             ColorInfo { primaries: info.primaries()?, nits_per_unit: options.nits_per_unit, hdr10: None },
             format!("AV1 {}-bit {chroma} L_p u'v' (Mantiuk 2004, {} luma bits)", seq.color.bit_depth, info.bits),
@@ -222,13 +228,18 @@ fn stream_info(
 }
 
 /// Copies a 16-bit-per-sample plane of `w` × `h` out of dav1d's strided buffer.
-fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize) -> Result<Vec<u16>> {
+fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize, bit_depth: u32) -> Result<Vec<u16>> {
+    let size = if bit_depth > 8 { 2 } else { 1 };
     let mut out = Vec::with_capacity(w * h);
     for y in 0..h {
         let row = bytes
-            .get(y * stride..y * stride + 2 * w)
+            .get(y * stride..y * stride + size * w)
             .ok_or_else(|| Error::invalid("dav1d returned a plane smaller than the picture"))?;
-        out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
+        if size == 1 {
+            out.extend(row.iter().map(|&b| u16::from(b)));
+        } else {
+            out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
+        }
     }
     Ok(out)
 }
@@ -274,6 +285,8 @@ pub struct Av1Decoder<'a> {
     siting: ChromaSiting,
     /// The stream's L_p u'v' description and luma curve, when it is one (12-bit).
     lpuv: Option<(LpuvStreamInfo, Psi04)>,
+    /// An 8-bit SDR stream (BT.709, sRGB).
+    sdr: bool,
     bit_depth: u32,
     options: Av1DecodeOptions,
     width: u32,
@@ -330,17 +343,30 @@ impl<'a> Av1Decoder<'a> {
         if summary.changed_sequence_headers > 0 {
             return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
         }
+        let sdr = u32::from(seq.color.bit_depth) == SDR_BIT_DEPTH;
         let (transfer, range, subsampling, lpuv) = if u32::from(seq.color.bit_depth) == LPUV_BIT_DEPTH {
             let info = lpuv_info(&summary)?;
             // Transfer and range are unused for L_p u'v' planes.
             (Transfer::Pq, Range::Full, stream_subsampling(&seq)?, Some((info, info.psi()?)))
+        } else if sdr {
+            let sdr_description =
+                ColorDescription { color_primaries: 1, transfer_characteristics: 13, matrix_coefficients: 1 };
+            if seq.color.color_description != Some(sdr_description) {
+                return Err(Error::unsupported(format!(
+                    "8-bit AV1 with colour description {:?} (this decoder returns 8-bit SDR as BT.709 sRGB, 1/13/1)",
+                    seq.color.color_description
+                )));
+            }
+            let range = if seq.color.full_range { Range::Full } else { Range::Limited };
+            // The transfer is unused: sRGB is decoded by `sdr`.
+            (Transfer::Pq, range, stream_subsampling(&seq)?, None)
         } else {
             let (transfer, range, subsampling) = stream_format(&seq, options.hlg_peak_nits)?;
             (transfer, range, subsampling, None)
         };
         let (width, height) = (seq.max_frame_width, seq.max_frame_height);
         options.limits.check_dimensions(width.into(), height.into())?;
-        let info = stream_info(&seq, &summary, transfer, subsampling, lpuv.as_ref().map(|l| &l.0), options)?;
+        let info = stream_info(&seq, &summary, transfer, subsampling, lpuv.as_ref().map(|l| &l.0), sdr, options)?;
         let mut settings = dav1d::Settings::new();
         // One picture out per temporal unit in: frame threading would delay output.
         settings.set_n_threads(1);
@@ -365,6 +391,7 @@ impl<'a> Av1Decoder<'a> {
                 ChromaSiting::Left
             },
             lpuv,
+            sdr,
             bit_depth: seq.color.bit_depth.into(),
             options: options.clone(),
             width,
@@ -391,7 +418,7 @@ impl<'a> Av1Decoder<'a> {
         self.lpuv.as_ref().map(|(info, _)| info)
     }
 
-    /// The next frame's 10-bit (12-bit for L_p u'v') planes as coded, or `None` after the last.
+    /// The next frame's planes as coded (10-bit; 12-bit for L_p u'v', 8-bit for SDR), or `None` after the last.
     pub fn next_planes(&mut self) -> Result<Option<YuvFrame>> {
         // Each round either returns, takes input, or notices that neither side moves.
         let mut stalled = 0;
@@ -472,6 +499,9 @@ impl<'a> Av1Decoder<'a> {
             };
             return lpuv_yuv_to_frame(psi, &yuv, color).map(Some);
         }
+        if self.sdr {
+            return sdr_yuv_to_frame(&yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);
+        }
         let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
         image.color.primaries = ColorPrimaries::Bt2020;
         image.color.hdr10 = self.summary.hdr10();
@@ -496,7 +526,7 @@ impl<'a> Av1Decoder<'a> {
         }
         let (cw, ch) = YuvFrame::chroma_size(w, h, layout);
         let plane = |c: PlanarImageComponent, pw: usize, ph: usize| {
-            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph)
+            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph, self.bit_depth)
         };
         Ok(YuvFrame {
             width: w,

@@ -38,6 +38,7 @@ pub mod mantiuk;
 pub mod mantiuk06;
 pub mod mp4;
 pub mod obu;
+pub mod sdr;
 pub mod sequences;
 pub mod thresholds;
 pub mod tvi;

@@ -154,3 +154,44 @@ fn the_moving_light_s_max_cll_is_its_peak() {
         assert!(measured <= 10_000.5 && measured >= two_codes_down, "decoded MaxCLL {measured}");
     }
 }
+
+/// The SDR rendition through rav1e and dav1d: an 8-bit BT.709 sRGB stream whose decoded frames
+/// are the tone-mapped source within the tolerance of 8-bit coding at quantizer 20.
+#[test]
+fn the_sdr_rendition_decodes_to_the_tone_mapped_frames() {
+    use hdrcodec_video::decode::probe_ivf;
+    use hdrcodec_video::encode::encode_sequence;
+    use hdrcodec_video::sdr::SdrRendition;
+    let frames = frames(3, 4000.0);
+    let sdr = SdrRendition::new(100.0).unwrap();
+    let options = Av1Options { speed: 10, quantizer: 20, sdr: Some(sdr.clone()), ..Av1Options::default() };
+    let (_, ivf) = encode_sequence(&frames, &options, Vec::new()).unwrap();
+    let seq = probe_ivf(&ivf, &Limits::default()).unwrap().1.sequence_header.unwrap();
+    assert_eq!(seq.color.bit_depth, 8);
+    let cicp = seq.color.color_description.unwrap();
+    assert_eq!((cicp.color_primaries, cicp.transfer_characteristics, cicp.matrix_coefficients), (1, 13, 1));
+    let mut dec = Av1Codec.begin_decode(ivf.into(), &DecodeOptions::new(Limits::default())).unwrap();
+    assert_eq!(dec.info().color.primaries, ColorPrimaries::Bt709);
+    assert!(dec.info().format.contains("8-bit 4:2:0 BT.709 sRGB"), "{}", dec.info().format);
+    for source in &frames {
+        let want = sdr.display_light(source);
+        let got = dec.next_frame().unwrap().unwrap();
+        // Compared where the eye compares them, in the sRGB signal: the mean and the worst error.
+        let (mut sum, mut worst) = (0.0f64, 0.0f64);
+        for (a, b) in want.samples().iter().zip(got.samples()) {
+            let d = (hdrcodec_core::SrgbTransfer::encode(f64::from(*a))
+                - hdrcodec_core::SrgbTransfer::encode(f64::from(*b)))
+            .abs();
+            sum += d;
+            worst = worst.max(d);
+        }
+        let mean = sum / want.samples().len() as f64;
+        eprintln!(
+            "SDR 100 cd/m², q20: mean |Δ sRGB signal| {:.4} ({:.2} of 8-bit codes), worst {worst:.3}",
+            mean,
+            mean * 219.0
+        );
+        assert!(mean < 1.0 / 219.0 && worst < 0.08, "mean {mean}, worst {worst}");
+    }
+    assert!(dec.next_frame().unwrap().is_none());
+}
