@@ -423,23 +423,11 @@ fn ffprobe_reads_our_sdr_rendition_as_bt709_and_ffmpeg_decodes_it_as_we_do() {
     let dir = temp_dir("video_ffmpeg_sdr");
     let options = Av1Options { sdr: Some(SdrRendition::new(200.0).unwrap()), ..fast() };
     let path = write_stream(&dir, "sdr.ivf", &options);
-    let stream = ffprobe_json(
-        &[
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "stream=codec_name,pix_fmt,color_range,color_space,color_transfer,color_primaries",
-        ],
-        &path,
-    );
+    let keys = ["codec_name", "pix_fmt", "color_primaries", "color_space", "color_transfer", "color_range"];
+    let stream =
+        ffprobe_json(&["-select_streams", "v:0", "-show_entries", &format!("stream={}", keys.join(","))], &path);
     let s = &stream["streams"][0];
-    let field = |k: &str| s[k].as_str().unwrap_or("").to_string();
-    assert_eq!(
-        [field("codec_name"), field("pix_fmt"), field("color_primaries"), field("color_space")],
-        ["av1", "yuv420p", "bt709", "bt709"],
-        "{s}"
-    );
-    assert_eq!([field("color_transfer"), field("color_range")], ["iec61966-2-1", "tv"], "{s}");
+    assert_eq!(fields(s, &keys), ["av1", "yuv420p", "bt709", "bt709", "iec61966-2-1", "tv"], "{s}");
     let (raw, count) = our_planes(&path);
     assert_eq!(count, 4);
     // Our planes are 8-bit samples held in u16: the low bytes are FFmpeg's yuv420p.
@@ -447,4 +435,70 @@ fn ffprobe_reads_our_sdr_rendition_as_bt709_and_ffmpeg_decodes_it_as_we_do() {
     assert!(raw.chunks_exact(2).all(|b| b[1] == 0));
     let ours = md5sum(&dir.join("sdr.yuv"), &bytes);
     assert_eq!(ours, ffmpeg_md5_as(&path, "yuv420p"), "our decode and FFmpeg's");
+}
+
+/// Matroska and WebM from our EBML writer: ffprobe reports the colour elements (smpte2084,
+/// bt2020, bt2020nc, tv, topleft) and, as stream side data, exactly our mastering display
+/// (floats in the file) and content light level; FFmpeg decodes the same samples as from the IVF
+/// of the same frames.
+#[test]
+fn ffprobe_reads_our_matroska_colour_elements_and_ffmpeg_decodes_it_as_the_ivf() {
+    use hdrcodec_video::encode::Av1Encoder;
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_mkv");
+    let md = MasteringDisplay::p3_d65_1000();
+    let frames = frames();
+    let cll = content_light_level(&frames, Transfer::Pq);
+    let options = Av1Options { mastering_display: md, content_light: Some(cll), ..fast() };
+    let ivf = write_frames(&dir, "pq.ivf", &frames, &options);
+    for (name, webm) in [("pq.mkv", false), ("pq.webm", true)] {
+        let mut enc = Av1Encoder::begin_mkv(96, 64, &options, std::io::Cursor::new(Vec::new()), webm).unwrap();
+        for f in &frames {
+            enc.push_frame(f).unwrap();
+        }
+        let (_, out) = enc.finish().unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, out.into_inner()).unwrap();
+        let probe = ffprobe_json(
+            &[
+                "-select_streams",
+                "v:0",
+                "-show_entries",
+                "format=format_name,duration:stream=codec_name,color_range,color_space,color_transfer,color_primaries,chroma_location,nb_read_frames:stream_side_data_list",
+                "-count_frames",
+            ],
+            &path,
+        );
+        let s = &probe["streams"][0];
+        let keys = ["codec_name", "color_transfer", "color_primaries", "color_space", "color_range", "chroma_location"];
+        assert_eq!(fields(s, &keys), ["av1", "smpte2084", "bt2020", "bt2020nc", "tv", "topleft"], "{name}: {probe}");
+        assert_eq!(fields(s, &["nb_read_frames"]), ["4"], "{name}");
+        assert!(probe["format"]["format_name"].as_str().unwrap().contains("matroska"), "{probe}");
+        let side = s["side_data_list"].as_array().expect("stream side data from the colour elements");
+        let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("mastering");
+        let ratio = |v: &Value| -> f64 {
+            let (n, d) = v.as_str().unwrap().split_once('/').unwrap();
+            n.parse::<f64>().unwrap() / d.parse::<f64>().unwrap()
+        };
+        // What we wrote: the stream's HDR_MDCV (AV1 fixed point) as floats.
+        let written = MasteringDisplay::from_av1(&md.to_av1());
+        for (i, colour) in ["red", "green", "blue"].into_iter().enumerate() {
+            assert!((ratio(&mdcv[format!("{colour}_x")]) - written.primaries[i][0]).abs() < 2e-5, "{name} {colour}_x");
+            assert!((ratio(&mdcv[format!("{colour}_y")]) - written.primaries[i][1]).abs() < 2e-5, "{name} {colour}_y");
+        }
+        assert!((ratio(&mdcv["white_point_x"]) - written.white[0]).abs() < 2e-5);
+        assert!((ratio(&mdcv["max_luminance"]) - written.max_luminance).abs() < 1e-3, "{mdcv}");
+        assert!((ratio(&mdcv["min_luminance"]) - written.min_luminance).abs() < 1e-4, "{mdcv}");
+        let light = side.iter().find(|d| d["side_data_type"] == "Content light level metadata").expect("MaxCLL");
+        assert_eq!(
+            (light["max_content"].as_u64(), light["max_average"].as_u64()),
+            (Some(cll.max_cll.into()), Some(cll.max_fall.into()))
+        );
+        assert_eq!(ffmpeg_md5(&path), ffmpeg_md5(&ivf), "{name}: FFmpeg decodes the same frames as the IVF");
+    }
+}
+
+/// The string values of `keys` in an ffprobe JSON object ("" where absent).
+fn fields(object: &Value, keys: &[&str]) -> Vec<String> {
+    keys.iter().map(|k| object[*k].as_str().unwrap_or("").to_string()).collect()
 }

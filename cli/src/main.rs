@@ -211,7 +211,7 @@ enum CorpusCommand {
 
 #[derive(Subcommand, Debug)]
 enum VideoCommand {
-    /// Encode frames to OUT.ivf or OUT.mp4: BT.2020, 10-bit 4:2:0 limited range, PQ with
+    /// Encode frames to OUT.ivf, OUT.mp4, OUT.mkv or OUT.webm (Matroska with the colour elements): BT.2020, 10-bit 4:2:0 limited range, PQ with
     /// MaxCLL/MaxFALL (measured over all frames) and a BT.2020 1000 cd/m² mastering display (or
     /// the first frame's own), or HLG for a 1000 cd/m² display; or L_p u'v' (Mantiuk 2004, ψ at
     /// 11 bits) in 12-bit 4:4:4 planes, named by an hdrcodec-lpuv T.35 message.
@@ -225,7 +225,7 @@ enum VideoCommand {
     ///
     /// A progress bar is drawn on stderr when it is a terminal (not with --json).
     Encode {
-        /// The frames (files, or one pattern, directory or .y4m), then the output .ivf or .mp4.
+        /// The frames (files, or one pattern, directory or .y4m), then the output .ivf, .mp4, .mkv or .webm.
         #[arg(required = true, num_args = 2.., value_name = "FRAMES... OUT.ivf")]
         paths: Vec<PathBuf>,
         /// Transfer function: pq (HDR10), hlg, or mantiuk (L_p u'v', 12-bit AV1 profile 2).
@@ -249,7 +249,7 @@ enum VideoCommand {
         /// Print one JSON object (output, frames, bytes, content light, notes) and no progress bar.
         #[arg(long)]
         json: bool,
-        /// Also write an SDR rendition of the same frames to this .ivf or .mp4: core's GT tone
+        /// Also write an SDR rendition of the same frames to this .ivf, .mp4, .mkv or .webm: core's GT tone
         /// curve for an SDR display of --sdr-peak cd/m² (scene 100 cd/m² is paper white), through
         /// its LUT form, in BT.709, the sRGB OETF, 8-bit 4:2:0 limited range, signalled as
         /// BT.709 primaries and matrix with the sRGB transfer (H.273 1/13/1).

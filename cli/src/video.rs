@@ -26,7 +26,7 @@ pub struct VideoEncodeArgs<'a> {
     /// Frame image files in order; or one printf-style pattern (`f%05d.exr`), one directory,
     /// or one `.y4m` file.
     pub frames: &'a [PathBuf],
-    /// The `.ivf` or `.mp4` file to write.
+    /// The `.ivf`, `.mp4`, `.mkv` or `.webm` file to write.
     pub output: &'a Path,
     /// `pq`, `hlg` or `mantiuk`.
     pub transfer: &'a str,
@@ -42,7 +42,7 @@ pub struct VideoEncodeArgs<'a> {
     pub threads: Option<usize>,
     /// Print a JSON summary, and no progress bar.
     pub json: bool,
-    /// Also write an SDR rendition of the same frames here (`.ivf` or `.mp4`).
+    /// Also write an SDR rendition of the same frames here (`.ivf`, `.mp4`, `.mkv`, `.webm`).
     pub sdr: Option<&'a Path>,
     /// The SDR display's peak, cd/m².
     pub sdr_peak: f64,
@@ -209,12 +209,23 @@ fn encode_frames<S: TemporalUnitSink>(
     Ok(encoder.finish()?.0)
 }
 
-/// Whether `path` is written as MP4 (else IVF); other extensions are an error.
-fn is_mp4_output(path: &Path) -> Result<bool> {
+/// The containers `video encode` writes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Container {
+    Ivf,
+    Mp4,
+    /// Matroska; WebM when true.
+    Mkv(bool),
+}
+
+/// The container `path`'s extension names; other extensions are an error.
+fn container_of(path: &Path) -> Result<Container> {
     match extension(path).as_str() {
-        "ivf" => Ok(false),
-        "mp4" => Ok(true),
-        _ => Err(Error::unsupported(format!("'{}': video is written as .ivf or .mp4", path.display()))),
+        "ivf" => Ok(Container::Ivf),
+        "mp4" => Ok(Container::Mp4),
+        "mkv" => Ok(Container::Mkv(false)),
+        "webm" => Ok(Container::Mkv(true)),
+        _ => Err(Error::unsupported(format!("'{}': video is written as .ivf, .mp4, .mkv or .webm", path.display()))),
     }
 }
 
@@ -228,27 +239,31 @@ struct Stream<'a> {
 }
 
 impl Stream<'_> {
-    /// Encodes every frame with `options` into `out`, as MP4 or IVF.
-    fn encode(&self, mp4: bool, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
+    /// Encodes every frame with `options` into `out`, in `container`.
+    fn encode(&self, container: Container, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
         let (w, h) = (self.width, self.height);
-        if mp4 {
-            encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar)
-        } else {
-            let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
-            encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
+        match container {
+            Container::Mp4 => encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar),
+            Container::Mkv(webm) => {
+                encode_frames(Av1Encoder::begin_mkv(w, h, options, out, webm)?, self.source, self.bar)
+            }
+            Container::Ivf => {
+                let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
+                encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
+            }
         }
     }
 }
 
-/// `hdrcodec video encode FRAMES... OUT.ivf|OUT.mp4` (the container from the extension). The
+/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension). The
 /// options go through [`Av1Codec::av1_options`], as for any caller of the codec. Frames are
 /// read twice for PQ, once to measure MaxCLL/MaxFALL (needed before the stream's first
 /// header) and once to encode, one frame at a time. The file is written atomically. Returns
 /// notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
-    let mp4 = is_mp4_output(a.output)?;
+    let container = container_of(a.output)?;
     let sdr = match a.sdr {
-        Some(path) => Some((path, is_mp4_output(path)?, SdrRendition::new(a.sdr_peak)?)),
+        Some(path) => Some((path, container_of(path)?, SdrRendition::new(a.sdr_peak)?)),
         None => None,
     };
     let source = FrameSource::resolve(a.frames, a.input_transfer)?;
@@ -286,10 +301,10 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     let stream = Stream { width: info.width, height: info.height, count, source: &source, bar: &bar };
     // The SDR file is written inside the HDR file's atomic write: either both appear or neither.
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        let summary = stream.encode(mp4, &options, out)?;
-        if let Some((path, sdr_mp4, rendition)) = &sdr {
+        let summary = stream.encode(container, &options, out)?;
+        if let Some((path, sdr_container, rendition)) = &sdr {
             let sdr_options = Av1Options { sdr: Some(rendition.clone()), ..options.clone() };
-            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_mp4, &sdr_options, sdr_out))?;
+            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_container, &sdr_options, sdr_out))?;
         }
         Ok(summary)
     });

@@ -700,7 +700,7 @@ fn video_encode_info_decode_round_trip() {
     }
 
     // Bad input: one stderr line, no output file.
-    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mkv")], &dir, ".ivf or .mp4");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.avi")], &dir, ".ivf, .mp4, .mkv or .webm");
     must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq, hlg or mantiuk");
     let other = corpus().join("sun-sky.exr");
     must_fail(&[&"video", &"encode", &frame, &other, &dir.join("y.ivf")], &dir, "512x256");
@@ -878,9 +878,17 @@ fn video_encode_writes_an_sdr_rendition_beside_the_hdr_stream() {
     let frame = decode(&out.join("frame_00001.exr"));
     assert_eq!(frame.color.primaries, hdrcodec::core::ColorPrimaries::Bt709);
     assert!(frame.samples().iter().all(|v| (0.0..=1.0).contains(v)), "display-linear, 1.0 = the peak");
+    // Matroska and WebM by extension (FFmpeg checks them in tests/video_ffmpeg.rs).
+    for name in ["clip.mkv", "clip.webm"] {
+        ok(&hdrcodec(&[&"video", &"encode", &seq, &dir.join(name), &"--speed", &"10"]));
+        let bytes = std::fs::read(dir.join(name)).unwrap();
+        assert_eq!(bytes[..4], [0x1A, 0x45, 0xDF, 0xA3], "{name}: the EBML header");
+        let doc_type: &[u8] = if name.ends_with("webm") { b"webm" } else { b"matroska" };
+        assert!(bytes.windows(doc_type.len()).any(|w| w == doc_type), "{name}");
+    }
     // Bad SDR options: one line, neither file written.
     let (hdr2, sdr2) = (dir.join("hdr2.ivf"), dir.join("sdr2.ivf"));
-    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &dir.join("sdr.mkv")], &dir, ".ivf or .mp4");
+    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &dir.join("sdr.avi")], &dir, ".mkv or .webm");
     must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &sdr2, &"--sdr-peak", &"5"], &dir, "50 to 1000");
 }
 

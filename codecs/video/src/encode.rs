@@ -14,6 +14,7 @@ use crate::lpuv_av1::{
     frame_to_lpuv_yuv, LpuvStreamInfo, LPUV_BIT_DEPTH, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION,
 };
 use crate::mantiuk::Psi04;
+use crate::mkv::MkvWriter;
 use crate::mp4::Mp4Writer;
 use crate::sdr::{SdrRendition, SDR_BIT_DEPTH};
 use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
@@ -239,6 +240,25 @@ impl<W: Write + Seek> Av1Encoder<Mp4Writer<W>> {
     pub fn begin_mp4(width: u32, height: u32, options: &Av1Options, out: W) -> Result<Self> {
         let mp4 = Mp4Writer::new(out, options.fps.max(1))?;
         Self::with_sink(width, height, options, mp4)
+    }
+}
+
+impl<W: Write + Seek> TemporalUnitSink for MkvWriter<W> {
+    type Output = W;
+    fn write_temporal_unit(&mut self, pts: u64, data: &[u8], keyframe: bool) -> Result<()> {
+        MkvWriter::write_temporal_unit(self, pts, data, keyframe)
+    }
+    fn finish(self) -> Result<(W, u64)> {
+        MkvWriter::finish(self)
+    }
+}
+
+impl<W: Write + Seek> Av1Encoder<MkvWriter<W>> {
+    /// Starts a stream of `width` × `height` frames to a Matroska file (DocType `webm` when
+    /// `webm`) with the colour elements.
+    pub fn begin_mkv(width: u32, height: u32, options: &Av1Options, out: W, webm: bool) -> Result<Self> {
+        let mkv = MkvWriter::new(out, options.fps.max(1), webm)?;
+        Self::with_sink(width, height, options, mkv)
     }
 }
 

@@ -36,6 +36,7 @@ pub mod lpuv_av1;
 pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;
+pub mod mkv;
 pub mod mp4;
 pub mod obu;
 pub mod sdr;
