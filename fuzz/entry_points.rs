@@ -25,7 +25,7 @@ use hdrcodec_rgbe::{decode, encode, MantissaDecode, RgbeDecodeOptions, RgbeEncod
 pub type Target = fn(&[u8]);
 
 /// Every target, by the name cargo-fuzz knows it by (`fuzz/Cargo.toml`).
-pub const TARGETS: [(&str, Target); 12] = [
+pub const TARGETS: [(&str, Target); 13] = [
     ("bc6h_block", bc6h_block),
     ("bc6h_files", bc6h_files),
     ("container", container),
@@ -38,6 +38,7 @@ pub const TARGETS: [(&str, Target); 12] = [
     ("mp4", mp4),
     ("pfm", pfm),
     ("rgbe", rgbe),
+    ("y4m", y4m),
 ];
 
 /// Where `decoded` succeeded, `probed` must have too, with the same header facts.
@@ -383,5 +384,28 @@ pub fn bc6h_files(data: &[u8]) {
         let again = read_ktx2(&written, &limits).expect("reads back");
         assert_eq!(again, tex);
         assert_eq!(read_ktx2_primaries(&written), primaries);
+    }
+}
+
+/// YUV4MPEG2 reading (hdrcodec-video's `y4m`): the header under `Limits::fuzzing()`, then every
+/// frame (each within the limits and of the header's size) through the conversion to light,
+/// until the end or the first error; and the header parser on the raw input.
+pub fn y4m(data: &[u8]) {
+    use hdrcodec_video::hdr10::Transfer;
+    use hdrcodec_video::y4m::{Y4mHeader, Y4mReader};
+    let limits = Limits::fuzzing();
+    let _ = Y4mHeader::parse(data, &limits);
+    let Ok(mut reader) = Y4mReader::new(data, &limits) else { return };
+    let header = *reader.header();
+    assert!(header.frame_bytes() <= limits.max_alloc_bytes);
+    for transfer in [Transfer::Pq, Transfer::HLG_1000].into_iter().cycle().take(64) {
+        match reader.next_frame() {
+            Ok(Some(yuv)) => {
+                assert_eq!((yuv.width as u32, yuv.height as u32), (header.width, header.height));
+                let image = reader.frame_to_image(&yuv, transfer, 100.0).expect("a whole frame converts");
+                assert!(image.samples().iter().all(|v| v.is_finite() && *v >= 0.0), "light from Y'CbCr");
+            }
+            Ok(None) | Err(_) => break,
+        }
     }
 }

@@ -35,4 +35,12 @@ cp codecs/jxr/testdata/*.jxr "$out/jxr/"
 seed gainmap_jpeg jpg --quality 70 --opt map_scale=4
 seed gainmap_jpeg jpeg-hdr.jpg --codec jpeg-hdr --quality 70 --opt correction=post
 cp codecs/jpeghdr/testdata/*.jpg "$out/gainmap_jpeg/"
+# Y4M: FFmpeg's test pattern in the colour spaces the reader takes (when FFmpeg is installed).
+mkdir -p "$out/y4m"
+if command -v ffmpeg >/dev/null; then
+  for fmt in yuv420p yuv420p10le yuv444p12le; do
+    ffmpeg -v error -y -f lavfi -i testsrc=size=16x12:rate=1 -frames:v 2 -pix_fmt "$fmt" -strict -1 \
+      "$out/y4m/testsrc-$fmt.y4m" || true
+  done
+fi
 echo "seeds: $(find "$out" -type f | wc -l) files in $out" >&2

@@ -31,6 +31,8 @@ pub use hdrcodec_jxr as jxr;
 pub use hdrcodec_logluv as logluv;
 pub use hdrcodec_pfm as pfm;
 pub use hdrcodec_rgbe as rgbe;
+#[cfg(feature = "video")]
+pub use hdrcodec_video as video;
 
 use crate::core::{
     ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
@@ -204,6 +206,19 @@ impl Registry {
         let data = read_file(path)?;
         self.decode(path, &data, limits)
     }
+}
+
+/// The codecs of frame sequences ([`VideoCodec`](crate::core::VideoCodec)): the `.hdrc`
+/// container carrying any codec of [`registry`], and with the `video` feature AV1
+/// ([`video::codec::Av1Codec`]: IVF and MP4). **Registering a stream codec is one line here.**
+/// Pick one by name or by [`extensions`](crate::core::VideoCodec::extensions).
+pub fn video_codecs() -> Vec<Arc<dyn crate::core::VideoCodec>> {
+    #[allow(unused_mut)]
+    let mut codecs: Vec<Arc<dyn crate::core::VideoCodec>> =
+        vec![Arc::new(container::HdrcVideoCodec::new(registry().codecs().to_vec()))];
+    #[cfg(feature = "video")]
+    codecs.push(Arc::new(video::codec::Av1Codec));
+    codecs
 }
 
 /// Reads a whole file, with an error that names it.
@@ -843,6 +858,15 @@ impl crate::core::sink::RowSink for StatsSink {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn video_codecs_are_the_container_and_with_the_feature_av1() {
+        let codecs = super::video_codecs();
+        let names: Vec<&str> = codecs.iter().map(|c| c.name()).collect();
+        let expected: &[&str] = if cfg!(feature = "video") { &["hdrc", "av1"] } else { &["hdrc"] };
+        assert_eq!(names, expected);
+        assert!(codecs.iter().all(|c| !c.extensions().is_empty()));
+    }
+
     use super::*;
     use crate::core::EncodeSettings;
     use std::io::Write;

@@ -372,3 +372,133 @@ fn we_read_the_corpus_hevc_mp4_as_ffprobe_does_and_flag_its_mastering_display() 
     assert!(info.problems[0].contains("primaries out of order"), "{:?}", info.problems);
     assert!(info.problems[1].contains("0.1 cd/m²"), "{:?}", info.problems);
 }
+
+/// FFmpeg's Y4M muxer against our Y4M reader: `testsrc` written by FFmpeg as Y4M (8-bit
+/// `420jpeg`, `420p10`, `444p12`, with its `XCOLORRANGE=LIMITED`) and as raw planes; our reader
+/// returns exactly the raw planes, frame by frame, with the header's size and depth.
+#[test]
+fn we_read_ffmpeg_s_y4m_as_its_raw_planes() {
+    use hdrcodec_core::Limits;
+    use hdrcodec_video::y4m::Y4mReader;
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_y4m");
+    for (pix_fmt, bits, chroma) in [("yuv420p", 8, 4), ("yuv420p10le", 10, 4), ("yuv444p12le", 12, 1)] {
+        let (y4m, raw) = (dir.join(format!("{pix_fmt}.y4m")), dir.join(format!("{pix_fmt}.raw")));
+        for (out, format) in [(&y4m, "yuv4mpegpipe"), (&raw, "rawvideo")] {
+            run_ok(
+                Command::new("ffmpeg")
+                    .args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=18x10:rate=5", "-frames:v", "3"])
+                    .args(["-pix_fmt", pix_fmt, "-strict", "-1", "-f", format])
+                    .arg(out),
+            );
+        }
+        let data = std::fs::read(&y4m).unwrap();
+        let mut reader = Y4mReader::new(&data[..], &Limits::default()).unwrap();
+        let h = *reader.header();
+        assert_eq!((h.width, h.height, h.bit_depth, h.full_range), (18, 10, bits, false), "{pix_fmt}");
+        let mut ours = Vec::new();
+        while let Some(yuv) = reader.next_frame().unwrap() {
+            assert_eq!(yuv.cb.len(), 18 * 10 / chroma, "{pix_fmt}");
+            for plane in [&yuv.y, &yuv.cb, &yuv.cr] {
+                if bits == 8 {
+                    ours.extend(plane.iter().map(|&v| v as u8));
+                } else {
+                    ours.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
+                }
+            }
+        }
+        assert_eq!(reader.frames_read(), 3, "{pix_fmt}");
+        assert!(ours == std::fs::read(&raw).unwrap(), "{pix_fmt}: our planes differ from FFmpeg's raw output");
+    }
+}
+
+/// The SDR rendition (`Av1Options::sdr`, `hdrcodec video encode --sdr`): ffprobe reports 8-bit
+/// 4:2:0 BT.709 primaries and matrix, the sRGB transfer, limited range; FFmpeg (libdav1d)
+/// decodes the planes to the samples ours gives.
+#[test]
+fn ffprobe_reads_our_sdr_rendition_as_bt709_and_ffmpeg_decodes_it_as_we_do() {
+    use hdrcodec_video::sdr::SdrRendition;
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let Some(_) = require(tool("md5sum"), "md5sum (coreutils)") else { return };
+    let dir = temp_dir("video_ffmpeg_sdr");
+    let options = Av1Options { sdr: Some(SdrRendition::new(200.0).unwrap()), ..fast() };
+    let path = write_stream(&dir, "sdr.ivf", &options);
+    let keys = ["codec_name", "pix_fmt", "color_primaries", "color_space", "color_transfer", "color_range"];
+    let stream =
+        ffprobe_json(&["-select_streams", "v:0", "-show_entries", &format!("stream={}", keys.join(","))], &path);
+    let s = &stream["streams"][0];
+    assert_eq!(fields(s, &keys), ["av1", "yuv420p", "bt709", "bt709", "iec61966-2-1", "tv"], "{s}");
+    let (raw, count) = our_planes(&path);
+    assert_eq!(count, 4);
+    // Our planes are 8-bit samples held in u16: the low bytes are FFmpeg's yuv420p.
+    let bytes: Vec<u8> = raw.chunks_exact(2).map(|b| b[0]).collect();
+    assert!(raw.chunks_exact(2).all(|b| b[1] == 0));
+    let ours = md5sum(&dir.join("sdr.yuv"), &bytes);
+    assert_eq!(ours, ffmpeg_md5_as(&path, "yuv420p"), "our decode and FFmpeg's");
+}
+
+/// Matroska and WebM from our EBML writer: ffprobe reports the colour elements (smpte2084,
+/// bt2020, bt2020nc, tv, topleft) and, as stream side data, exactly our mastering display
+/// (floats in the file) and content light level; FFmpeg decodes the same samples as from the IVF
+/// of the same frames.
+#[test]
+fn ffprobe_reads_our_matroska_colour_elements_and_ffmpeg_decodes_it_as_the_ivf() {
+    use hdrcodec_video::encode::Av1Encoder;
+    let Some(_) = require(tool("ffprobe"), "ffprobe (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_mkv");
+    let md = MasteringDisplay::p3_d65_1000();
+    let frames = frames();
+    let cll = content_light_level(&frames, Transfer::Pq);
+    let options = Av1Options { mastering_display: md, content_light: Some(cll), ..fast() };
+    let ivf = write_frames(&dir, "pq.ivf", &frames, &options);
+    for (name, webm) in [("pq.mkv", false), ("pq.webm", true)] {
+        let mut enc = Av1Encoder::begin_mkv(96, 64, &options, std::io::Cursor::new(Vec::new()), webm).unwrap();
+        for f in &frames {
+            enc.push_frame(f).unwrap();
+        }
+        let (_, out) = enc.finish().unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, out.into_inner()).unwrap();
+        let probe = ffprobe_json(
+            &[
+                "-select_streams",
+                "v:0",
+                "-show_entries",
+                "format=format_name,duration:stream=codec_name,color_range,color_space,color_transfer,color_primaries,chroma_location,nb_read_frames:stream_side_data_list",
+                "-count_frames",
+            ],
+            &path,
+        );
+        let s = &probe["streams"][0];
+        let keys = ["codec_name", "color_transfer", "color_primaries", "color_space", "color_range", "chroma_location"];
+        assert_eq!(fields(s, &keys), ["av1", "smpte2084", "bt2020", "bt2020nc", "tv", "topleft"], "{name}: {probe}");
+        assert_eq!(fields(s, &["nb_read_frames"]), ["4"], "{name}");
+        assert!(probe["format"]["format_name"].as_str().unwrap().contains("matroska"), "{probe}");
+        let side = s["side_data_list"].as_array().expect("stream side data from the colour elements");
+        let mdcv = side.iter().find(|d| d["side_data_type"] == "Mastering display metadata").expect("mastering");
+        let ratio = |v: &Value| -> f64 {
+            let (n, d) = v.as_str().unwrap().split_once('/').unwrap();
+            n.parse::<f64>().unwrap() / d.parse::<f64>().unwrap()
+        };
+        // What we wrote: the stream's HDR_MDCV (AV1 fixed point) as floats.
+        let written = MasteringDisplay::from_av1(&md.to_av1());
+        for (i, colour) in ["red", "green", "blue"].into_iter().enumerate() {
+            assert!((ratio(&mdcv[format!("{colour}_x")]) - written.primaries[i][0]).abs() < 2e-5, "{name} {colour}_x");
+            assert!((ratio(&mdcv[format!("{colour}_y")]) - written.primaries[i][1]).abs() < 2e-5, "{name} {colour}_y");
+        }
+        assert!((ratio(&mdcv["white_point_x"]) - written.white[0]).abs() < 2e-5);
+        assert!((ratio(&mdcv["max_luminance"]) - written.max_luminance).abs() < 1e-3, "{mdcv}");
+        assert!((ratio(&mdcv["min_luminance"]) - written.min_luminance).abs() < 1e-4, "{mdcv}");
+        let light = side.iter().find(|d| d["side_data_type"] == "Content light level metadata").expect("MaxCLL");
+        assert_eq!(
+            (light["max_content"].as_u64(), light["max_average"].as_u64()),
+            (Some(cll.max_cll.into()), Some(cll.max_fall.into()))
+        );
+        assert_eq!(ffmpeg_md5(&path), ffmpeg_md5(&ivf), "{name}: FFmpeg decodes the same frames as the IVF");
+    }
+}
+
+/// The string values of `keys` in an ffprobe JSON object ("" where absent).
+fn fields(object: &Value, keys: &[&str]) -> Vec<String> {
+    keys.iter().map(|k| object[*k].as_str().unwrap_or("").to_string()).collect()
+}

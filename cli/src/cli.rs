@@ -109,7 +109,7 @@ fn progress_visible(json: bool) -> bool {
 }
 
 /// A progress bar on stderr when [`progress_visible`]; else hidden.
-fn progress_bar(len: usize, json: bool) -> ProgressBar {
+pub(crate) fn progress_bar(len: usize, json: bool) -> ProgressBar {
     if !progress_visible(json) {
         return ProgressBar::hidden();
     }

@@ -75,7 +75,7 @@ enum Command {
     /// The project's generated corpus of synthetic HDR scenes.
     #[command(subcommand)]
     Corpus(CorpusCommand),
-    /// HDR video: frames to HDR10 (PQ) or HLG AV1 in IVF (rav1e), and back (libdav1d).
+    /// HDR video: frames to HDR10 (PQ), HLG or L_p u'v' AV1 in IVF or MP4 (rav1e), and back (libdav1d).
     #[command(subcommand)]
     Video(VideoCommand),
     /// List the codecs of this build: name, file extensions, container id.
@@ -211,36 +211,64 @@ enum CorpusCommand {
 
 #[derive(Subcommand, Debug)]
 enum VideoCommand {
-    /// Encode image files (one per frame, in order) to OUT.ivf: BT.2020, 10-bit 4:2:0 limited
-    /// range, PQ with MaxCLL/MaxFALL (measured over all frames) and a BT.2020 1000 cd/m²
-    /// mastering display, or HLG for a 1000 cd/m² display; or L_p u'v' (Mantiuk 2004, ψ at 11
-    /// bits) in 12-bit 4:4:4 planes, named by an hdrcodec-lpuv T.35 message.
+    /// Encode frames to OUT.ivf, OUT.mp4, OUT.mkv or OUT.webm (Matroska with the colour elements): BT.2020, 10-bit 4:2:0 limited range, PQ with
+    /// MaxCLL/MaxFALL (measured over all frames) and a BT.2020 1000 cd/m² mastering display (or
+    /// the first frame's own), or HLG for a 1000 cd/m² display; or L_p u'v' (Mantiuk 2004, ψ at
+    /// 11 bits) in 12-bit 4:4:4 planes, named by an hdrcodec-lpuv T.35 message.
+    ///
+    /// FRAMES is a list of image files (one per frame, in order), or one of: a printf-style
+    /// pattern such as `frames/f%05d.exr` (consecutive numbers from the smallest that exists),
+    /// a directory (its image files in name order), or a YUV4MPEG2 file (`.y4m`: 8, 10 or
+    /// 12-bit 4:2:0 or 4:4:4, read one frame at a time). Y4M does not say its colour: its
+    /// Y'CbCr is taken as BT.2020 non-constant-luminance on --input-transfer (PQ unless told),
+    /// limited range unless the header says XCOLORRANGE=FULL.
+    ///
+    /// A progress bar is drawn on stderr when it is a terminal (not with --json).
     Encode {
-        /// The frame files, then the output .ivf file.
+        /// The frames (files, or one pattern, directory or .y4m), then the output .ivf, .mp4, .mkv or .webm.
         #[arg(required = true, num_args = 2.., value_name = "FRAMES... OUT.ivf")]
         paths: Vec<PathBuf>,
         /// Transfer function: pq (HDR10), hlg, or mantiuk (L_p u'v', 12-bit AV1 profile 2).
         #[arg(long, default_value = "pq")]
         transfer: String,
+        /// The transfer a .y4m input's Y'CbCr is on (Y4M cannot say): pq or hlg (BT.2020).
+        #[arg(long, default_value = "pq")]
+        input_transfer: String,
         /// Chroma planes: 420 or 444 (default: 420 for pq and hlg, 444 for mantiuk).
         #[arg(long)]
         chroma: Option<String>,
-        /// Quality 0-100 (mapped linearly onto rav1e's quantizer 255-0).
-        #[arg(long, value_parser = clap::value_parser!(u8).range(0..=100))]
-        quality: Option<u8>,
-        /// rav1e speed preset 0-10 (10 fastest; default 6).
-        #[arg(long, value_parser = clap::value_parser!(u8).range(0..=10))]
-        speed: Option<u8>,
+        /// Quality 0-100 (mapped linearly onto rav1e's quantizer 255-0; 61 is quantizer 100).
+        #[arg(long, default_value_t = 61, value_parser = clap::value_parser!(u8).range(0..=100))]
+        quality: u8,
+        /// rav1e speed preset 0-10 (10 fastest).
+        #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(0..=10))]
+        speed: u8,
         /// Worker threads (0 = one per core).
         #[arg(long)]
         threads: Option<usize>,
+        /// Print one JSON object (output, frames, bytes, content light, notes) and no progress bar.
+        #[arg(long)]
+        json: bool,
+        /// Also write an SDR rendition of the same frames to this .ivf, .mp4, .mkv or .webm: core's GT tone
+        /// curve for an SDR display of --sdr-peak cd/m² (scene 100 cd/m² is paper white), through
+        /// its LUT form, in BT.709, the sRGB OETF, 8-bit 4:2:0 limited range, signalled as
+        /// BT.709 primaries and matrix with the sRGB transfer (H.273 1/13/1).
+        #[arg(long, value_name = "OUT")]
+        sdr: Option<PathBuf>,
+        /// The SDR display's peak for --sdr, cd/m² (50 to 1000).
+        #[arg(long, default_value_t = 100.0)]
+        sdr_peak: f64,
     },
-    /// Decode IN.ivf into OUT_DIR as frame_00000.exr, ... (linear BT.2020, 1.0 = 100 cd/m²).
+    /// Decode IN (.ivf, .mp4 or an .hdrc sequence) into OUT_DIR as frame_00000.exr, ... (linear;
+    /// AV1 in BT.2020, 1.0 = 100 cd/m²). A progress bar is drawn on stderr when it is a terminal.
     Decode {
-        /// The AV1 stream.
+        /// The stream.
         input: PathBuf,
         /// Output directory (created if missing).
         out_dir: PathBuf,
+        /// Print one JSON object (frames, codec) and no progress bar.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -306,24 +334,37 @@ fn run() -> ExitCode {
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),
-        Command::Video(VideoCommand::Encode { paths, transfer, chroma, quality, speed, threads }) => {
-            match paths.split_last() {
-                Some((output, frames)) => {
-                    let args = video::VideoEncodeArgs {
-                        frames,
-                        output,
-                        transfer: &transfer,
-                        chroma: chroma.as_deref(),
-                        quality,
-                        speed,
-                        threads,
-                    };
-                    video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
-                }
-                None => Err(hdrcodec::core::Error::invalid("video encode needs FRAMES... OUT.ivf")),
+        Command::Video(VideoCommand::Encode {
+            paths,
+            transfer,
+            input_transfer,
+            chroma,
+            quality,
+            speed,
+            threads,
+            json,
+            sdr,
+            sdr_peak,
+        }) => match paths.split_last() {
+            Some((output, frames)) => {
+                let args = video::VideoEncodeArgs {
+                    frames,
+                    output,
+                    transfer: &transfer,
+                    input_transfer: &input_transfer,
+                    chroma: chroma.as_deref(),
+                    quality,
+                    speed,
+                    threads,
+                    json,
+                    sdr: sdr.as_deref(),
+                    sdr_peak,
+                };
+                video::encode(&args).map(|notes| notes.iter().for_each(|n| cli::note(n)))
             }
-        }
-        Command::Video(VideoCommand::Decode { input, out_dir }) => video::decode(&input, &out_dir),
+            None => Err(hdrcodec::core::Error::invalid("video encode needs FRAMES... OUT.ivf")),
+        },
+        Command::Video(VideoCommand::Decode { input, out_dir, json }) => video::decode(&input, &out_dir, json),
         Command::Codecs { json } => cli::codecs(json),
     };
     match result {

@@ -1,32 +1,51 @@
 //! `hdrcodec video encode|decode`, and `hdrcodec info` on an AV1 `.ivf` file: HDR10 (PQ), HLG
 //! or L_p u'v' (Mantiuk 2004) AV1 through hdrcodec-video (rav1e to encode, libdav1d to decode).
 
-use hdrcodec::core::{Error, Hdr10Metadata, HdrImage, Limits, Result, ThreadPool};
-use hdrcodec_video::decode::{probe_ivf, Av1DecodeOptions, Av1Decoder};
+use hdrcodec::core::{
+    ContentLightLevel, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, HdrImage, ImageInfo, Limits, Result,
+    ThreadPool, VideoCodec, WriteSeek,
+};
+use hdrcodec_video::codec::Av1Codec;
+use hdrcodec_video::decode::probe_ivf;
 use hdrcodec_video::encode::{Av1Encoder, Av1Options, EncodeSummary, TemporalUnitSink};
-use hdrcodec_video::hdr10::{content_light_level, Subsampling, Transfer};
+use hdrcodec_video::hdr10::{content_light_level, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use hdrcodec_video::mp4::probe_mp4;
 use hdrcodec_video::obu::chroma_sample_position;
+use hdrcodec_video::sdr::SdrRendition;
+use hdrcodec_video::y4m::Y4mReader;
+use indicatif::ProgressBar;
 use serde_json::json;
+use std::fs::File;
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// What `video encode` was asked for.
 pub struct VideoEncodeArgs<'a> {
-    /// Frame image files, in order.
+    /// Frame image files in order; or one printf-style pattern (`f%05d.exr`), one directory,
+    /// or one `.y4m` file.
     pub frames: &'a [PathBuf],
-    /// The `.ivf` or `.mp4` file to write.
+    /// The `.ivf`, `.mp4`, `.mkv` or `.webm` file to write.
     pub output: &'a Path,
     /// `pq`, `hlg` or `mantiuk`.
     pub transfer: &'a str,
+    /// The transfer of a Y4M input's Y'CbCr: `pq` or `hlg`.
+    pub input_transfer: &'a str,
     /// `420` or `444`; `None`: 4:2:0 for PQ and HLG, 4:4:4 for Mantiuk.
     pub chroma: Option<&'a str>,
     /// 0-100, mapped onto rav1e's quantizer.
-    pub quality: Option<u8>,
+    pub quality: u8,
     /// rav1e speed preset 0-10.
-    pub speed: Option<u8>,
+    pub speed: u8,
     /// Worker threads (0 = one per core).
     pub threads: Option<usize>,
+    /// Print a JSON summary, and no progress bar.
+    pub json: bool,
+    /// Also write an SDR rendition of the same frames here (`.ivf`, `.mp4`, `.mkv`, `.webm`).
+    pub sdr: Option<&'a Path>,
+    /// The SDR display's peak, cd/m².
+    pub sdr_peak: f64,
 }
 
 /// The lower-case extension of `path`.
@@ -43,102 +62,311 @@ fn is_mp4(path: &Path) -> bool {
     matches!(extension(path).as_str(), "mp4" | "m4v" | "mov")
 }
 
-/// Codes every frame after the first (already read) into `encoder` and completes the file.
+/// Where `video encode` takes its frames from.
+enum FrameSource {
+    /// Image files, one per frame, in order.
+    Files(Vec<PathBuf>),
+    /// A YUV4MPEG2 file, whose Y'CbCr is BT.2020 on this transfer.
+    Y4m { path: PathBuf, transfer: Transfer },
+}
+
+/// The files a printf-style pattern names (`dir/f%05d.exr`, `f%d.exr`): consecutive numbers
+/// from the smallest that exists, up to the first missing one.
+fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
+    let name = pattern.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+    let bad =
+        || Error::invalid(format!("'{}': a frame pattern has one %d or %0Nd, in the file name", pattern.display()));
+    let at = name.find('%').ok_or_else(bad)?;
+    let (prefix, rest) = name.split_at(at);
+    let spec_end = rest.find('d').ok_or_else(bad)?;
+    let spec = &rest[1..spec_end];
+    let suffix = &rest[spec_end + 1..];
+    let width = match spec {
+        "" => 0,
+        s if s.starts_with('0') && s.len() > 1 => s[1..].parse::<usize>().map_err(|_| bad())?,
+        _ => return Err(bad()),
+    };
+    if suffix.contains('%') {
+        return Err(bad());
+    }
+    let format = |n: u64| format!("{prefix}{n:0width$}{suffix}");
+    let dir = pattern.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
+    // Every number whose name the pattern writes exactly, then the run from the smallest.
+    let mut numbers = std::collections::BTreeSet::new();
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(file) = file.to_str() else { continue };
+        let digits = file.strip_prefix(prefix).and_then(|f| f.strip_suffix(suffix));
+        if let Some(n) = digits.filter(|d| !d.is_empty()).and_then(|d| d.parse::<u64>().ok()) {
+            if format(n) == file {
+                numbers.insert(n);
+            }
+        }
+    }
+    let first = *numbers.first().ok_or_else(|| Error::invalid(format!("no file matches '{}'", pattern.display())))?;
+    Ok((first..).take_while(|n| numbers.contains(n)).map(|n| dir.join(format(n))).collect())
+}
+
+/// The image files of a directory that some codec reads (by extension), in name order;
+/// hidden files are left out.
+fn directory_frames(dir: &Path) -> Result<Vec<PathBuf>> {
+    let known = hdrcodec::registry().extensions();
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
+    let mut files: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_file())
+        .filter(|p| !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
+        .filter(|p| known.contains(&extension(p).as_str()))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::invalid(format!("{}: no image file in the directory", dir.display())));
+    }
+    Ok(files)
+}
+
+impl FrameSource {
+    /// The frames `inputs` name: a list of files, or one pattern, directory or `.y4m` file.
+    fn resolve(inputs: &[PathBuf], input_transfer: &str) -> Result<Self> {
+        let transfer = match input_transfer.to_ascii_lowercase().as_str() {
+            "pq" => Transfer::Pq,
+            "hlg" => Transfer::HLG_1000,
+            other => return Err(Error::invalid(format!("--input-transfer {other}: expected pq or hlg"))),
+        };
+        match inputs {
+            [] => Err(Error::invalid("no frames to encode")),
+            [one] if extension(one) == "y4m" => Ok(FrameSource::Y4m { path: one.clone(), transfer }),
+            [one] if one.is_dir() => directory_frames(one).map(FrameSource::Files),
+            [one] if !one.exists() && one.to_string_lossy().contains('%') => {
+                expand_pattern(one).map(FrameSource::Files)
+            }
+            many => Ok(FrameSource::Files(many.to_vec())),
+        }
+    }
+
+    /// Frames, when known without reading them all (a Y4M file's from its length).
+    fn count(&self) -> Option<u64> {
+        match self {
+            FrameSource::Files(files) => Some(files.len() as u64),
+            FrameSource::Y4m { path, .. } => {
+                let reader = Y4mReader::new(BufReader::new(File::open(path).ok()?), &Limits::default()).ok()?;
+                let len = std::fs::metadata(path).ok()?.len();
+                // Header line, then per frame "FRAME\n" and the planes.
+                Some(len / (6 + reader.header().frame_bytes()))
+            }
+        }
+    }
+
+    /// Reads every frame in order, one at a time, and hands each to `each`; stops after
+    /// `limit` frames if given. Returns how many were read.
+    fn for_each(&self, limit: Option<u64>, mut each: impl FnMut(HdrImage) -> Result<()>) -> Result<u64> {
+        let limit = limit.unwrap_or(u64::MAX);
+        let mut n = 0;
+        match self {
+            FrameSource::Files(files) => {
+                let (reg, limits) = (hdrcodec::registry(), Limits::default());
+                for path in files.iter().take(usize::try_from(limit).unwrap_or(usize::MAX)) {
+                    let (_, frame) = reg.read(path, &limits)?;
+                    each(frame).map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
+                    n += 1;
+                }
+            }
+            FrameSource::Y4m { path, transfer } => {
+                let file = File::open(path)
+                    .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))))?;
+                let mut reader = Y4mReader::new(BufReader::new(file), &Limits::default())
+                    .map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
+                while n < limit {
+                    let at = |e: Error| Error::invalid(format!("{} frame {n}: {e}", path.display()));
+                    let Some(yuv) = reader.next_frame().map_err(at)? else { break };
+                    each(reader.frame_to_image(&yuv, *transfer, 100.0).map_err(at)?)?;
+                    n += 1;
+                }
+                if n == 0 {
+                    return Err(Error::invalid(format!("{}: the Y4M file holds no frame", path.display())));
+                }
+            }
+        }
+        Ok(n)
+    }
+}
+
+/// Codes every frame of `source` into `encoder`, ticking `bar`, and completes the file.
 fn encode_frames<S: TemporalUnitSink>(
     mut encoder: Av1Encoder<S>,
-    head: &HdrImage,
-    rest: &[PathBuf],
-    read: impl Fn(&PathBuf) -> Result<HdrImage>,
+    source: &FrameSource,
+    bar: &ProgressBar,
 ) -> Result<EncodeSummary> {
-    encoder.push_frame(head)?;
-    for path in rest {
-        encoder.push_frame(&read(path)?).map_err(|e| Error::invalid(format!("{}: {e}", path.display())))?;
-    }
+    source.for_each(None, |frame| {
+        encoder.push_frame(&frame)?;
+        bar.inc(1);
+        Ok(())
+    })?;
     Ok(encoder.finish()?.0)
 }
 
-/// `hdrcodec video encode FRAMES... OUT.ivf|OUT.mp4` (the container from the extension). Frames are decoded twice, once to measure
-/// MaxCLL/MaxFALL (needed before the stream's first header) and once to encode, so that no
-/// more than the first frame and one other are held at a time. The file is written atomically.
-/// Returns notes for stderr (values the PQ or HLG signal could not hold).
+/// The containers `video encode` writes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Container {
+    Ivf,
+    Mp4,
+    /// Matroska; WebM when true.
+    Mkv(bool),
+}
+
+/// The container `path`'s extension names; other extensions are an error.
+fn container_of(path: &Path) -> Result<Container> {
+    match extension(path).as_str() {
+        "ivf" => Ok(Container::Ivf),
+        "mp4" => Ok(Container::Mp4),
+        "mkv" => Ok(Container::Mkv(false)),
+        "webm" => Ok(Container::Mkv(true)),
+        _ => Err(Error::unsupported(format!("'{}': video is written as .ivf, .mp4, .mkv or .webm", path.display()))),
+    }
+}
+
+/// The frames of one `video encode`, encoded once per output.
+struct Stream<'a> {
+    width: u32,
+    height: u32,
+    count: Option<u64>,
+    source: &'a FrameSource,
+    bar: &'a ProgressBar,
+}
+
+impl Stream<'_> {
+    /// Encodes every frame with `options` into `out`, in `container`.
+    fn encode(&self, container: Container, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
+        let (w, h) = (self.width, self.height);
+        match container {
+            Container::Mp4 => encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar),
+            Container::Mkv(webm) => {
+                encode_frames(Av1Encoder::begin_mkv(w, h, options, out, webm)?, self.source, self.bar)
+            }
+            Container::Ivf => {
+                let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
+                encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
+            }
+        }
+    }
+}
+
+/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension). The
+/// options go through [`Av1Codec::av1_options`], as for any caller of the codec. Frames are
+/// read twice for PQ, once to measure MaxCLL/MaxFALL (needed before the stream's first
+/// header) and once to encode, one frame at a time. The file is written atomically. Returns
+/// notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
-    let mp4 = match extension(a.output).as_str() {
-        "ivf" => false,
-        "mp4" => true,
-        _ => return Err(Error::unsupported(format!("'{}': video is written as .ivf or .mp4", a.output.display()))),
+    let container = container_of(a.output)?;
+    let sdr = match a.sdr {
+        Some(path) => Some((path, container_of(path)?, SdrRendition::new(a.sdr_peak)?)),
+        None => None,
     };
-    let (transfer, mantiuk) = match a.transfer.to_ascii_lowercase().as_str() {
-        "pq" => (Transfer::Pq, false),
-        "hlg" => (Transfer::HLG_1000, false),
-        "mantiuk" => (Transfer::Pq, true),
-        other => return Err(Error::invalid(format!("--transfer {other}: expected pq, hlg or mantiuk"))),
-    };
-    // L_p u'v' chroma is nearly free at 4:4:4 (its codes span 0..255 of 4095) and keeps colour
-    // edges: the crate's README has the measurements.
-    let subsampling = match a.chroma {
-        None if mantiuk => Subsampling::Yuv444,
-        None | Some("420") => Subsampling::Yuv420,
-        Some("444") => Subsampling::Yuv444,
-        Some(other) => return Err(Error::invalid(format!("--chroma {other}: expected 420 or 444"))),
-    };
-    let first = a.frames.first().ok_or_else(|| Error::invalid("no frames to encode"))?;
-    let reg = hdrcodec::registry();
-    let limits = Limits::default();
-    let read = |path: &PathBuf| reg.read(path, &limits).map(|(_, image)| image);
-    let mut options =
-        Av1Options { transfer, subsampling, pool: ThreadPool::new(a.threads.unwrap_or(0))?, ..Av1Options::default() };
-    if let Some(q) = a.quality {
-        options.quantizer = Av1Options::quantizer_for_quality(q);
+    let source = FrameSource::resolve(a.frames, a.input_transfer)?;
+    let mut settings = EncodeSettings::default()
+        .with_quality(a.quality)
+        .with_pool(ThreadPool::new(a.threads.unwrap_or(0))?)
+        .with_option("transfer", a.transfer)
+        .with_option("speed", a.speed.to_string());
+    if let Some(chroma) = a.chroma {
+        settings = settings.with_option("chroma", chroma);
     }
-    if let Some(s) = a.speed {
-        options.speed = s;
-    }
-    let head = read(first)?;
-    if mantiuk {
-        // The decoder returns the first frame's primaries; every T.35 must reach its frame.
-        options.lpuv = Some(LpuvStreamInfo::for_primaries(head.color.primaries));
-        options.low_latency = true;
-    } else if transfer == Transfer::Pq {
-        let mut cll = content_light_level([&head], transfer);
-        for path in &a.frames[1..] {
-            let next = content_light_level([&read(path)?], transfer);
+    // The first frame's size and colour (its mastering display is kept, if it has one).
+    let mut head = None;
+    source.for_each(Some(1), |frame| {
+        head = Some(ImageInfo::of(&frame));
+        Ok(())
+    })?;
+    let mut info = head.ok_or_else(|| Error::invalid("no frames to encode"))?;
+    let mut options = Av1Codec::av1_options(&info, &settings)?;
+    if options.transfer == Transfer::Pq && options.lpuv.is_none() {
+        let mut cll = ContentLightLevel { max_cll: 0, max_fall: 0 };
+        source.for_each(None, |frame| {
+            let next = content_light_level([&frame], Transfer::Pq);
             cll.max_cll = cll.max_cll.max(next.max_cll);
             cll.max_fall = cll.max_fall.max(next.max_fall);
-        }
-        options.content_light = Some(cll);
+            Ok(())
+        })?;
+        let mastering_display = info.color.hdr10.and_then(|h| h.mastering_display);
+        info.color.hdr10 = Some(Hdr10Metadata { mastering_display, content_light_level: Some(cll) });
+        options = Av1Codec::av1_options(&info, &settings)?;
     }
-    let count = u32::try_from(a.frames.len()).unwrap_or(0);
-    let (w, h, rest) = (head.width(), head.height(), &a.frames[1..]);
+    let count = source.count();
+    let passes = if sdr.is_some() { 2 } else { 1 };
+    let bar = crate::cli::progress_bar(count.unwrap_or(0) as usize * passes, a.json);
+    let stream = Stream { width: info.width, height: info.height, count, source: &source, bar: &bar };
+    // The SDR file is written inside the HDR file's atomic write: either both appear or neither.
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        if mp4 {
-            encode_frames(Av1Encoder::begin_mp4(w, h, &options, out)?, &head, rest, read)
-        } else {
-            encode_frames(Av1Encoder::begin(w, h, count, &options, out)?, &head, rest, read)
+        let summary = stream.encode(container, &options, out)?;
+        if let Some((path, sdr_container, rendition)) = &sdr {
+            let sdr_options = Av1Options { sdr: Some(rendition.clone()), ..options.clone() };
+            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_container, &sdr_options, sdr_out))?;
         }
-    })?;
+        Ok(summary)
+    });
+    bar.finish_and_clear();
+    let summary = summary?;
     let c = summary.clipped;
     let mut notes = Vec::new();
     if !c.is_empty() {
         notes.push(format!(
             "{} components above {} cd/m² coded as the peak, {} negative and {} NaN coded as 0",
             c.above_peak,
-            transfer.peak_nits(),
+            options.transfer.peak_nits(),
             c.negative,
             c.nan
         ));
     }
+    if a.json {
+        let cll = summary.content_light.map(|c| json!({"max_cll": c.max_cll, "max_fall": c.max_fall}));
+        println!(
+            "{}",
+            json!({
+                "output": a.output.display().to_string(),
+                "sdr_output": a.sdr.map(|p| p.display().to_string()),
+                "frames": summary.frames,
+                "bytes": summary.bytes,
+                "content_light": cll,
+                "notes": notes,
+            })
+        );
+    }
     Ok(notes)
 }
 
-/// `hdrcodec video decode IN.ivf|IN.mp4 OUT_DIR` (AV1 only): every frame as `frame_NNNNN.exr` (float, linear
-/// BT.2020, or for L_p u'v' the primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are removed.
-pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
-    let data = hdrcodec::read_file(input)?;
-    let mut decoder = Av1Decoder::new(&data, &Av1DecodeOptions::default())?;
+/// The stream codec (from the facade's [`hdrcodec::video_codecs`]) that reads `path`, by its
+/// extension (`.m4v` and `.mov` as `.mp4`).
+fn video_codec_for(path: &Path) -> Result<Arc<dyn VideoCodec>> {
+    let ext = match extension(path).as_str() {
+        "m4v" | "mov" => "mp4".to_string(),
+        other => other.to_string(),
+    };
+    let codecs = hdrcodec::video_codecs();
+    let known: Vec<&str> = codecs.iter().flat_map(|c| c.extensions().iter().copied()).collect();
+    codecs
+        .iter()
+        .find(|c| c.extensions().contains(&ext.as_str()))
+        .cloned()
+        .ok_or_else(|| Error::unsupported(format!("'{}': video is read from {}", path.display(), known.join(", "))))
+}
+
+/// `hdrcodec video decode IN.ivf|IN.mp4|IN.hdrc OUT_DIR`, through the facade's stream codecs:
+/// every frame as `frame_NNNNN.exr` (float, linear; AV1 gives BT.2020, or for L_p u'v' the
+/// primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are
+/// removed. Returns the number of frames.
+pub fn decode(input: &Path, out_dir: &Path, json: bool) -> Result<()> {
+    let codec = video_codec_for(input)?;
+    let data: Arc<[u8]> = hdrcodec::read_file(input)?.into();
+    let mut decoder = codec.begin_decode(data, &DecodeOptions::new(Limits::default()))?;
     let exr = hdrcodec::registry().by_name("exr")?;
-    let settings = hdrcodec::core::EncodeSettings::default();
+    let settings = EncodeSettings::default();
     std::fs::create_dir_all(out_dir)
         .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", out_dir.display()))))?;
+    let bar = crate::cli::progress_bar(decoder.info().frames as usize, json);
     let mut written = Vec::new();
     let result = (|| {
         let mut index = 0u64;
@@ -147,18 +375,27 @@ pub fn decode(input: &Path, out_dir: &Path) -> Result<()> {
             hdrcodec::encode_file(exr.as_ref(), &frame, &settings, &path)?;
             written.push(path);
             index += 1;
+            bar.inc(1);
         }
         if index == 0 {
             return Err(Error::invalid(format!("{}: the stream holds no frame", input.display())));
         }
-        Ok(())
+        Ok(index)
     })();
+    bar.finish_and_clear();
     if result.is_err() {
         for path in &written {
             let _ = std::fs::remove_file(path);
         }
     }
-    result
+    let frames = result?;
+    if json {
+        println!(
+            "{}",
+            json!({"input": input.display().to_string(), "output_dir": out_dir.display().to_string(), "frames": frames, "codec": codec.name()})
+        );
+    }
+    Ok(())
 }
 
 /// `hdrcodec info FILE.ivf|FILE.mp4`: the IVF header, the sequence header's colour signalling and the

@@ -3,6 +3,7 @@
 
 #[path = "../../tests/common/mod.rs"]
 mod common;
+mod terminal;
 
 use serde_json::Value;
 use std::collections::BTreeSet;
@@ -400,44 +401,9 @@ fn a_tiny_memory_budget_runs_one_image_at_a_time() {
     assert!(count(&s, "peak_in_flight_cost") <= 1 << 30, "{s}");
 }
 
-/// Runs `hdrcodec ARGS` with stderr on a pseudo-terminal of 120 columns and stdout on a pipe;
-/// returns what reached the terminal and what reached stdout.
-fn run_on_terminal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (String, String) {
-    use rustix::pty::{grantpt, ioctl_tiocgptpeer, openpt, unlockpt, OpenptFlags};
-    use std::io::Read;
-    let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY | OpenptFlags::CLOEXEC).unwrap();
-    grantpt(&master).unwrap();
-    unlockpt(&master).unwrap();
-    let terminal = ioctl_tiocgptpeer(&master, OpenptFlags::RDWR | OpenptFlags::NOCTTY).unwrap();
-    let size = rustix::termios::Winsize { ws_row: 24, ws_col: 120, ws_xpixel: 0, ws_ypixel: 0 };
-    rustix::termios::tcsetwinsize(&terminal, size).unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
-        .args(args.iter().map(|a| a.as_ref()))
-        .env("TERM", "xterm-256color")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::from(terminal))
-        .spawn()
-        .unwrap();
-    // Read while it runs (a full terminal buffer would block it); the read fails (EIO) once
-    // the child, the terminal's last user, has closed it.
-    let mut master = std::fs::File::from(master);
-    let screen = std::thread::spawn(move || {
-        let mut all = Vec::new();
-        let mut chunk = [0u8; 4096];
-        while let Ok(n @ 1..) = master.read(&mut chunk) {
-            all.extend_from_slice(&chunk[..n]);
-        }
-        all
-    });
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "{:?}", out.status);
-    let screen = String::from_utf8_lossy(&screen.join().unwrap()).into_owned();
-    (screen, String::from_utf8_lossy(&out.stdout).into_owned())
-}
-
 #[test]
 fn the_progress_bar_is_drawn_on_a_terminal_only() {
+    use terminal::run_on_terminal;
     let input = input_tree("batch-progress-in");
     // stderr a terminal, stdout a pipe: the bar, its ETA and its count are drawn on stderr.
     let out = common::temp_dir("batch-progress-out-terminal");

@@ -4,6 +4,7 @@
 
 #[path = "../../tests/common/mod.rs"]
 mod common;
+mod terminal;
 
 use hdrcodec::core::Limits;
 use serde_json::Value;
@@ -908,7 +909,7 @@ fn video_encode_info_decode_round_trip() {
     }
 
     // Bad input: one stderr line, no output file.
-    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.mkv")], &dir, ".ivf or .mp4");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("clip.avi")], &dir, ".ivf, .mp4, .mkv or .webm");
     must_fail(&[&"video", &"encode", &frame, &dir.join("x.ivf"), &"--transfer", &"log"], &dir, "pq, hlg or mantiuk");
     let other = corpus().join("sun-sky.exr");
     must_fail(&[&"video", &"encode", &frame, &other, &dir.join("y.ivf")], &dir, "512x256");
@@ -951,4 +952,175 @@ fn video_mantiuk_encode_info_decode_round_trip() {
     eprintln!("257x129 corpus frame, mantiuk, quality 96, speed 10: PU21-PSNR {psnr:.2} dB");
     assert!(psnr > 35.0, "{c}");
     must_fail(&[&"video", &"encode", &frame, &dir.join("z.ivf"), &"--chroma", &"422"], &dir, "420 or 444");
+}
+
+/// Writes `frames` of the generated moving light (64x48, 4000 cd/m²) as float EXR files
+/// `dir/NAME(t)`; returns the frames.
+fn write_light_frames(dir: &Path, frames: u32, name: impl Fn(u32) -> String) -> Vec<hdrcodec::core::HdrImage> {
+    let exr = hdrcodec::registry().by_name("exr").unwrap();
+    std::fs::create_dir_all(dir).unwrap();
+    (0..frames)
+        .map(|t| {
+            let f = hdrcodec_video::sequences::moving_light_frame(64, 48, 4000.0, 6.0, t, frames);
+            hdrcodec::encode_file(exr.as_ref(), &f, &Default::default(), &dir.join(name(t))).unwrap();
+            f
+        })
+        .collect()
+}
+
+/// The frames as a 10-bit 4:2:0 limited-range PQ Y4M file (hdrcodec-video's planes).
+fn y4m_of(frames: &[hdrcodec::core::HdrImage]) -> Vec<u8> {
+    use hdrcodec_video::hdr10::{frame_to_yuv, Range, Subsampling, Transfer};
+    let (w, h) = (frames[0].width(), frames[0].height());
+    let mut out = format!("YUV4MPEG2 W{w} H{h} F25:1 Ip A1:1 C420p10 XYSCSS=420P10\n").into_bytes();
+    for f in frames {
+        let (yuv, _) = frame_to_yuv(f, Transfer::Pq, Range::Limited, Subsampling::Yuv420);
+        out.extend_from_slice(b"FRAME\n");
+        for plane in [&yuv.y, &yuv.cb, &yuv.cr] {
+            out.extend(plane.iter().flat_map(|v| v.to_le_bytes()));
+        }
+    }
+    out
+}
+
+#[test]
+fn video_encode_reads_a_pattern_a_directory_and_y4m() {
+    let dir = common::temp_dir("cli-video-inputs");
+    let fast = [&"--speed" as &dyn AsRef<std::ffi::OsStr>, &"10", &"--quality", &"85"];
+    let run = |args: &[&dyn AsRef<std::ffi::OsStr>]| {
+        let mut all: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&"video", &"encode"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&fast);
+        hdrcodec(&all)
+    };
+    // A pattern: f00001..f00003 are taken, f00005 (after the gap) and other names are not.
+    let seq = dir.join("seq");
+    let frames = write_light_frames(&seq, 3, |t| format!("f{:05}.exr", t + 1));
+    write_light_frames(&seq, 1, |_| "f00005.exr".into());
+    write_light_frames(&seq, 1, |_| "f1.exr".into());
+    let ivf = dir.join("pattern.ivf");
+    ok(&run(&[&seq.join("f%05d.exr"), &ivf]));
+    assert_eq!(json(&hdrcodec(&[&"info", &ivf, &"--json"]))["frames"].as_u64(), Some(3));
+    // f%d takes f1 alone (f2 does not exist); no match at all is an error.
+    let ivf = dir.join("pattern-d.ivf");
+    ok(&run(&[&seq.join("f%d.exr"), &ivf]));
+    assert_eq!(json(&hdrcodec(&[&"info", &ivf, &"--json"]))["frames"].as_u64(), Some(1));
+    must_fail(&[&"video", &"encode", &seq.join("g%03d.exr"), &dir.join("none.ivf")], &dir, "no file matches");
+    must_fail(&[&"video", &"encode", &seq.join("f%5d.exr"), &dir.join("none.ivf")], &dir, "%0Nd");
+
+    // A directory: its image files in name order (the text file is not a frame).
+    let in_dir = dir.join("in-dir");
+    write_light_frames(&in_dir, 2, |t| format!("frame-{t}.exr"));
+    std::fs::write(in_dir.join("README.txt"), "not a frame").unwrap();
+    let ivf = dir.join("directory.ivf");
+    ok(&run(&[&in_dir, &ivf]));
+    assert_eq!(json(&hdrcodec(&[&"info", &ivf, &"--json"]))["frames"].as_u64(), Some(2));
+
+    // Y4M, 10-bit 4:2:0 PQ: streamed, encoded, decoded back close to the source frames.
+    let y4m = dir.join("light.y4m");
+    std::fs::write(&y4m, y4m_of(&frames)).unwrap();
+    let ivf = dir.join("y4m.ivf");
+    let v = json(&run(&[&y4m, &ivf, &"--json"]));
+    assert_eq!(v["frames"].as_u64(), Some(3), "{v}");
+    assert_eq!(v["bytes"].as_u64(), Some(std::fs::metadata(&ivf).unwrap().len()), "{v}");
+    // MaxCLL/MaxFALL of the frames as the Y4M reader gives them (PQ, limited range, 4:2:0
+    // taken as left-sited: 4000 cd/m² at the disc's centre, a little more at its edges).
+    let y4m_bytes = std::fs::read(&y4m).unwrap();
+    let mut reader = hdrcodec_video::y4m::Y4mReader::new(&y4m_bytes[..], &Limits::default()).unwrap();
+    let mut read = Vec::new();
+    while let Some(yuv) = reader.next_frame().unwrap() {
+        read.push(reader.frame_to_image(&yuv, hdrcodec_video::hdr10::Transfer::Pq, 100.0).unwrap());
+    }
+    let cll = hdrcodec_video::hdr10::content_light_level(&read, hdrcodec_video::hdr10::Transfer::Pq);
+    assert_eq!(v["content_light"], serde_json::json!({"max_cll": cll.max_cll, "max_fall": cll.max_fall}), "{v}");
+    assert!((4000..4200).contains(&cll.max_cll), "{cll:?}");
+    let out = dir.join("y4m-frames");
+    let d = json(&hdrcodec(&[&"video", &"decode", &ivf, &out, &"--json"]));
+    assert_eq!((d["frames"].as_u64(), d["codec"].as_str()), (Some(3), Some("av1")), "{d}");
+    let psnr = hdrcodec::core::metrics::pu21_psnr(&frames[2], &decode(&out.join("frame_00002.exr"))).unwrap();
+    eprintln!("moving light through Y4M (10-bit 4:2:0 PQ), quality 85, speed 10: PU21-PSNR {psnr:.2} dB");
+    assert!(psnr > 38.0, "{psnr}");
+    // HLG planes read as HLG say a different light than as PQ: the option reaches the reader.
+    let hlg = json(&run(&[&y4m, &dir.join("as-hlg.ivf"), &"--json", &"--input-transfer", &"hlg"]));
+    assert_ne!(hlg["content_light"], v["content_light"], "{hlg}");
+
+    // Bad Y4M: one line, no output file.
+    let bytes = std::fs::read(&y4m).unwrap();
+    let cut = dir.join("cut.y4m");
+    std::fs::write(&cut, &bytes[..bytes.len() - 100]).unwrap();
+    must_fail(&[&"video", &"encode", &cut, &dir.join("cut.ivf")], &dir, "ends inside");
+    let bad = dir.join("bad.y4m");
+    std::fs::write(&bad, b"YUV4MPEG2 W64 H48 C422p10\nFRAME\n").unwrap();
+    must_fail(&[&"video", &"encode", &bad, &dir.join("bad.ivf")], &dir, "C422p10");
+    must_fail(&[&"video", &"encode", &y4m, &dir.join("x.ivf"), &"--input-transfer", &"srgb"], &dir, "pq or hlg");
+    must_fail(&[&"video", &"decode", &y4m, &dir.join("out")], &dir, "video is read from");
+}
+
+#[test]
+fn video_encode_writes_an_sdr_rendition_beside_the_hdr_stream() {
+    let dir = common::temp_dir("cli-video-sdr");
+    let seq = dir.join("seq");
+    write_light_frames(&seq, 2, |t| format!("f{t}.exr"));
+    let (hdr, sdr) = (dir.join("hdr.mp4"), dir.join("sdr.ivf"));
+    let v = json(&hdrcodec(&[
+        &"video",
+        &"encode",
+        &seq,
+        &hdr,
+        &"--sdr",
+        &sdr,
+        &"--sdr-peak",
+        &"200",
+        &"--speed",
+        &"10",
+        &"--json",
+    ]));
+    assert_eq!(v["sdr_output"].as_str(), Some(sdr.to_str().unwrap()), "{v}");
+    let h = json(&hdrcodec(&[&"info", &hdr, &"--json"]));
+    assert_eq!(h["color_description"], serde_json::json!([9, 16, 9]), "{h}");
+    let s = json(&hdrcodec(&[&"info", &sdr, &"--json"]));
+    assert_eq!((s["frames"].as_u64(), s["bit_depth"].as_u64()), (Some(2), Some(8)), "{s}");
+    assert_eq!(s["color_description"], serde_json::json!([1, 13, 1]), "{s}");
+    assert!(s["hdr10"].is_null(), "an SDR stream carries no HDR10 metadata: {s}");
+    let out = dir.join("sdr-frames");
+    ok(&hdrcodec(&[&"video", &"decode", &sdr, &out]));
+    let frame = decode(&out.join("frame_00001.exr"));
+    assert_eq!(frame.color.primaries, hdrcodec::core::ColorPrimaries::Bt709);
+    assert!(frame.samples().iter().all(|v| (0.0..=1.0).contains(v)), "display-linear, 1.0 = the peak");
+    // Matroska and WebM by extension (FFmpeg checks them in tests/video_ffmpeg.rs).
+    for name in ["clip.mkv", "clip.webm"] {
+        ok(&hdrcodec(&[&"video", &"encode", &seq, &dir.join(name), &"--speed", &"10"]));
+        let bytes = std::fs::read(dir.join(name)).unwrap();
+        assert_eq!(bytes[..4], [0x1A, 0x45, 0xDF, 0xA3], "{name}: the EBML header");
+        let doc_type: &[u8] = if name.ends_with("webm") { b"webm" } else { b"matroska" };
+        assert!(bytes.windows(doc_type.len()).any(|w| w == doc_type), "{name}");
+    }
+    // Bad SDR options: one line, neither file written.
+    let (hdr2, sdr2) = (dir.join("hdr2.ivf"), dir.join("sdr2.ivf"));
+    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &dir.join("sdr.avi")], &dir, ".mkv or .webm");
+    must_fail(&[&"video", &"encode", &seq, &hdr2, &"--sdr", &sdr2, &"--sdr-peak", &"5"], &dir, "50 to 1000");
+}
+
+#[test]
+fn video_progress_bars_are_drawn_on_a_terminal_only() {
+    use terminal::run_on_terminal;
+    let dir = common::temp_dir("cli-video-progress");
+    let seq = dir.join("seq");
+    write_light_frames(&seq, 3, |t| format!("f{t:03}.exr"));
+    let ivf = dir.join("clip.ivf");
+    let (screen, stdout) = run_on_terminal(&[&"video", &"encode", &seq, &ivf, &"--speed", &"10"]);
+    assert!((1..=3).any(|k| screen.contains(&format!(" {k}/3 "))), "no count of 3 frames: {screen:?}");
+    assert_eq!(stdout, "");
+    let (screen, _) = run_on_terminal(&[&"video", &"decode", &ivf, &dir.join("out")]);
+    assert!((1..=3).any(|k| screen.contains(&format!(" {k}/3 "))), "no count of 3 frames: {screen:?}");
+    // --json: nothing on the terminal, one JSON object on stdout.
+    let (screen, stdout) = run_on_terminal(&[&"video", &"encode", &seq, &ivf, &"--speed", &"10", &"--json"]);
+    assert_eq!(screen, "", "--json drew on the terminal");
+    assert_eq!(serde_json::from_str::<Value>(&stdout).unwrap()["frames"].as_u64(), Some(3));
+    let (screen, _) = run_on_terminal(&[&"video", &"decode", &ivf, &dir.join("out2"), &"--json"]);
+    assert_eq!(screen, "", "--json drew on the terminal");
+    // stderr a pipe: nothing of the bar.
+    let o = hdrcodec(&[&"video", &"encode", &seq, &ivf, &"--speed", &"10"]);
+    assert!(o.status.success());
+    assert_eq!(String::from_utf8_lossy(&o.stderr), "", "stderr is not a terminal");
 }

@@ -8,8 +8,10 @@ use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
 use crate::mantiuk::Psi04;
 use crate::mp4::{is_mp4, Mp4Samples, Mp4Track};
 use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
+use crate::sdr::{sdr_yuv_to_frame, SDR_BIT_DEPTH};
 use dav1d::{PixelLayout, PlanarImageComponent};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, Limits, Result};
+use hdrcodec_core::{Allocation, Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result};
+use std::sync::Arc;
 
 /// How to decode.
 #[derive(Clone, Debug)]
@@ -92,10 +94,16 @@ impl<'a> TemporalUnits<'a> {
 /// Reads the colour signalling and HDR10 metadata of an AV1 stream in IVF or MP4 without
 /// decoding it. When MP4 samples carry no sequence header, the one of `av1C` is taken.
 pub fn probe_stream(data: &[u8], limits: &Limits) -> Result<StreamSummary> {
+    walk_stream(data, limits, |_, _| Ok(()))
+}
+
+/// [`probe_stream`], calling `each` with every temporal unit's presentation index and bytes.
+fn walk_stream(data: &[u8], limits: &Limits, mut each: impl FnMut(u64, &[u8]) -> Result<()>) -> Result<StreamSummary> {
     let mut units = TemporalUnits::open(data, limits)?;
     let mut summary = StreamSummary::default();
-    while let Some((_, unit)) = units.next_unit()? {
+    while let Some((pts, unit)) = units.next_unit()? {
         summary.add_temporal_unit(unit)?;
+        each(pts, unit)?;
     }
     if summary.sequence_header.is_none() {
         if let Some(obus) = units.config_obus() {
@@ -173,23 +181,102 @@ fn stream_format(seq: &SequenceHeader, hlg_peak_nits: f64) -> Result<(Transfer, 
     Ok((transfer, if c.full_range { Range::Full } else { Range::Limited }, subsampling))
 }
 
+/// What the decoded frames of a stream will be: size, colour, frame count, a few words on the
+/// coded format.
+fn stream_info(
+    seq: &SequenceHeader,
+    summary: &StreamSummary,
+    transfer: Transfer,
+    subsampling: Subsampling,
+    lpuv: Option<&LpuvStreamInfo>,
+    sdr: bool,
+    options: &Av1DecodeOptions,
+) -> Result<ImageInfo> {
+    let chroma = match subsampling {
+        Subsampling::Yuv420 => "4:2:0",
+        Subsampling::Yuv444 => "4:4:4",
+    };
+    let (color, format) = match lpuv {
+        None if sdr => (
+            ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: options.nits_per_unit, hdr10: None },
+            format!("AV1 8-bit {chroma} BT.709 sRGB (SDR)"),
+        ),
+        Some(info) => (
+            ColorInfo { primaries: info.primaries()?, nits_per_unit: options.nits_per_unit, hdr10: None },
+            format!("AV1 {}-bit {chroma} L_p u'v' (Mantiuk 2004, {} luma bits)", seq.color.bit_depth, info.bits),
+        ),
+        None => (
+            ColorInfo {
+                primaries: ColorPrimaries::Bt2020,
+                nits_per_unit: options.nits_per_unit,
+                hdr10: summary.hdr10(),
+            },
+            format!(
+                "AV1 {}-bit {chroma} BT.2020 {}",
+                seq.color.bit_depth,
+                match transfer {
+                    Transfer::Pq => "PQ",
+                    Transfer::Hlg { .. } => "HLG",
+                }
+            ),
+        ),
+    };
+    let frames = u32::try_from(summary.temporal_units).unwrap_or(u32::MAX);
+    Ok(ImageInfo::new(seq.max_frame_width, seq.max_frame_height, Channels::Rgb, color)
+        .with_frames(frames)
+        .with_format(format))
+}
+
 /// Copies a 16-bit-per-sample plane of `w` × `h` out of dav1d's strided buffer.
-fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize) -> Result<Vec<u16>> {
+fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize, bit_depth: u32) -> Result<Vec<u16>> {
+    let size = if bit_depth > 8 { 2 } else { 1 };
     let mut out = Vec::with_capacity(w * h);
     for y in 0..h {
         let row = bytes
-            .get(y * stride..y * stride + 2 * w)
+            .get(y * stride..y * stride + size * w)
             .ok_or_else(|| Error::invalid("dav1d returned a plane smaller than the picture"))?;
-        out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
+        if size == 1 {
+            out.extend(row.iter().map(|&b| u16::from(b)));
+        } else {
+            out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
+        }
     }
     Ok(out)
 }
 
+/// Where an [`Av1Decoder`] takes its temporal units from.
+enum UnitSource<'a> {
+    /// The container read as the decoder goes, in data the caller lends.
+    Borrowed(TemporalUnits<'a>),
+    /// Data the decoder shares ownership of, with every temporal unit's place in it (found
+    /// when the decoder was made, and charged to the limits as long as it lives).
+    Shared {
+        data: Arc<[u8]>,
+        /// (presentation index, start, end) of each temporal unit.
+        units: Vec<(u64, usize, usize)>,
+        next: usize,
+        _charge: Allocation,
+    },
+}
+
+impl UnitSource<'_> {
+    fn next_unit(&mut self) -> Result<Option<(u64, &[u8])>> {
+        match self {
+            UnitSource::Borrowed(units) => units.next_unit(),
+            UnitSource::Shared { data, units, next, .. } => {
+                let Some(&(pts, start, end)) = units.get(*next) else { return Ok(None) };
+                *next += 1;
+                Ok(Some((pts, &data[start..end])))
+            }
+        }
+    }
+}
+
 /// Decodes an AV1 stream in IVF or MP4 frame by frame.
 pub struct Av1Decoder<'a> {
-    units: TemporalUnits<'a>,
+    units: UnitSource<'a>,
     /// MP4 configuration OBUs still to send before the first sample.
-    prefix: Option<&'a [u8]>,
+    prefix: Option<Vec<u8>>,
     decoder: dav1d::Decoder,
     summary: StreamSummary,
     transfer: Transfer,
@@ -198,6 +285,8 @@ pub struct Av1Decoder<'a> {
     siting: ChromaSiting,
     /// The stream's L_p u'v' description and luma curve, when it is one (12-bit).
     lpuv: Option<(LpuvStreamInfo, Psi04)>,
+    /// An 8-bit SDR stream (BT.709, sRGB).
+    sdr: bool,
     bit_depth: u32,
     options: Av1DecodeOptions,
     width: u32,
@@ -205,6 +294,31 @@ pub struct Av1Decoder<'a> {
     /// dav1d holds back part of the last temporal unit sent.
     pending: bool,
     flushed: bool,
+    /// Frames returned so far.
+    returned: u64,
+    /// What [`info`](Self::info) returns.
+    info: ImageInfo,
+}
+
+impl Av1Decoder<'static> {
+    /// [`new`](Av1Decoder::new) on data the decoder keeps a share of (what
+    /// [`Av1Codec`](crate::codec::Av1Codec)'s `begin_decode` is given): the places of the
+    /// temporal units are found once, here, and charged to `options.limits` (24 bytes each)
+    /// while the decoder lives.
+    pub fn from_shared(data: Arc<[u8]>, options: &Av1DecodeOptions) -> Result<Self> {
+        let base = data.as_ptr() as usize;
+        let mut places = Vec::new();
+        let summary = walk_stream(&data, &options.limits, |pts, unit| {
+            let start = unit.as_ptr() as usize - base;
+            places.push((pts, start, start + unit.len()));
+            Ok(())
+        })?;
+        let entry = std::mem::size_of::<(u64, usize, usize)>() as u64;
+        let charge = options.limits.charge(entry * places.len() as u64, "the index of the stream's temporal units")?;
+        let config = TemporalUnits::open(&data, &options.limits)?.config_obus().map(<[u8]>::to_vec);
+        let units = UnitSource::Shared { data: data.clone(), units: places, next: 0, _charge: charge };
+        Self::with_units(&data, summary, units, config, options)
+    }
 }
 
 impl<'a> Av1Decoder<'a> {
@@ -212,29 +326,55 @@ impl<'a> Av1Decoder<'a> {
     /// metadata (cheap, no decoding), checks the frame size against the limits.
     pub fn new(data: &'a [u8], options: &Av1DecodeOptions) -> Result<Self> {
         let summary = probe_stream(data, &options.limits)?;
+        let units = TemporalUnits::open(data, &options.limits)?;
+        let config = units.config_obus().map(<[u8]>::to_vec);
+        Self::with_units(data, summary, UnitSource::Borrowed(units), config, options)
+    }
+
+    /// The decoder of the stream in `data` that `summary` describes, reading `units`.
+    fn with_units(
+        data: &[u8],
+        summary: StreamSummary,
+        units: UnitSource<'a>,
+        config: Option<Vec<u8>>,
+        options: &Av1DecodeOptions,
+    ) -> Result<Self> {
         let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
         if summary.changed_sequence_headers > 0 {
             return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
         }
+        let sdr = u32::from(seq.color.bit_depth) == SDR_BIT_DEPTH;
         let (transfer, range, subsampling, lpuv) = if u32::from(seq.color.bit_depth) == LPUV_BIT_DEPTH {
             let info = lpuv_info(&summary)?;
             // Transfer and range are unused for L_p u'v' planes.
             (Transfer::Pq, Range::Full, stream_subsampling(&seq)?, Some((info, info.psi()?)))
+        } else if sdr {
+            let sdr_description =
+                ColorDescription { color_primaries: 1, transfer_characteristics: 13, matrix_coefficients: 1 };
+            if seq.color.color_description != Some(sdr_description) {
+                return Err(Error::unsupported(format!(
+                    "8-bit AV1 with colour description {:?} (this decoder returns 8-bit SDR as BT.709 sRGB, 1/13/1)",
+                    seq.color.color_description
+                )));
+            }
+            let range = if seq.color.full_range { Range::Full } else { Range::Limited };
+            // The transfer is unused: sRGB is decoded by `sdr`.
+            (Transfer::Pq, range, stream_subsampling(&seq)?, None)
         } else {
             let (transfer, range, subsampling) = stream_format(&seq, options.hlg_peak_nits)?;
             (transfer, range, subsampling, None)
         };
         let (width, height) = (seq.max_frame_width, seq.max_frame_height);
         options.limits.check_dimensions(width.into(), height.into())?;
+        let info = stream_info(&seq, &summary, transfer, subsampling, lpuv.as_ref().map(|l| &l.0), sdr, options)?;
         let mut settings = dav1d::Settings::new();
         // One picture out per temporal unit in: frame threading would delay output.
         settings.set_n_threads(1);
         settings.set_max_frame_delay(1);
         settings.set_frame_size_limit(u32::try_from(options.limits.max_pixels).unwrap_or(u32::MAX));
         let decoder = dav1d::Decoder::with_settings(&settings).map_err(|e| Error::invalid(format!("dav1d: {e}")))?;
-        let units = TemporalUnits::open(data, &options.limits)?;
         // Samples that carry their own sequence header need no prefix.
-        let prefix = units.config_obus().filter(|_| !summary_has_inline_header(data, &options.limits));
+        let prefix = config.filter(|_| !summary_has_inline_header(data, &options.limits));
         Ok(Av1Decoder {
             units,
             prefix,
@@ -251,12 +391,15 @@ impl<'a> Av1Decoder<'a> {
                 ChromaSiting::Left
             },
             lpuv,
+            sdr,
             bit_depth: seq.color.bit_depth.into(),
             options: options.clone(),
             width,
             height,
             pending: false,
             flushed: false,
+            returned: 0,
+            info,
         })
     }
 
@@ -275,7 +418,7 @@ impl<'a> Av1Decoder<'a> {
         self.lpuv.as_ref().map(|(info, _)| info)
     }
 
-    /// The next frame's 10-bit (12-bit for L_p u'v') planes as coded, or `None` after the last.
+    /// The next frame's planes as coded (10-bit; 12-bit for L_p u'v', 8-bit for SDR), or `None` after the last.
     pub fn next_planes(&mut self) -> Result<Option<YuvFrame>> {
         // Each round either returns, takes input, or notices that neither side moves.
         let mut stalled = 0;
@@ -300,7 +443,7 @@ impl<'a> Av1Decoder<'a> {
                 return Ok(None);
             }
             if let Some(obus) = self.prefix.take() {
-                let result = self.decoder.send_data(obus.to_vec(), None, None, None);
+                let result = self.decoder.send_data(obus, None, None, None);
                 self.pending = self.accepted(result)?;
                 continue;
             }
@@ -325,10 +468,29 @@ impl<'a> Av1Decoder<'a> {
         }
     }
 
+    /// Size, colour (with the stream's HDR10 metadata and `nits_per_unit`) and frame count
+    /// of the decoded frames, as [`next_frame`](Self::next_frame) will return them.
+    pub fn info(&self) -> &ImageInfo {
+        &self.info
+    }
+
     /// The next frame as scene-linear light: BT.2020 with the stream's HDR10 metadata, or for
-    /// L_p u'v' the primaries its T.35 names.
+    /// L_p u'v' the primaries its T.35 names. The frame is charged to the limits before dav1d
+    /// decodes it, for as long as it is being made (the caller's frames are the caller's to
+    /// count; [`decode_ivf`] keeps every frame's charge).
     pub fn next_frame(&mut self) -> Result<Option<HdrImage>> {
+        let _charge = if self.returned < self.summary.temporal_units {
+            Some(self.options.limits.charge_image(self.width.into(), self.height.into(), Channels::Rgb)?)
+        } else {
+            None
+        };
+        self.next_frame_uncharged()
+    }
+
+    /// [`next_frame`](Self::next_frame) without charging the limits.
+    fn next_frame_uncharged(&mut self) -> Result<Option<HdrImage>> {
         let Some(yuv) = self.next_planes()? else { return Ok(None) };
+        self.returned += 1;
         if let Some((info, psi)) = &self.lpuv {
             let color = ColorInfo {
                 primaries: info.primaries()?,
@@ -336,6 +498,9 @@ impl<'a> Av1Decoder<'a> {
                 ..ColorInfo::default()
             };
             return lpuv_yuv_to_frame(psi, &yuv, color).map(Some);
+        }
+        if self.sdr {
+            return sdr_yuv_to_frame(&yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);
         }
         let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
         image.color.primaries = ColorPrimaries::Bt2020;
@@ -361,7 +526,7 @@ impl<'a> Av1Decoder<'a> {
         }
         let (cw, ch) = YuvFrame::chroma_size(w, h, layout);
         let plane = |c: PlanarImageComponent, pw: usize, ph: usize| {
-            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph)
+            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph, self.bit_depth)
         };
         Ok(YuvFrame {
             width: w,
@@ -389,12 +554,24 @@ pub fn decode_ivf(data: &[u8], options: &Av1DecodeOptions) -> Result<Vec<HdrImag
     loop {
         // Charged before dav1d decodes the frame, so a long stream stops at the budget.
         let charge = options.limits.charge_image(decoder.width.into(), decoder.height.into(), Channels::Rgb)?;
-        match decoder.next_frame()? {
+        match decoder.next_frame_uncharged()? {
             Some(frame) => {
                 frames.push(frame);
                 charges.push(charge);
             }
             None => return Ok(frames),
         }
+    }
+}
+
+/// The family's stream-decoder trait, for a decoder that owns its share of the data
+/// ([`Av1Decoder::from_shared`]).
+impl hdrcodec_core::VideoDecoder for Av1Decoder<'static> {
+    fn info(&self) -> &ImageInfo {
+        Av1Decoder::info(self)
+    }
+
+    fn next_frame(&mut self) -> Result<Option<HdrImage>> {
+        Av1Decoder::next_frame(self)
     }
 }

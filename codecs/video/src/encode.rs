@@ -14,7 +14,9 @@ use crate::lpuv_av1::{
     frame_to_lpuv_yuv, LpuvStreamInfo, LPUV_BIT_DEPTH, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION,
 };
 use crate::mantiuk::Psi04;
+use crate::mkv::MkvWriter;
 use crate::mp4::Mp4Writer;
+use crate::sdr::{SdrRendition, SDR_BIT_DEPTH};
 use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
@@ -76,6 +78,10 @@ pub struct Av1Options {
     /// `transfer`, `range`, the mastering display and the content light are then unused; set
     /// `low_latency` so that every frame keeps its T.35.
     pub lpuv: Option<LpuvStreamInfo>,
+    /// Code an SDR rendition instead ([`crate::sdr`]): 8-bit BT.709 Y'CbCr on the sRGB transfer,
+    /// colour description 1/13/1, limited range; `transfer`, `range`, `lpuv`, the mastering
+    /// display and the content light are then unused.
+    pub sdr: Option<SdrRendition>,
     /// The caller's worker threads, lent to rav1e.
     pub pool: ThreadPool,
 }
@@ -98,6 +104,7 @@ impl Default for Av1Options {
             content_light: None,
             t35: None,
             lpuv: None,
+            sdr: None,
             pool: ThreadPool::single(),
         }
     }
@@ -236,43 +243,82 @@ impl<W: Write + Seek> Av1Encoder<Mp4Writer<W>> {
     }
 }
 
+impl<W: Write + Seek> TemporalUnitSink for MkvWriter<W> {
+    type Output = W;
+    fn write_temporal_unit(&mut self, pts: u64, data: &[u8], keyframe: bool) -> Result<()> {
+        MkvWriter::write_temporal_unit(self, pts, data, keyframe)
+    }
+    fn finish(self) -> Result<(W, u64)> {
+        MkvWriter::finish(self)
+    }
+}
+
+impl<W: Write + Seek> Av1Encoder<MkvWriter<W>> {
+    /// Starts a stream of `width` × `height` frames to a Matroska file (DocType `webm` when
+    /// `webm`) with the colour elements.
+    pub fn begin_mkv(width: u32, height: u32, options: &Av1Options, out: W, webm: bool) -> Result<Self> {
+        let mkv = MkvWriter::new(out, options.fps.max(1), webm)?;
+        Self::with_sink(width, height, options, mkv)
+    }
+}
+
 impl<S: TemporalUnitSink> Av1Encoder<S> {
     /// Starts a stream of `width` × `height` frames whose temporal units go to `sink`.
     pub fn with_sink(width: u32, height: u32, options: &Av1Options, sink: S) -> Result<Self> {
         if width == 0 || height == 0 {
             return Err(Error::invalid(format!("frames of {width}x{height} pixels")));
         }
-        let pq = options.transfer == Transfer::Pq && options.lpuv.is_none();
+        let sdr = options.sdr.is_some();
+        let lpuv = options.lpuv.is_some() && !sdr;
+        let pq = options.transfer == Transfer::Pq && !lpuv && !sdr;
         let fps = options.fps.max(1);
         let mut enc = EncoderConfig::with_speed_preset(options.speed.min(10));
         enc.width = width as usize;
         enc.height = height as usize;
         enc.time_base = Rational::new(1, u64::from(fps));
-        enc.bit_depth = if options.lpuv.is_some() { LPUV_BIT_DEPTH } else { BIT_DEPTH } as usize;
+        enc.bit_depth = if sdr {
+            SDR_BIT_DEPTH
+        } else if lpuv {
+            LPUV_BIT_DEPTH
+        } else {
+            BIT_DEPTH
+        } as usize;
         enc.chroma_sampling = match options.subsampling {
             Subsampling::Yuv420 => ChromaSampling::Cs420,
             Subsampling::Yuv444 => ChromaSampling::Cs444,
         };
         enc.chroma_sample_position = match options.subsampling {
             // L_p u'v' averages each 2x2 block: centred, which AV1 cannot signal.
-            Subsampling::Yuv420 if options.lpuv.is_none() => ChromaSamplePosition::Colocated,
+            Subsampling::Yuv420 if !lpuv => ChromaSamplePosition::Colocated,
             _ => ChromaSamplePosition::Unknown,
         };
         enc.pixel_range = match options.range {
             // L_p u'v' codes use the whole range from 0.
-            _ if options.lpuv.is_some() => PixelRange::Full,
+            _ if lpuv => PixelRange::Full,
+            _ if sdr => PixelRange::Limited,
             Range::Limited => PixelRange::Limited,
             Range::Full => PixelRange::Full,
         };
-        enc.color_description = options.lpuv.is_none().then_some(ColorDescription {
-            color_primaries: ColorPrimaries::BT2020,
-            transfer_characteristics: if pq {
-                TransferCharacteristics::SMPTE2084
-            } else {
-                TransferCharacteristics::HLG
-            },
-            matrix_coefficients: MatrixCoefficients::BT2020NCL,
-        });
+        enc.color_description = if sdr {
+            Some(ColorDescription {
+                color_primaries: ColorPrimaries::BT709,
+                transfer_characteristics: TransferCharacteristics::SRGB,
+                matrix_coefficients: MatrixCoefficients::BT709,
+            })
+        } else if lpuv {
+            // The planes are no CICP space.
+            None
+        } else {
+            Some(ColorDescription {
+                color_primaries: ColorPrimaries::BT2020,
+                transfer_characteristics: if pq {
+                    TransferCharacteristics::SMPTE2084
+                } else {
+                    TransferCharacteristics::HLG
+                },
+                matrix_coefficients: MatrixCoefficients::BT2020NCL,
+            })
+        };
         if pq {
             enc.mastering_display = Some(rav1e_mastering_display(&options.mastering_display));
             enc.content_light = options.content_light.map(|c| ContentLight {
@@ -296,10 +342,11 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
         let ctx = cfg.new_context::<u16>().map_err(|e| rav1e_error("configuration", e))?;
         let summary =
             EncodeSummary { content_light: if pq { options.content_light } else { None }, ..EncodeSummary::default() };
-        let psi = options.lpuv.as_ref().map(LpuvStreamInfo::psi).transpose()?;
+        let psi = options.lpuv.as_ref().filter(|_| lpuv).map(LpuvStreamInfo::psi).transpose()?;
         let mut t35: Vec<T35Message> = options
             .lpuv
             .iter()
+            .filter(|_| lpuv)
             .map(|info| T35Message {
                 country_code: T35_COUNTRY_CODE,
                 country_code_extension: T35_COUNTRY_CODE_EXTENSION,
@@ -322,9 +369,10 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
                 self.height
             )));
         }
-        let yuv = match &self.psi {
-            Some(psi) => frame_to_lpuv_yuv(psi, frame, self.options.subsampling)?,
-            None => {
+        let yuv = match (&self.options.sdr, &self.psi) {
+            (Some(sdr), _) => sdr.frame_to_yuv(frame, self.options.subsampling),
+            (None, Some(psi)) => frame_to_lpuv_yuv(psi, frame, self.options.subsampling)?,
+            (None, None) => {
                 let (yuv, clipped) =
                     frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
                 self.summary.clipped.add(&clipped);
@@ -334,8 +382,14 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
         let mut f = self.ctx.new_frame();
         let (cw, _) = crate::hdr10::YuvFrame::chroma_size(yuv.width, yuv.height, yuv.subsampling);
         for (plane, (data, w)) in f.planes.iter_mut().zip([(&yuv.y, yuv.width), (&yuv.cb, cw), (&yuv.cr, cw)]) {
-            let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
-            plane.copy_from_raw_u8(&bytes, 2 * w, 2);
+            if self.options.sdr.is_some() {
+                // 8-bit samples, one byte each.
+                let bytes: Vec<u8> = data.iter().map(|&v| v as u8).collect();
+                plane.copy_from_raw_u8(&bytes, w, 1);
+            } else {
+                let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+                plane.copy_from_raw_u8(&bytes, 2 * w, 2);
+            }
         }
         let t35 = self
             .t35
@@ -402,7 +456,11 @@ impl<S: TemporalUnitSink + Send> VideoEncoder for Av1Encoder<S> {
 /// they are not given (on the values that are coded: BT.2020, cd/m², after clipping).
 fn with_content_light(frames: &[HdrImage], options: &Av1Options) -> Av1Options {
     let mut options = options.clone();
-    if options.transfer == Transfer::Pq && options.lpuv.is_none() && options.content_light.is_none() {
+    if options.transfer == Transfer::Pq
+        && options.lpuv.is_none()
+        && options.sdr.is_none()
+        && options.content_light.is_none()
+    {
         options.content_light = Some(content_light_level(frames, options.transfer));
     }
     options

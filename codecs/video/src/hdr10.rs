@@ -75,7 +75,6 @@ pub enum Subsampling {
 
 /// The bit depth of the coded planes.
 pub const BIT_DEPTH: u32 = 10;
-const MAX_CODE: f64 = ((1 << BIT_DEPTH) - 1) as f64;
 
 /// Samples changed because the signal could not hold them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -172,27 +171,45 @@ pub fn content_light_level<'a>(
 }
 
 /// Quantizes a non-linear Y' (0..1) or a colour difference (−0.5..0.5) to a 10-bit code.
+#[cfg(test)]
 fn quantize(e: f64, chroma: bool, range: Range) -> u16 {
+    quantize_bits(e, BIT_DEPTH, chroma, range)
+}
+
+/// [`quantize`] at `bits` (8 to 16).
+fn quantize_bits(e: f64, bits: u32, chroma: bool, range: Range) -> u16 {
+    let step = f64::from(1u32 << (bits - 8));
+    let max = f64::from((1u32 << bits) - 1);
     let code = match (range, chroma) {
         // BT.2100 Table 9, narrow range: D = round((219·E' + 16)·2^(n−8)), chroma 224 and 128.
-        (Range::Limited, false) => (219.0 * e + 16.0) * 4.0,
-        (Range::Limited, true) => (224.0 * e + 128.0) * 4.0,
+        (Range::Limited, false) => (219.0 * e + 16.0) * step,
+        (Range::Limited, true) => (224.0 * e + 128.0) * step,
         // Full range: D = round((2^n − 1)·E'), chroma + 2^(n−1); ±0.5 lands outside, so clamp.
-        (Range::Full, false) => MAX_CODE * e,
-        (Range::Full, true) => MAX_CODE * e + 512.0,
+        (Range::Full, false) => max * e,
+        (Range::Full, true) => max * e + f64::from(1u32 << (bits - 1)),
     };
     // Half up: floor(x + 0.5).
-    (code + 0.5).floor().clamp(0.0, MAX_CODE) as u16
+    (code + 0.5).floor().clamp(0.0, max) as u16
 }
 
 /// The inverse of [`quantize`].
+#[cfg(test)]
 fn dequantize(d: u16, chroma: bool, range: Range) -> f64 {
+    dequantize_bits(d, BIT_DEPTH, chroma, range)
+}
+
+/// The inverse of BT.2100 Table 9's quantization at `bits` (8 to 16): limited range
+/// E' = (D/2^(n−8) − 16)/219 for luma and (D/2^(n−8) − 128)/224 for chroma; full range
+/// D/(2^n − 1) and (D − 2^(n−1))/(2^n − 1).
+fn dequantize_bits(d: u16, bits: u32, chroma: bool, range: Range) -> f64 {
     let d = f64::from(d);
+    let step = f64::from(1u32 << (bits - 8));
+    let max = f64::from((1u32 << bits) - 1);
     match (range, chroma) {
-        (Range::Limited, false) => (d / 4.0 - 16.0) / 219.0,
-        (Range::Limited, true) => (d / 4.0 - 128.0) / 224.0,
-        (Range::Full, false) => d / MAX_CODE,
-        (Range::Full, true) => (d - 512.0) / MAX_CODE,
+        (Range::Limited, false) => (d / step - 16.0) / 219.0,
+        (Range::Limited, true) => (d / step - 128.0) / 224.0,
+        (Range::Full, false) => d / max,
+        (Range::Full, true) => (d - f64::from(1u32 << (bits - 1))) / max,
     }
 }
 
@@ -243,6 +260,9 @@ pub enum ChromaSiting {
     /// Midway between luma rows 2j and 2j+1 (AV1 CSP_VERTICAL, "left"; MPEG-2's siting and
     /// H.273's default, so also what an unsignalled stream most likely means).
     Left,
+    /// Midway between luma rows and midway between luma columns (JPEG's and MPEG-1's siting,
+    /// YUV4MPEG2's `420jpeg`; AV1 cannot signal it).
+    Center,
 }
 
 /// Bilinear chroma upsampling: columns from chroma co-sited with the even luma columns (even
@@ -251,18 +271,25 @@ pub enum ChromaSiting {
 /// ([`ChromaSiting::Left`]). Edges repeat the last sample.
 fn upsample_420(plane: &[f64], width: usize, height: usize, siting: ChromaSiting) -> Vec<f64> {
     let (cw, ch) = YuvFrame::chroma_size(width, height, Subsampling::Yuv420);
-    let at = |cx: usize, cy: isize| plane[(cy.clamp(0, ch as isize - 1) as usize) * cw + cx.min(cw - 1)];
+    let at = |cx: isize, cy: isize| {
+        plane[(cy.clamp(0, ch as isize - 1) as usize) * cw + cx.clamp(0, cw as isize - 1) as usize]
+    };
     let mut out = Vec::with_capacity(width * height);
     for y in 0..height {
         let cy = (y / 2) as isize;
         for x in 0..width {
-            let cx = x / 2;
-            let h = |cy| if x % 2 == 0 { at(cx, cy) } else { (at(cx, cy) + at(cx + 1, cy)) / 2.0 };
+            let cx = (x / 2) as isize;
+            let h = |cy| match (siting, x % 2) {
+                (ChromaSiting::Center, 0) => 0.75 * at(cx, cy) + 0.25 * at(cx - 1, cy),
+                (ChromaSiting::Center, _) => 0.75 * at(cx, cy) + 0.25 * at(cx + 1, cy),
+                (_, 0) => at(cx, cy),
+                (_, _) => (at(cx, cy) + at(cx + 1, cy)) / 2.0,
+            };
             out.push(match (siting, y % 2) {
                 (ChromaSiting::Colocated, 0) => h(cy),
                 (ChromaSiting::Colocated, _) => (h(cy) + h(cy + 1)) / 2.0,
-                (ChromaSiting::Left, 0) => 0.75 * h(cy) + 0.25 * h(cy - 1),
-                (ChromaSiting::Left, _) => 0.75 * h(cy) + 0.25 * h(cy + 1),
+                (ChromaSiting::Left | ChromaSiting::Center, 0) => 0.75 * h(cy) + 0.25 * h(cy - 1),
+                (ChromaSiting::Left | ChromaSiting::Center, _) => 0.75 * h(cy) + 0.25 * h(cy + 1),
             });
         }
     }
@@ -278,13 +305,28 @@ pub fn frame_to_yuv(
 ) -> (YuvFrame, ClipReport) {
     let (light, report) = coded_light(frame, transfer);
     let (width, height) = (light.width() as usize, light.height() as usize);
+    let signals = light.rgb().map(|px| encode_rgb(px.map(f64::from), transfer));
+    let yuv = signals_to_yuv(signals, width, height, YcbcrCoefficients::BT2020, BIT_DEPTH, range, subsampling);
+    (yuv, report)
+}
+
+/// Non-linear R'G'B' (row by row, `width` × `height`) to Y'CbCr planes of `bits` bits with the
+/// weights `k`; 4:2:0 chroma co-sited with the top-left luma sample.
+pub(crate) fn signals_to_yuv(
+    signals: impl Iterator<Item = [f64; 3]>,
+    width: usize,
+    height: usize,
+    k: YcbcrCoefficients,
+    bits: u32,
+    range: Range,
+    subsampling: Subsampling,
+) -> YuvFrame {
     let n = width * height;
     let mut y = Vec::with_capacity(n);
     let (mut cb, mut cr) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for px in light.rgb() {
-        let signal = encode_rgb(px.map(f64::from), transfer);
-        let [luma, b, r] = rgb_to_ycbcr(signal, YcbcrCoefficients::BT2020);
-        y.push(quantize(luma, false, range));
+    for signal in signals {
+        let [luma, b, r] = rgb_to_ycbcr(signal, k);
+        y.push(quantize_bits(luma, bits, false, range));
         cb.push(b);
         cr.push(r);
     }
@@ -292,8 +334,36 @@ pub fn frame_to_yuv(
         cb = downsample_colocated(&cb, width, height);
         cr = downsample_colocated(&cr, width, height);
     }
-    let q = |plane: Vec<f64>| plane.into_iter().map(|c| quantize(c, true, range)).collect();
-    (YuvFrame { width, height, subsampling, y, cb: q(cb), cr: q(cr) }, report)
+    let q = |plane: Vec<f64>| plane.into_iter().map(|c| quantize_bits(c, bits, true, range)).collect();
+    YuvFrame { width, height, subsampling, y, cb: q(cb), cr: q(cr) }
+}
+
+/// Y'CbCr planes of `bits` bits back to non-linear R'G'B' with the weights `k`, row by row;
+/// 4:2:0 chroma upsampled from `siting`.
+pub(crate) fn yuv_to_signals(
+    yuv: &YuvFrame,
+    bits: u32,
+    k: YcbcrCoefficients,
+    range: Range,
+    siting: ChromaSiting,
+) -> Result<Vec<[f64; 3]>> {
+    if !(8..=16).contains(&bits) {
+        return Err(Error::unsupported(format!("{bits}-bit Y'CbCr (8 to 16 bits are read)")));
+    }
+    let (width, height) = (yuv.width, yuv.height);
+    let (cw, ch) = YuvFrame::chroma_size(width, height, yuv.subsampling);
+    if yuv.y.len() != width * height || yuv.cb.len() != cw * ch || yuv.cr.len() != cw * ch {
+        return Err(Error::invalid(format!("Y'CbCr planes do not match a {width}x{height} frame")));
+    }
+    let dq = |plane: &[u16]| plane.iter().map(|&d| dequantize_bits(d, bits, true, range)).collect::<Vec<_>>();
+    let (mut cb, mut cr) = (dq(&yuv.cb), dq(&yuv.cr));
+    if yuv.subsampling == Subsampling::Yuv420 {
+        cb = upsample_420(&cb, width, height, siting);
+        cr = upsample_420(&cr, width, height, siting);
+    }
+    Ok((0..width * height)
+        .map(|i| ycbcr_to_rgb([dequantize_bits(yuv.y[i], bits, false, range), cb[i], cr[i]], k))
+        .collect())
 }
 
 /// Planes back to a scene-linear frame in BT.2020 primaries with `nits_per_unit` cd/m² per 1.0;
@@ -305,24 +375,23 @@ pub fn yuv_to_frame(
     siting: ChromaSiting,
     nits_per_unit: f32,
 ) -> Result<HdrImage> {
-    let (width, height) = (yuv.width, yuv.height);
-    let (cw, ch) = YuvFrame::chroma_size(width, height, yuv.subsampling);
-    if yuv.y.len() != width * height || yuv.cb.len() != cw * ch || yuv.cr.len() != cw * ch {
-        return Err(Error::invalid(format!("Y'CbCr planes do not match a {width}x{height} frame")));
-    }
-    let dq = |plane: &[u16]| plane.iter().map(|&d| dequantize(d, true, range)).collect::<Vec<_>>();
-    let (mut cb, mut cr) = (dq(&yuv.cb), dq(&yuv.cr));
-    if yuv.subsampling == Subsampling::Yuv420 {
-        cb = upsample_420(&cb, width, height, siting);
-        cr = upsample_420(&cr, width, height, siting);
-    }
+    yuv_to_frame_bits(yuv, BIT_DEPTH, transfer, range, siting, nits_per_unit)
+}
+
+/// [`yuv_to_frame`] for planes of `bits` bits (8 to 16) per sample.
+pub fn yuv_to_frame_bits(
+    yuv: &YuvFrame,
+    bits: u32,
+    transfer: Transfer,
+    range: Range,
+    siting: ChromaSiting,
+    nits_per_unit: f32,
+) -> Result<HdrImage> {
+    let signals = yuv_to_signals(yuv, bits, YcbcrCoefficients::BT2020, range, siting)?;
     let scale = 1.0 / f64::from(nits_per_unit);
-    let mut samples = Vec::with_capacity(width * height * 3);
-    for i in 0..width * height {
-        let luma = dequantize(yuv.y[i], false, range);
-        let signal = ycbcr_to_rgb([luma, cb[i], cr[i]], YcbcrCoefficients::BT2020);
-        samples.extend(decode_rgb(signal, transfer).map(|v| (v * scale) as f32));
-    }
+    let samples: Vec<f32> =
+        signals.into_iter().flat_map(|s| decode_rgb(s, transfer).map(|v| (v * scale) as f32)).collect();
+    let (width, height) = (yuv.width, yuv.height);
     let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit, hdr10: None };
     let w = u32::try_from(width).map_err(|_| Error::unsupported("a frame wider than 2^32"))?;
     let h = u32::try_from(height).map_err(|_| Error::unsupported("a frame taller than 2^32"))?;
@@ -397,5 +466,10 @@ mod tests {
         // Chroma rows at luma 0.5 and 2.5: luma rows 0..3 sit at chroma -0.25, 0.25, 0.75, 1.25.
         let left = upsample_420(&plane, 2, 4, ChromaSiting::Left);
         assert_eq!(left, [0.0, 0.0, 0.25, 0.25, 0.75, 0.75, 1.0, 1.0]);
+        // Two chroma columns, one row, for a 4x2 frame: centred chroma sits at luma x 0.5 and
+        // 2.5, so luma columns 0..3 sit at chroma -0.25, 0.25, 0.75, 1.25.
+        let center = upsample_420(&plane, 4, 2, ChromaSiting::Center);
+        assert_eq!(center, [0.0, 0.25, 0.75, 1.0, 0.0, 0.25, 0.75, 1.0]);
+        assert_eq!(upsample_420(&plane, 4, 2, ChromaSiting::Colocated), [0.0, 0.5, 1.0, 1.0, 0.0, 0.5, 1.0, 1.0]);
     }
 }

@@ -14,13 +14,15 @@
 //! (`encode`, feature `encode`), stored as IVF ([`ivf`]), read back by our OBU parser ([`obu`]:
 //! sequence header, HDR10 and T.35 metadata) and decoded with libdav1d (`decode`, feature
 //! `decode`). The Mantiuk transfer in AV1 ([`lpuv_av1`]): L_p u'v' codes in 12-bit planes,
-//! named by our own T.35 message on every frame.
+//! named by our own T.35 message on every frame. [`codec::Av1Codec`] is all of it as core's
+//! `VideoCodec`.
 
 /// The README's example is compiled and run as a doc test.
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
 
+pub mod codec;
 pub mod curves;
 #[cfg(feature = "decode")]
 pub mod decode;
@@ -34,7 +36,11 @@ pub mod lpuv_av1;
 pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;
+pub mod mkv;
 pub mod mp4;
 pub mod obu;
+pub mod sdr;
+pub mod sequences;
 pub mod thresholds;
 pub mod tvi;
+pub mod y4m;

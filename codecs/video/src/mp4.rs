@@ -79,14 +79,64 @@ pub fn parse_mdcv(body: &[u8]) -> Result<St2086Units> {
     })
 }
 
-/// What the AV1 stream says about itself, gathered from the temporal units as they pass.
+/// What the AV1 stream says about itself, gathered from the temporal units as they pass
+/// (shared with the Matroska writer).
 #[derive(Clone, Debug, Default)]
-struct StreamFacts {
+pub(crate) struct StreamFacts {
     /// The first sequence header OBU, whole (header, size field, payload).
-    sequence_header_obu: Option<Vec<u8>>,
-    sequence_header: Option<SequenceHeader>,
-    content_light: Option<ContentLightLevel>,
-    mastering_display: Option<Av1MdcvUnits>,
+    pub(crate) sequence_header_obu: Option<Vec<u8>>,
+    pub(crate) sequence_header: Option<SequenceHeader>,
+    pub(crate) content_light: Option<ContentLightLevel>,
+    pub(crate) mastering_display: Option<Av1MdcvUnits>,
+}
+
+impl StreamFacts {
+    /// Notes what `data` (one temporal unit) says and returns it without its temporal delimiter
+    /// and padding, as both containers store a temporal unit.
+    pub(crate) fn observe(&mut self, data: &[u8]) -> Result<Vec<u8>> {
+        let mut sample = Vec::with_capacity(data.len());
+        for obu in ObuReader::new(data) {
+            let obu = obu?;
+            match obu.obu_type {
+                obu_type::TEMPORAL_DELIMITER | obu_type::PADDING => continue,
+                obu_type::SEQUENCE_HEADER if self.sequence_header.is_none() => {
+                    self.sequence_header = Some(SequenceHeader::parse(obu.payload)?);
+                    self.sequence_header_obu = Some(obu.raw.to_vec());
+                }
+                obu_type::METADATA => match Metadata::parse(obu.payload)? {
+                    Metadata::ContentLight(c) => self.content_light = Some(c),
+                    Metadata::MasteringDisplay(m) => self.mastering_display = Some(m),
+                    _ => {}
+                },
+                _ => {}
+            }
+            sample.extend_from_slice(obu.raw);
+        }
+        if self.sequence_header.is_none() {
+            return Err(Error::invalid("an AV1 stream whose first temporal unit has no sequence header"));
+        }
+        Ok(sample)
+    }
+}
+
+/// The AV1 codec configuration record (`av1C` in MP4, Matroska's `CodecPrivate`): four bytes
+/// from the sequence header, then the sequence header OBU as the configuration OBUs.
+pub(crate) fn av1_config_record(seq: &SequenceHeader, seq_obu: &[u8]) -> Vec<u8> {
+    let c = &seq.color;
+    let mut av1c = vec![
+        0x81, // marker, version 1
+        (seq.profile << 5) | (seq.level_idx & 0x1f),
+        (seq.tier << 7)
+            | (u8::from(c.bit_depth > 8) << 6)
+            | (u8::from(c.bit_depth == 12) << 5)
+            | (u8::from(c.mono_chrome) << 4)
+            | (u8::from(c.subsampling_x) << 3)
+            | (u8::from(c.subsampling_y) << 2)
+            | (c.chroma_sample_position & 3),
+        0, // no initial_presentation_delay
+    ];
+    av1c.extend_from_slice(seq_obu);
+    av1c
 }
 
 /// Writes one AV1 track to an MP4 file: samples as they come, the index (`moov`) at the end.
@@ -140,27 +190,7 @@ impl<W: Write + Seek> Mp4Writer<W> {
     /// binding leaves delimiting to the container). `keyframe` marks a sync sample: one that
     /// starts with a sequence header and a key frame.
     pub fn write_temporal_unit(&mut self, data: &[u8], keyframe: bool) -> Result<()> {
-        let mut sample = Vec::with_capacity(data.len());
-        for obu in ObuReader::new(data) {
-            let obu = obu?;
-            match obu.obu_type {
-                obu_type::TEMPORAL_DELIMITER | obu_type::PADDING => continue,
-                obu_type::SEQUENCE_HEADER if self.facts.sequence_header.is_none() => {
-                    self.facts.sequence_header = Some(SequenceHeader::parse(obu.payload)?);
-                    self.facts.sequence_header_obu = Some(obu.raw.to_vec());
-                }
-                obu_type::METADATA => match Metadata::parse(obu.payload)? {
-                    Metadata::ContentLight(c) => self.facts.content_light = Some(c),
-                    Metadata::MasteringDisplay(m) => self.facts.mastering_display = Some(m),
-                    _ => {}
-                },
-                _ => {}
-            }
-            sample.extend_from_slice(obu.raw);
-        }
-        if self.facts.sequence_header.is_none() {
-            return Err(Error::invalid("an AV1 stream whose first temporal unit has no sequence header"));
-        }
+        let sample = self.facts.observe(data)?;
         let size = u32::try_from(sample.len())
             .map_err(|_| Error::unsupported(format!("an MP4 sample of {} bytes", sample.len())))?;
         let number = u32::try_from(self.sample_sizes.len() + 1)
@@ -220,19 +250,7 @@ impl<W: Write + Seek> Mp4Writer<W> {
         e.extend_from_slice(&(-1i16).to_be_bytes()); // pre_defined
 
         let c = &seq.color;
-        let mut av1c = vec![
-            0x81, // marker, version 1
-            (seq.profile << 5) | (seq.level_idx & 0x1f),
-            (seq.tier << 7)
-                | (u8::from(c.bit_depth > 8) << 6)
-                | (u8::from(c.bit_depth == 12) << 5)
-                | (u8::from(c.mono_chrome) << 4)
-                | (u8::from(c.subsampling_x) << 3)
-                | (u8::from(c.subsampling_y) << 2)
-                | (c.chroma_sample_position & 3),
-            0, // no initial_presentation_delay
-        ];
-        av1c.extend_from_slice(seq_obu);
+        let av1c = av1_config_record(seq, seq_obu);
         e.extend(plain_box(b"av1C", &av1c)?);
         if let Some(d) = c.color_description {
             let mut colr = b"nclx".to_vec();
