@@ -224,7 +224,12 @@ impl<'a> RowDecoder<'a> {
         let short = || Error::invalid("JPEG XR: the tile widths exceed the image width");
         for (o, hdr) in out.iter_mut().zip(&planes) {
             let stride = hdr.channels * MB_COEFFS;
-            o.resize(mb_w * stride, 0);
+            if o.capacity() < mb_w * stride {
+                // A fresh allocation, zeroed by the allocator (fresh pages need no clearing).
+                *o = vec![0; mb_w * stride];
+            } else {
+                o.resize(mb_w * stride, 0);
+            }
             let mut rest = &mut o[..];
             for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
                 let (part, tail) =
@@ -466,6 +471,30 @@ mod tests {
                     n += 1;
                 }
                 assert_eq!(n, cs.image.mb_height);
+            }
+        }
+    }
+
+    /// Row buffers full of garbage give the same rows: every coefficient of a macroblock is
+    /// written (the decoder clears a macroblock only where its bands leave some unwritten).
+    #[test]
+    fn garbage_row_buffers_give_the_same_rows() {
+        for (name, _) in T835.iter().chain(&T835_WRITTEN) {
+            let file = testdata(name);
+            let cs_bytes = crate::container::parse_container(&file).unwrap().image;
+            let options = DecodeOptions::new(Limits::default());
+            let all = decode_coefficients(cs_bytes, &options).unwrap();
+            let cs = header::parse(cs_bytes).unwrap();
+            let mut rows = RowDecoder::new(&cs, cs_bytes, &options).unwrap();
+            let planes: Vec<&PlaneCoeffs> = std::iter::once(&all.primary).chain(all.alpha.as_ref()).collect();
+            let lens: Vec<usize> = planes.iter().map(|p| p.mb_width() as usize * p.channels * MB_COEFFS).collect();
+            let mut out: Vec<Vec<i32>> = lens.iter().map(|&n| vec![0; n]).collect();
+            loop {
+                out.iter_mut().for_each(|o| o.fill(0x5A5A_5A5A));
+                let Some(y) = rows.next_row(&mut out).unwrap() else { break };
+                for ((plane, o), &len) in planes.iter().zip(&out).zip(&lens) {
+                    assert_eq!(&plane.coeffs[y as usize * len..][..len], &o[..], "{name} row {y}");
+                }
             }
         }
     }

@@ -824,11 +824,14 @@ impl PlaneDecoder {
             let mut pattern = cbp[ch];
             for block in 0..blocks {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
+                // Every block of the channel is written here, coded or not: the macroblock
+                // is not cleared before it is decoded (see `PlaneWork::dc`).
+                let block: &mut [i32; 16] =
+                    (&mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16]).try_into().expect("a block and the slot before it");
+                block[1..].fill(0);
                 if pattern & 1 != 0 {
                     let n = self.block(r, chroma, BAND_HP, 1, &mut pairs)?;
-                    // The block's coefficients are zero until here (the row was cleared):
-                    // write each level where the adaptive scan puts it.
-                    let block = &mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16];
+                    // Write each level where the adaptive scan puts it.
                     let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
                     let mut k = 1usize;
                     for p in &pairs[..n] {

@@ -40,6 +40,9 @@ struct PlaneWork<'h> {
     top: Vec<i32>,
     side: [Vec<MbSide>; 2],
     cbp: [Vec<u32>; 2],
+    /// Clear each macroblock before decoding it: unless the bands decoded write every
+    /// coefficient of it (see [`dc`](Self::dc)).
+    clear: bool,
 }
 
 impl<'h> PlaneWork<'h> {
@@ -64,6 +67,7 @@ impl<'h> PlaneWork<'h> {
             top: row(),
             side: [vec![MbSide::default(); w], vec![MbSide::default(); w]],
             cbp: [vec![0; w * hdr.channels], vec![0; w * hdr.channels]],
+            clear: true,
         }
     }
 
@@ -86,12 +90,18 @@ impl<'h> PlaneWork<'h> {
     }
 
     /// MB_DC of macroblock `mx` of `row`, the first syntax element of a macroblock in either
-    /// bitstream order: clears the macroblock's coefficients first (the later bands write only
-    /// their non-zero values).
+    /// bitstream order: clears the macroblock's coefficients first, unless the bands decoded
+    /// write each of them anyway ([`clear`](Self::clear) false): the DC of every channel, all
+    /// 15 LP coefficients of every channel (zeros included), and every HP block, coded or not
+    /// (`PlaneDecoder::hp` zeroes each before writing its levels). 4:2:0 and 4:2:2 macroblocks
+    /// are always cleared: their chroma channels leave coefficients unwritten (LP past 3 or 7,
+    /// HP blocks past 4 or 8), which must read as zero.
     fn dc(&mut self, row: &mut [i32], r: &mut BitReader, mx: usize) {
         let w = self.w as u32;
         let c = self.mb(row, mx);
-        c.fill(0);
+        if self.clear {
+            c.fill(0);
+        }
         self.dec.dc(r, c, mx as u32, w);
     }
 
@@ -362,6 +372,13 @@ impl<'a> TileDecoder<'a> {
         }
         for r in &readers {
             r.check("a JPEG XR tile header")?;
+        }
+        // Every coefficient is written when LP and HP are decoded (in frequency order, their
+        // packets read) and no channel is subsampled.
+        let hp_read = !frequency || readers.len() >= 3;
+        for p in &mut planes {
+            let subsampled = matches!(p.hdr.clr_fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
+            p.clear = !(hp_read && p.hdr.bands.has_hp() && !subsampled);
         }
         Ok(TileDecoder { w, h, my: 0, bands, frequency, readers, planes, defer_flex: false })
     }
