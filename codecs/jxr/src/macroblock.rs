@@ -884,8 +884,9 @@ fn signed_level(v: i32, model_bits: u32) -> Result<i32> {
     if level > MAX_ABS_LEVEL {
         return Err(uncodable("a coefficient this large for its model bits"));
     }
-    // level <= 2^30 + 1: fits.
-    Ok(if v < 0 { -(level as i32) } else { level as i32 })
+    // level <= 2^30 + 1: fits. The sign without a branch: s is 0 or −1.
+    let s = v >> 31;
+    Ok(((level as i32) ^ s) - s)
 }
 
 /// [`CBP_OUT`] inverted: the code of each 4-block pattern.
@@ -933,10 +934,10 @@ fn refine_cbp_encode(w: &mut BitWriter, pattern: u32) {
 #[inline]
 fn refine_encode(w: &mut BitWriter, v: i32, model_bits: u32) {
     let (level, fine) = split(v, model_bits);
-    w.write(fine, model_bits);
-    if level == 0 && fine != 0 {
-        w.bit(v < 0);
-    }
+    // The sign bit, when there is one, goes out with the bits in one write (no branch on the
+    // data).
+    let e = u32::from(level == 0 && fine != 0);
+    w.write((fine << e) | (u32::from(v < 0) & e), model_bits + e);
 }
 
 /// The 2-bit part of the 422 chroma pattern `d` that 8×8 quad `blk` holds (see [`SHIFT422`]):
@@ -1212,22 +1213,33 @@ impl PlaneEncoder {
             let chroma = ndx > 0;
             let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
             let mut levels = [0i32; 15];
-            let len = if sub && chroma {
-                for k in 0..sub_chroma_lp_len(fmt) {
+            if sub && chroma {
+                let len = sub_chroma_lp_len(fmt);
+                for k in 0..len {
                     levels[k] = signed_level(c[((k & 1) + 1) * MB_COEFFS + sub_chroma_lp_pos(fmt, k)], model_bits)?;
                 }
-                sub_chroma_lp_len(fmt)
+                counts[ndx] = run_levels(levels[..len].iter().copied(), &mut pairs[ndx]);
             } else {
-                for p in 0..15 {
-                    let k = usize::from(self.st.lp_scan.order[p]);
-                    levels[p] = signed_level(c[ndx * MB_COEFFS + k], model_bits)?;
-                    if levels[p] != 0 {
-                        self.st.lp_scan.hit(p);
-                    }
+                // The levels in the scan order at the start, a mask of the non-zero ones, then
+                // the hits and pairs one set bit at a time (as `scan_pairs` for HP: no branch
+                // per position on whether its level is zero).
+                let order = self.st.lp_scan.order;
+                let mut mask = 0u32;
+                for (p, &k) in order.iter().enumerate() {
+                    levels[p] = signed_level(c[ndx * MB_COEFFS + usize::from(k)], model_bits)?;
+                    mask |= u32::from(levels[p] != 0) << p;
                 }
-                15
-            };
-            counts[ndx] = run_levels(levels[..len].iter().copied(), &mut pairs[ndx]);
+                let (mut n, mut next) = (0usize, 0u32);
+                while mask != 0 {
+                    let p = mask.trailing_zeros();
+                    mask &= mask - 1;
+                    self.st.lp_scan.hit(p as usize);
+                    pairs[ndx][n & 15] = RunLevel { run: p - next, level: levels[p as usize] };
+                    n += 1;
+                    next = p + 1;
+                }
+                counts[ndx] = n;
+            }
             cbplp |= u32::from(counts[ndx] > 0) << ndx;
         }
         if fmt.is_yuv() {
