@@ -20,7 +20,9 @@ use crate::mb::{MbCoeffs, MB_COEFFS};
 use crate::output::{forward_cc, half_codes};
 use crate::predict;
 use crate::quant;
-use crate::transform::{forward_plane, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams};
+use crate::transform::{
+    forward_plane, forward_plane_in_place, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams,
+};
 use hdrcodec_core::{Channels, EncodeReport, EncodeSettings, Error, HdrImage, Result, ThreadPool};
 
 pub use crate::input::SampleFormat;
@@ -362,7 +364,9 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     // three planes the size of the macroblock grid, and alpha into a fourth; the extension
     // repeats the last column and row, as jxrlib's encoder pads.
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
-    let mut planes: Vec<Vec<i32>> = vec![vec![0; pw * ph]; spp];
+    // Each plane is held in the macroblock array that the forward transform turns it into
+    // (`forward_plane_in_place`; the array flattened is the plane, `pw` wide).
+    let mut planes: Vec<Vec<MbCoeffs>> = vec![vec![[0; MB_COEFFS]; mb_w * mb_h]; spp];
     // Samples to integer codes (`input`); rows in parallel on the pool, each counting what
     // it clipped.
     let coder = SampleCoder::new(options.format, image.color.nits_per_unit);
@@ -397,15 +401,13 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         clipped
     };
     let clipped = {
-        let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(pw)).collect();
+        let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.as_flattened_mut().chunks_mut(pw)).collect();
         let rows: Vec<Vec<&mut [i32]>> =
             (0..height).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
-        pool.install(|| {
-            use rayon::prelude::*;
-            rows.into_par_iter().enumerate().map(convert_row).reduce(Clipped::default, Clipped::merge)
-        })
+        map_items(pool, rows, convert_row).into_iter().fold(Clipped::default(), Clipped::merge)
     };
     for plane in &mut planes {
+        let plane = plane.as_flattened_mut();
         for y in 0..ph {
             let src = y.min(height - 1) * pw;
             let last = plane[src + width - 1];
@@ -430,18 +432,18 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         Subsampling::Yuv422 => ClrFmt::Yuv422,
         Subsampling::Yuv420 => ClrFmt::Yuv420,
     };
-    if fmt != ClrFmt::Yuv444 {
-        pool.install(|| {
-            use rayon::prelude::*;
-            planes[1..3].par_iter_mut().for_each(|p| *p = downsample(p, pw, ph, fmt == ClrFmt::Yuv420));
-        });
-    }
+    let planes = map_items(pool, planes, |(ch, p)| match fmt {
+        ClrFmt::Yuv420 | ClrFmt::Yuv422 if ch > 0 => {
+            PlaneData::Sub(downsample(p.as_flattened(), pw, ph, fmt == ClrFmt::Yuv420))
+        }
+        _ => PlaneData::Full(p),
+    });
     let codestream = encode_codestream(planes, (width, height), fmt, format.color as u8, &mb_set, options, pool)?;
     let alpha_codestream = alpha_plane
         .map(|a| {
             let mb_set = vec![0; mb_w * mb_h];
-            let code = |a: Vec<i32>, options: &EncodeOptions| {
-                encode_codestream(vec![a], (width, height), ClrFmt::YOnly, 0, &mb_set, options, pool)
+            let code = |a: Vec<MbCoeffs>, options: &EncodeOptions| {
+                encode_codestream(vec![PlaneData::Full(a)], (width, height), ClrFmt::YOnly, 0, &mb_set, options, pool)
             };
             if !alpha_options.lossless() || alpha_options.overlap.is_some() {
                 return code(a, &alpha_options);
@@ -508,6 +510,30 @@ fn downsample(plane: &[i32], pw: usize, ph: usize, vertical: bool) -> Vec<i32> {
     out
 }
 
+/// `f((i, item))` for each item, results in order: in parallel on `pool`'s workers, or one
+/// after the other on the calling thread when the pool is single-threaded (a rayon parallel
+/// iterator there would run on rayon's global pool, all cores, behind the caller's back: the
+/// one-thread encodes of the speed comparisons used two cores in the transform and the
+/// conversion until 2026-11-26).
+fn map_items<T: Send, R: Send>(pool: &ThreadPool, items: Vec<T>, f: impl Fn((usize, T)) -> R + Sync + Send) -> Vec<R> {
+    if !pool.is_parallel() {
+        return items.into_iter().enumerate().map(f).collect();
+    }
+    pool.install(|| {
+        use rayon::prelude::*;
+        items.into_par_iter().enumerate().map(f).collect()
+    })
+}
+
+/// One channel's integer samples on the macroblock grid, as `encode_codestream` takes them.
+enum PlaneData {
+    /// At full resolution, held in the macroblock array the forward transform fills (the
+    /// array flattened is the plane, 16 samples per macroblock across).
+    Full(Vec<MbCoeffs>),
+    /// Subsampled chroma (4:2:2, 4:2:0): the plane, rows packed.
+    Sub(Vec<i32>),
+}
+
 /// The plane kind of channel `ch` in internal colour format `fmt`.
 fn plane_kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
     match (fmt, ch) {
@@ -525,7 +551,7 @@ fn plane_kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
 /// and the planar alpha codestream alike.
 #[allow(clippy::too_many_arguments)]
 fn encode_codestream(
-    planes: Vec<Vec<i32>>,
+    planes: Vec<PlaneData>,
     (width, height): (usize, usize),
     fmt: ClrFmt,
     output_clr_fmt: u8,
@@ -552,12 +578,21 @@ fn encode_codestream(
     // Channel 0 is luma, the others chroma.
     let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
     // Channels are independent here: one per thread of the pool.
-    let transform_channel = |(ch, data): (usize, Vec<i32>)| -> Result<Vec<MbCoeffs>> {
+    let transform_channel = |(ch, data): (usize, PlaneData)| -> Result<Vec<MbCoeffs>> {
         // 4:2:0 and 4:2:2 chroma planes are half as wide (and 4:2:0 half as high).
         let kind = plane_kind(fmt, ch);
         let (bx, by) = kind.blocks();
-        let plane = Plane { width: 4 * bx * mb_w, height: 4 * by * mb_h, data };
-        let mut c = forward_plane(&params, kind, ch, mb_w, mb_h, plane)?;
+        let mut c = match (data, kind) {
+            (PlaneData::Full(mbs), PlaneKind::Full) => forward_plane_in_place(&params, ch, mb_w, mb_h, mbs)?,
+            (data, _) => {
+                let data = match data {
+                    PlaneData::Full(mbs) => mbs.into_flattened(),
+                    PlaneData::Sub(data) => data,
+                };
+                let plane = Plane { width: 4 * bx * mb_w, height: 4 * by * mb_h, data };
+                forward_plane(&params, kind, ch, mb_w, mb_h, plane)?
+            }
+        };
         let luma = ch == 0;
         let dc = quant::step(pick(qdc, ch), scaled, luma);
         let lp: Vec<i32> =
@@ -578,11 +613,7 @@ fn encode_codestream(
         }
         Ok(c)
     };
-    let coeffs: Vec<Result<Vec<MbCoeffs>>> = pool.install(|| {
-        use rayon::prelude::*;
-        planes.into_par_iter().enumerate().map(transform_channel).collect()
-    });
-    let coeffs = coeffs.into_iter().collect::<Result<Vec<_>>>()?;
+    let coeffs = map_items(pool, planes, transform_channel).into_iter().collect::<Result<Vec<_>>>()?;
 
     // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
     // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
@@ -615,14 +646,11 @@ fn encode_codestream(
         frequency,
         trim: (trim > 0).then_some(trim),
     };
-    let tiles: Vec<Result<Vec<Vec<u8>>>> = pool.install(|| {
-        use rayon::prelude::*;
-        rects.par_iter().enumerate().map(|(id, &rect)| coding.encode_tile(rect, id)).collect()
-    });
+    let tiling = rects.len() > 1;
+    let tiles = map_items(pool, rects, |(id, rect)| coding.encode_tile(rect, id));
     // The index table lists the packets tile by tile, each tile's bands in order (T.832
     // 8.3.3); they are stored in that order too (JxrEncApp's `-p`).
     let packets: Vec<Vec<u8>> = tiles.into_iter().collect::<Result<Vec<_>>>()?.into_iter().flatten().collect();
-    let tiling = rects.len() > 1;
 
     let image_header = ImageHeader {
         tiling,

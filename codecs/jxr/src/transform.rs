@@ -1656,21 +1656,91 @@ pub fn forward_plane(
     // The plane is the encoder's to overwrite.
     let mut data = plane.data;
     let mut cm = Vec::new();
-    if params.overlap != OverlapMode::None {
-        let mut p = Rows { data: &mut data, stride: width, y_base: 0 };
-        for r in regions(params.hard.as_ref(), mb_w, mb_h, bx * 4, by * 4) {
-            pot4_region(&mut p, r, &(0..=height), Dir::Forward, &mut cm);
-        }
-    }
+    forward_overlap1(params, kind, mb_w, mb_h, &mut data, &mut cm);
     let (dw, dh) = (bx * mb_w, by * mb_h);
     let mut dc = vec![0i32; dw * dh];
     let mut coeffs = vec![[0i32; MB_COEFFS]; mb_w * mb_h];
     forward_stage1(kind, mb_w, mb_h, &data, &mut dc, &mut coeffs, &mut cm);
+    forward_stage2(params, kind, double, mb_w, mb_h, dc, &mut coeffs, &mut cm);
+    Ok(coeffs)
+}
+
+/// [`forward_plane`] of a full-resolution plane ([`PlaneKind::Full`]) held in the macroblock
+/// array that receives its coefficients: `mbs` flattened is the plane, `16 · mb_w` samples
+/// wide and `16 · mb_h` high, and each macroblock row of coefficients takes the place of the
+/// 16 sample rows it comes from (which are copied out first). The same coefficients as
+/// [`forward_plane`] without a second array the size of the plane, whose fresh pages
+/// (page faults, the kernel zeroing them) cost more than the copy.
+pub fn forward_plane_in_place(
+    params: &TransformParams,
+    channel: usize,
+    mb_w: usize,
+    mb_h: usize,
+    mut mbs: Vec<MbCoeffs>,
+) -> Result<Vec<MbCoeffs>> {
+    if params.operators != OperatorSet::JpegXr {
+        return Err(Error::unsupported("the forward transform with HD Photo operators"));
+    }
+    let kind = PlaneKind::Full;
+    plane_size(kind, mb_w, mb_h)?;
+    if mbs.len() != mb_w * mb_h {
+        return Err(Error::invalid("plane size does not match the macroblock grid"));
+    }
+    let double = params.scaled && channel > 0;
+    let mut cm = Vec::new();
+    forward_overlap1(params, kind, mb_w, mb_h, mbs.as_flattened_mut(), &mut cm);
+    let dw = 4 * mb_w;
+    let mut dc = vec![0i32; dw * 4 * mb_h];
+    let mut samples = vec![0i32; mb_w * MB_COEFFS];
+    for (row, dc) in mbs.chunks_exact_mut(mb_w).zip(dc.chunks_exact_mut(4 * dw)) {
+        samples.copy_from_slice(row.as_flattened());
+        forward_stage1(kind, mb_w, 1, &samples, dc, row, &mut cm);
+    }
+    forward_stage2(params, kind, double, mb_w, mb_h, dc, &mut mbs, &mut cm);
+    Ok(mbs)
+}
+
+/// The first overlap stage of [`forward_plane`] on the plane `data` (nothing without
+/// overlap).
+fn forward_overlap1(
+    params: &TransformParams,
+    kind: PlaneKind,
+    mb_w: usize,
+    mb_h: usize,
+    data: &mut [i32],
+    cm: &mut Vec<i32>,
+) {
+    if params.overlap == OverlapMode::None {
+        return;
+    }
+    let (bx, by) = kind.blocks();
+    let (width, height) = (4 * bx * mb_w, 4 * by * mb_h);
+    let mut p = Rows { data, stride: width, y_base: 0 };
+    for r in regions(params.hard.as_ref(), mb_w, mb_h, bx * 4, by * 4) {
+        pot4_region(&mut p, r, &(0..=height), Dir::Forward, cm);
+    }
+}
+
+/// The second stage of [`forward_plane`]: the second overlap stage on the block DCs `dc`
+/// (with overlap 2), then each macroblock's DC/LP transform into `coeffs`.
+#[allow(clippy::too_many_arguments)]
+fn forward_stage2(
+    params: &TransformParams,
+    kind: PlaneKind,
+    double: bool,
+    mb_w: usize,
+    mb_h: usize,
+    mut dc: Vec<i32>,
+    coeffs: &mut [MbCoeffs],
+    cm: &mut Vec<i32>,
+) {
+    let (bx, by) = kind.blocks();
+    let (dw, dh) = (bx * mb_w, by * mb_h);
     if params.overlap == OverlapMode::Two {
         let mut p = Rows { data: &mut dc, stride: dw, y_base: 0 };
         for r in regions(params.hard.as_ref(), mb_w, mb_h, bx, by) {
             match kind {
-                PlaneKind::Full => pot4_region(&mut p, r, &(0..=dh), Dir::Forward, &mut cm),
+                PlaneKind::Full => pot4_region(&mut p, r, &(0..=dh), Dir::Forward, cm),
                 _ => pot2_region(&mut p, r, &(0..=dh), Dir::Forward),
             }
         }
@@ -1684,7 +1754,6 @@ pub fn forward_plane(
         }
         stage2_forward(kind, double, &v, c);
     }
-    Ok(coeffs)
 }
 
 #[cfg(test)]
@@ -1887,6 +1956,34 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The in-place forward transform (the plane held in the coefficient array) gives
+    /// `forward_plane`'s coefficients, for every overlap mode, hard edges, scaled or not,
+    /// luma and chroma; a wrong array size is an error.
+    #[test]
+    fn forward_in_place_matches_forward_plane() {
+        let mut r = rng(12);
+        let edges = [None, Some(HardEdges::from_tiles(&[0, 2], &[0, 1, 2], true))];
+        for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+            for hard in &edges {
+                for &(mb_w, mb_h) in &[(1, 1), (3, 2), (5, 3), (2, 17)] {
+                    for (scaled, channel) in [(false, 0), (true, 0), (true, 1)] {
+                        let params =
+                            TransformParams { overlap, scaled, hard: hard.clone(), operators: OperatorSet::JpegXr };
+                        let plane = random_plane(&mut r, PlaneKind::Full, mb_w, mb_h, 17);
+                        let mbs: Vec<MbCoeffs> =
+                            plane.data.chunks_exact(MB_COEFFS).map(|c| c.try_into().expect("256 samples")).collect();
+                        let want = forward_plane(&params, PlaneKind::Full, channel, mb_w, mb_h, plane).unwrap();
+                        let got = forward_plane_in_place(&params, channel, mb_w, mb_h, mbs).unwrap();
+                        assert!(got == want, "{overlap:?} {hard:?} {mb_w}x{mb_h} scaled {scaled} channel {channel}");
+                    }
+                }
+            }
+        }
+        let params =
+            TransformParams { overlap: OverlapMode::One, scaled: false, hard: None, operators: OperatorSet::JpegXr };
+        assert!(forward_plane_in_place(&params, 0, 2, 2, vec![[0; MB_COEFFS]; 3]).is_err());
     }
 
     #[test]
