@@ -327,6 +327,28 @@ mod tests {
     }
 
     #[test]
+    fn a_quality_sweep_is_one_line_and_the_rest_are_points() {
+        use crate::bench;
+        let registry = hdrcodec::registry();
+        let wanted = ["jxr:q100", "jxr:q90", "jxr:q50", "jxr:q10", "exr:b44-half", "exr:zip-float"];
+        let configs: Vec<bench::Config> =
+            bench::configurations(&registry).into_iter().filter(|c| wanted.contains(&c.label.as_str())).collect();
+        assert_eq!(configs.len(), wanted.len());
+        let scene = crate::corpus::scene("odd-257x129").unwrap();
+        let inputs = [bench::Input { name: scene.name.to_string(), image: scene.image }];
+        let pool = hdrcodec::core::ThreadPool::single();
+        let report = bench::run(&configs, &inputs, 1, &pool, "test", Vec::new(), |_, _, _| {});
+        let s = series(&report);
+        let names: Vec<&str> = s.iter().map(|s| s.name.as_str()).collect();
+        // exr:zip-float is lossless (identical: not a rate-distortion point); jxr:q100 asks for
+        // lossless coding: a point of its own.
+        assert_eq!(names, ["exr:b44-half", "jxr:q100", "jxr:qN"], "{s:?}");
+        let line: Vec<&str> = s[2].points.iter().map(|p| p.3.as_str()).collect();
+        assert_eq!(line, ["jxr:q10", "jxr:q50", "jxr:q90"], "by bits per pixel");
+        assert!(s[2].points.windows(2).all(|w| w[0].0 < w[1].0 && w[0].2 > w[1].2), "{s:?}");
+    }
+
+    #[test]
     fn speed_chart_sits_beside_the_plot() {
         assert_eq!(speed_path(Path::new("out/rd.png")), Path::new("out/rd-speed.png"));
     }

@@ -24,6 +24,8 @@ pub struct Context {
     pub load_before: Option<String>,
     /// The images: name, width, height.
     pub images: Vec<(String, u32, u32)>,
+    /// `$HDRCODEC_VENV`, if set.
+    pub venv: Option<String>,
 }
 
 impl Context {
@@ -35,6 +37,7 @@ impl Context {
             cwd: std::env::current_dir().unwrap_or_default(),
             load_before: load_average(),
             images: inputs.iter().map(|i| (i.name.clone(), i.image.width(), i.image.height())).collect(),
+            venv: std::env::var("HDRCODEC_VENV").ok(),
         }
     }
 }
@@ -240,9 +243,15 @@ pub fn markdown(report: &Report, context: &Context, path: &Path) -> String {
     let same_dir = here.canonicalize().ok().zip(context.cwd.canonicalize().ok()).is_some_and(|(a, b)| a == b);
     let place = if same_dir { "this file's directory".to_string() } else { format!("`{}`", context.cwd.display()) };
     s.push_str(&format!(
-        "In {place}, with a release build (`cargo run --release -p hdrcodec-cli -- bench ...` runs the same):\n\n    {}\n\n",
+        "In {place}, with a release build (`cargo run --release -p hdrcodec-cli -- bench ...` runs the same) and the peer tools \
+         of `scripts/setup-reference-tools.sh`:\n\n    {}\n\n",
         command_line(&context.args)
     ));
+    if let Some(venv) = &context.venv {
+        s.push_str(&format!(
+            "The reference venv (libultrahdr's rows) was `HDRCODEC_VENV={venv}` (default: `./.venv`).\n\n"
+        ));
+    }
     s.push_str("## Machine and build\n\n| | |\n| --- | --- |\n");
     let build = if cfg!(debug_assertions) { "a debug build: speeds are not representative" } else { "release build" };
     let load_after = load_average().unwrap_or_else(|| "unknown".into());
