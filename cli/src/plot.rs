@@ -142,6 +142,17 @@ fn range(values: impl Iterator<Item = f64>, log: bool, pad: f64, fallback: (f64,
     }
 }
 
+/// The images' source for a caption: the report's, or how many files when that is too long.
+fn short_source(report: &Report) -> String {
+    if report.source.chars().count() <= 48 {
+        return report.source.clone();
+    }
+    let mut images: Vec<&str> = report.rows.iter().map(|r| r.image.as_str()).collect();
+    images.sort_unstable();
+    images.dedup();
+    format!("{} files", images.len())
+}
+
 /// Draws the rate-distortion panels of `report` into `path` and its speed chart into
 /// [`speed_path`]`(path)`.
 pub fn write(report: &Report, path: &Path) -> Result<()> {
@@ -170,7 +181,7 @@ fn write_rd(report: &Report, path: &Path) -> Result<()> {
         let images = report.summary.iter().map(|s| s.images + s.failed).max().unwrap_or(0);
         let caption = format!(
             "hdrcodec bench on {}: means over {images} image(s); {} lossless or identical, {} did not run (not shown)",
-            report.source,
+            short_source(report),
             lossless.len(),
             missing.len()
         );
@@ -258,7 +269,7 @@ fn write_speed(report: &Report, path: &Path) -> Result<()> {
         let caption = format!(
             "hdrcodec bench on {}: megapixels per second on one thread (blue: decode, orange: encode; \
              outside encoders: the process's wall time)",
-            report.source
+            short_source(report)
         );
         let root = root.titled(&caption, ("sans-serif", 18)).map_err(plot_error)?;
         let n = rows.len().max(1);
