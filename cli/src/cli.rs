@@ -300,12 +300,18 @@ pub fn print_hdr10(hdr10: Option<Hdr10Metadata>) {
     }
 }
 
-/// `hdrcodec compare`.
-pub fn compare(reference: &Path, test: &Path, json: bool) -> Result<()> {
+/// `hdrcodec compare`; with `heatmap` (FILE.png, the top of its scale) also the ΔE ITP map.
+pub fn compare(reference: &Path, test: &Path, json: bool, heatmap: Option<(&Path, f64)>) -> Result<()> {
+    if let Some((p, _)) = heatmap {
+        hdrcodec_cli::plot::prepare_png(p, "--heatmap")?;
+    }
     let reg = hdrcodec::registry();
     let (_, r) = reg.read(reference, &Limits::default())?;
     let (_, t) = reg.read(test, &Limits::default())?;
     let m = metrics::compare(&r, &t)?;
+    if let Some((p, max)) = heatmap {
+        hdrcodec_cli::heatmap::write(&r, &t, p, max, &Limits::default())?;
+    }
     // What the metrics took for files that record no primaries (metrics module notes): a test
     // file's are the reference's; an unspecified reference is read as BT.709.
     let from_reference = !t.color.primaries.is_specified() && r.color.primaries.is_specified();
@@ -354,6 +360,8 @@ pub struct BenchOptions {
     pub paths: Vec<PathBuf>,
     pub json: bool,
     pub plot: Option<PathBuf>,
+    /// The Markdown report's file.
+    pub report: Option<PathBuf>,
     /// Threads of the pool behind the all-thread speed columns (0: one per core).
     pub threads: usize,
     pub filter: Option<String>,
@@ -369,6 +377,9 @@ const QUICK_MAX_PIXELS: usize = 70_000;
 pub fn bench(o: &BenchOptions) -> Result<()> {
     if let Some(p) = &o.plot {
         hdrcodec_cli::plot::prepare(p)?;
+    }
+    if let Some(p) = &o.report {
+        hdrcodec_cli::report::prepare(p)?;
     }
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
@@ -390,6 +401,7 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     if inputs.is_empty() {
         return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
     }
+    let context = hdrcodec_cli::report::Context::now(&inputs);
     let pb = progress_bar(configs.len() * inputs.len(), o.json);
     let pool = ThreadPool::new(o.threads)?;
     let report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
@@ -399,6 +411,9 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     pb.finish_and_clear();
     if let Some(p) = &o.plot {
         hdrcodec_cli::plot::write(&report, p)?;
+    }
+    if let Some(p) = &o.report {
+        hdrcodec_cli::report::write(&report, &context, p)?;
     }
     if o.json {
         let v = serde_json::to_value(&report).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;

@@ -1,6 +1,6 @@
 //! `hdrcodec-cli`: what the `hdrcodec` command line tool adds on top of the library: the bench
-//! engine ([`bench`]), the batch engine ([`batch`]), the project's generated corpus ([`corpus`]) and the rate-distortion plot
-//! ([`plot`]). Kept out of the `hdrcodec` facade so that a program embedding the codecs pulls no
+//! engine ([`bench`]), the batch engine ([`batch`]), the project's generated corpus ([`corpus`]), the rate-distortion
+//! and speed plots ([`plot`]), the bench's Markdown report ([`report`]) and `compare`'s ΔE ITP heat map ([`heatmap`]). Kept out of the `hdrcodec` facade so that a program embedding the codecs pulls no
 //! clap, plotters, png or serde.
 #![forbid(unsafe_code)]
 
@@ -9,7 +9,9 @@ pub mod bench;
 pub mod conversion;
 pub mod corpus;
 pub mod equal_quality;
+pub mod heatmap;
 pub mod jxrlib;
 pub mod libultrahdr;
 pub mod peers;
 pub mod plot;
+pub mod report;

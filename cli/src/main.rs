@@ -44,7 +44,7 @@ enum Command {
     /// de_itp_p99 (ΔE ITP, BT.2124; 1 ≈ one JND), log_rmse (RMS of log2((t+1)/(r+1))), psnr
     /// (linear, dB) and max_rel_err. Identical images are reported as identical; their PSNRs
     /// are infinite, printed as "inf" in text and as null in JSON (JSON has no infinity), with
-    /// "identical": true.
+    /// "identical": true. `--heatmap FILE.png` also draws the per-pixel ΔE ITP in false colour.
     Compare {
         /// The reference image.
         reference: PathBuf,
@@ -53,6 +53,13 @@ enum Command {
         /// Print one JSON object instead of text.
         #[arg(long)]
         json: bool,
+        /// Also draw the per-pixel ΔE ITP into this PNG (the image's size, viridis colours, a
+        /// colour bar in ΔE ITP units).
+        #[arg(long, value_name = "FILE.png")]
+        heatmap: Option<PathBuf>,
+        /// The ΔE ITP at the top of the heat map's scale (larger errors take its colour).
+        #[arg(long, value_name = "DE", default_value_t = hdrcodec_cli::heatmap::DEFAULT_MAX)]
+        heatmap_max: f64,
     },
     /// Benchmark every codec configuration on every image of DIR (default: the generated corpus).
     ///
@@ -166,9 +173,16 @@ struct BenchArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
-    /// Also draw bits per pixel against PU21-PSNR into this PNG file.
+    /// Also draw rate-distortion curves into this PNG file (bits per pixel against PU21-PSNR and
+    /// against ΔE ITP, one line per codec family's quality sweep), and the one-thread decode and
+    /// encode speeds into FILE-speed.png beside it.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
+    /// Also write the run as a Markdown page (machine, date, commit, peer tools and versions, the
+    /// command that regenerates it, the tables, the plots as FILE-rd.png and FILE-rd-speed.png
+    /// beside it).
+    #[arg(long, value_name = "FILE.md")]
+    report: Option<PathBuf>,
     /// Threads of the pool behind the all-thread speed columns (0 = one per core); every
     /// measurement is also made on one thread.
     #[arg(long, default_value_t = 0)]
@@ -320,11 +334,14 @@ fn run() -> ExitCode {
             cli::convert(&a.input, &a.output, a.codec.as_deref(), a.quality, a.effort, a.threads, &a.opts)
         }
         Command::Info { file, json } => cli::info(&file, json),
-        Command::Compare { reference, test, json } => cli::compare(&reference, &test, json),
+        Command::Compare { reference, test, json, heatmap, heatmap_max } => {
+            cli::compare(&reference, &test, json, heatmap.as_deref().map(|p| (p, heatmap_max)))
+        }
         Command::Bench(a) => cli::bench(&cli::BenchOptions {
             paths: a.paths,
             json: a.json,
             plot: a.plot,
+            report: a.report,
             threads: a.threads,
             filter: a.filter,
             per_image: a.per_image,

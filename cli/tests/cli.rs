@@ -629,26 +629,144 @@ fn registry_reads_by_extension_and_by_bytes() {
     assert!(codec.sniff(&hdrcodec::exr::MAGIC));
 }
 
-#[test]
-fn bench_plot_writes_a_png() {
+/// A sans-serif font for the plots' labels, or `None` (a skip with a printed reason, a failure in CI).
+fn font() -> Option<PathBuf> {
     let font = ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf"]
         .into_iter()
         .map(PathBuf::from)
         .find(|p| p.is_file());
-    if common::require(font, "a DejaVu Sans font (Debian fonts-dejavu-core) for bench --plot").is_none() {
+    common::require(
+        font,
+        "a DejaVu Sans font (Debian fonts-dejavu-core) for bench --plot, --report and compare --heatmap",
+    )
+}
+
+/// A PNG's size, 8-bit RGB checked (ISO/IEC 15948: signature, then IHDR).
+fn png_size(bytes: &[u8]) -> (u32, u32) {
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    assert_eq!(&bytes[12..16], b"IHDR");
+    assert_eq!((bytes[24], bytes[25]), (8, 2), "8-bit RGB");
+    let be = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    (be(16), be(20))
+}
+
+#[test]
+fn bench_plot_writes_rate_distortion_curves_and_a_speed_chart() {
+    if font().is_none() {
         return;
     }
     let dir = common::temp_dir("cli-plot");
     let png = dir.join("rd.png");
-    ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"exr:b44", &"--plot", &png]));
-    let bytes = std::fs::read(&png).unwrap();
-    // PNG signature and IHDR (ISO/IEC 15948 / RFC 2083): 1200 x 800, 8-bit RGB.
-    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
-    assert_eq!(&bytes[12..16], b"IHDR");
-    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 1200);
-    assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 800);
-    assert_eq!((bytes[24], bytes[25]), (8, 2));
+    ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"exr:b44,jxr:q50,jxr:q90", &"--plot", &png]));
+    // The two rate-distortion panels and the legend; the speed chart beside it, one bar pair
+    // per configuration (26 pixels each, 140 for the caption and axis): 4 exr:b44 rows, 2 jxr.
+    assert_eq!(png_size(&std::fs::read(&png).unwrap()), (1800, 850));
+    assert_eq!(png_size(&std::fs::read(dir.join("rd-speed.png")).unwrap()), (1400, 140 + 26 * 6));
     must_fail(&[&"bench", &"--quick", &"--plot", &dir.join("rd.jpg")], &dir, "PNG");
+}
+
+#[test]
+fn bench_report_writes_a_page_whose_links_exist() {
+    if font().is_none() {
+        return;
+    }
+    let dir = common::temp_dir("cli-report");
+    let md = dir.join("B.md");
+    let table = ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"exr:b44-half,jxr:q50,jxr:q90", &"--report", &md]));
+    let page = std::fs::read_to_string(&md).unwrap();
+    for section in [
+        "# hdrcodec benchmarks",
+        "## How to regenerate",
+        "## Machine and build",
+        "## Peer tools",
+        "## Images",
+        "## Rate and distortion",
+        "## Speed",
+        "## Table",
+        "## Bytes at equal quality",
+        "## Per image",
+    ] {
+        assert!(page.lines().any(|l| l == section), "no '{section}' in\n{page}");
+    }
+    // The command that regenerates it, every peer tool (a version or "not installed"), the
+    // machine, and the table as the bench printed it.
+    assert!(page.contains("    hdrcodec bench --quick --filter exr:b44-half,jxr:q50,jxr:q90 --report "), "{page}");
+    for tool in ["JxrEncApp", "JxrDecApp", "libultrahdr", "cjxl", "avifenc", "oiiotool"] {
+        assert!(page.lines().any(|l| l.starts_with(&format!("| {tool} | "))), "no line for {tool}");
+    }
+    assert!(page.contains("| CPU | ") && page.contains("| OS | ") && page.contains("| hdrcodec | 0.1.0"), "{page}");
+    let first_row = table.lines().find(|l| l.starts_with("exr:b44-half")).expect("the table's row");
+    assert!(page.contains(first_row), "the page lacks the table's row {first_row:?}");
+    assert!(page.contains("| odd-257x129 | 257x129 | 0.03 |"), "{page}");
+    // Every image or link of the page is a file beside it.
+    let links: Vec<&str> = page.split("](").skip(1).filter_map(|rest| rest.split(')').next()).collect();
+    assert_eq!(links, ["B-rd.png", "B-rd-speed.png"]);
+    for l in links {
+        png_size(&std::fs::read(dir.join(l)).unwrap());
+    }
+    must_fail(&[&"bench", &"--quick", &"--report", &dir.join("B.txt")], &dir, "Markdown");
+}
+
+/// Writes `pixels` (linear BT.2020, 1.0 = 100 cd/m², `width` per row) as a float EXR.
+fn write_bt2020_exr(path: &Path, width: u32, pixels: &[[f32; 3]]) {
+    use hdrcodec::core::{Channels, ColorInfo, ColorPrimaries, EncodeSettings, HdrImage};
+    let color = ColorInfo { primaries: ColorPrimaries::Bt2020, ..ColorInfo::default() };
+    let samples = pixels.iter().flatten().copied().collect();
+    let image = HdrImage::new(width, pixels.len() as u32 / width, Channels::Rgb, samples, color).unwrap();
+    let exr = hdrcodec::registry().by_name("exr").unwrap();
+    std::fs::write(path, exr.encode(&image, &EncodeSettings::default().with_option("pixel", "float")).unwrap())
+        .unwrap();
+}
+
+#[test]
+fn compare_heatmap_colours_the_pixel_that_differs() {
+    use hdrcodec::core::color::ictcp_to_rgb2020;
+    if font().is_none() {
+        return;
+    }
+    let dir = common::temp_dir("cli-heatmap");
+    // colour-science's delta_E_ITP example: these two ICtCp colours are 1.42657228 apart.
+    let px = |ictcp| ictcp_to_rgb2020(ictcp).map(|v| (v / 100.0) as f32);
+    let a = px([0.488_546_807_2, -0.047_393_506_75, 0.074_754_013_02]);
+    let b = px([0.489_920_323_1, -0.045_675_082_03, 0.073_613_417_75]);
+    let (w, h) = (8u32, 6u32);
+    let reference = vec![a; (w * h) as usize];
+    let mut test = reference.clone();
+    test[(2 * w + 5) as usize] = b;
+    let (r, t) = (dir.join("r.exr"), dir.join("t.exr"));
+    write_bt2020_exr(&r, w, &reference);
+    write_bt2020_exr(&t, w, &test);
+    let map = |reference: &Path, test: &Path, png: &Path| {
+        ok(&hdrcodec(&[&"compare", &reference, &test, &"--heatmap", &png, &"--heatmap-max", &"5"]));
+        let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(png).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        // The map at the image's size, the colour bar's column beside it, at least 280 high.
+        assert_eq!((info.width, info.height), (w + 190, 280));
+        let at = |x: u32, y: u32| {
+            let i = (y * info.width + x) as usize * 3;
+            [buf[i], buf[i + 1], buf[i + 2]]
+        };
+        (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| ((x, y), at(x, y))).collect::<Vec<_>>()
+    };
+    // Viridis (plotters' ViridisRGB): 0 is (68, 1, 84); 1.4266 of 5 is 0.2853, between its
+    // second and third control points (70, 50, 127) and (54, 92, 141), 99.7 % of the way.
+    for ((x, y), c) in map(&r, &t, &dir.join("diff.png")) {
+        if (x, y) == (5, 2) {
+            let want = [54, 92, 141];
+            assert!(c.iter().zip(want).all(|(&g, w)| g.abs_diff(w) <= 1), "{c:?} at ({x}, {y})");
+        } else {
+            assert_eq!(c, [68, 1, 84], "at ({x}, {y})");
+        }
+    }
+    assert!(map(&r, &r, &dir.join("same.png")).iter().all(|(_, c)| *c == [68, 1, 84]));
+    must_fail(&[&"compare", &r, &t, &"--heatmap", &dir.join("d.jpg")], &dir, "PNG");
+    let small = dir.join("small.exr");
+    write_bt2020_exr(&small, 2, &[a; 4]);
+    must_fail(&[&"compare", &r, &small, &"--heatmap", &dir.join("d2.png")], &dir, "sizes differ");
+    must_fail(&[&"compare", &r, &t, &"--heatmap", &dir.join("d3.png"), &"--heatmap-max", &"0"], &dir, "positive");
+    std::fs::remove_file(&small).unwrap();
 }
 
 #[test]

@@ -296,28 +296,35 @@ fn to_bt2020_nits(image: &HdrImage, primaries: &ColorPrimaries) -> Mat3 {
     mat_mul(&[[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, s]], &m)
 }
 
+/// Calls `f` with the ΔE ITP of every pixel, in order (see [`delta_e_itp`]).
+fn for_each_delta_e_itp(reference: &HdrImage, test: &HdrImage, mut f: impl FnMut(f64)) -> Result<()> {
+    check_sizes(reference, test)?;
+    let (mr, mt) =
+        (to_bt2020_nits(reference, &reference.color.primaries), to_bt2020_nits(test, &test_primaries(reference, test)));
+    let (nr, nt) = (reference.channels().count(), test.channels().count());
+    for (r, t) in reference.samples().chunks_exact(nr).zip(test.samples().chunks_exact(nt)) {
+        let r = [clean(r[0]), clean(r[1]), clean(r[2])];
+        let t = [clean(t[0]), clean(t[1]), clean(t[2])];
+        f(if r == t && mr == mt {
+            0.0
+        } else {
+            crate::color::delta_e_itp_ictcp(ictcp_fast(mat_apply(&mr, r)), ictcp_fast(mat_apply(&mt, t)))
+        });
+    }
+    Ok(())
+}
+
 /// ΔE ITP (ITU-R BT.2124) per pixel: both images are converted to linear BT.2020 in cd/m²
 /// (their own primaries and `nits_per_unit`), then to ICtCp through PQ (BT.2100), and
 /// ΔE = 720·√(ΔI² + (0.5·ΔCt)² + ΔCp²). Returns (mean, 99th percentile); the percentile is the
 /// nearest-rank one (the ⌈0.99·N⌉-th smallest value). One unit is about one JND.
 pub fn delta_e_itp(reference: &HdrImage, test: &HdrImage) -> Result<(f64, f64)> {
-    check_sizes(reference, test)?;
-    let (mr, mt) =
-        (to_bt2020_nits(reference, &reference.color.primaries), to_bt2020_nits(test, &test_primaries(reference, test)));
-    let (nr, nt) = (reference.channels().count(), test.channels().count());
     let mut de: Vec<f32> = Vec::with_capacity(reference.pixel_count());
     let mut sum = 0.0;
-    for (r, t) in reference.samples().chunks_exact(nr).zip(test.samples().chunks_exact(nt)) {
-        let r = [clean(r[0]), clean(r[1]), clean(r[2])];
-        let t = [clean(t[0]), clean(t[1]), clean(t[2])];
-        let e = if r == t && mr == mt {
-            0.0
-        } else {
-            crate::color::delta_e_itp_ictcp(ictcp_fast(mat_apply(&mr, r)), ictcp_fast(mat_apply(&mt, t)))
-        };
+    for_each_delta_e_itp(reference, test, |e| {
         sum += e;
         de.push(e as f32);
-    }
+    })?;
     if de.is_empty() {
         return Ok((0.0, 0.0));
     }
@@ -325,6 +332,14 @@ pub fn delta_e_itp(reference: &HdrImage, test: &HdrImage) -> Result<(f64, f64)> 
     let rank = ((0.99 * de.len() as f64).ceil() as usize).clamp(1, de.len()) - 1;
     let (_, p99, _) = de.select_nth_unstable_by(rank, f32::total_cmp);
     Ok((mean, *p99 as f64))
+}
+
+/// The ΔE ITP of every pixel, row by row (width × height values), as [`delta_e_itp`] computes
+/// them: the map behind its mean and percentile (`hdrcodec compare --heatmap` draws it).
+pub fn delta_e_itp_map(reference: &HdrImage, test: &HdrImage) -> Result<Vec<f32>> {
+    let mut de: Vec<f32> = Vec::with_capacity(reference.pixel_count());
+    for_each_delta_e_itp(reference, test, |e| de.push(e as f32))?;
+    Ok(de)
 }
 
 /// RMSLE, the figure of the published BC6H comparisons: √(mean over all R, G, B samples of
@@ -515,6 +530,26 @@ mod tests {
         r[0] = px(a);
         let (_, p99_2) = delta_e_itp(&from_pixels(&r, color.clone()), &from_pixels(&t, color)).unwrap();
         assert_eq!(p99_2 as f32, p99 as f32);
+    }
+
+    #[test]
+    fn the_delta_e_itp_map_is_what_the_mean_and_percentile_summarise() {
+        // The colour-science example pair of the test above at pixel 7 of 10: 1.42657228 there,
+        // 0 elsewhere, and the map's mean is delta_e_itp's.
+        let a = ictcp_to_rgb2020([0.488_546_807_2, -0.047_393_506_75, 0.074_754_013_02]).map(|c| c as f32);
+        let b = ictcp_to_rgb2020([0.489_920_323_1, -0.045_675_082_03, 0.073_613_417_75]).map(|c| c as f32);
+        let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 1.0, hdr10: None };
+        let r = vec![a; 10];
+        let mut t = r.clone();
+        t[7] = b;
+        let (reference, test) = (from_pixels(&r, color.clone()), from_pixels(&t, color));
+        let map = delta_e_itp_map(&reference, &test).unwrap();
+        assert_eq!(map.len(), 10);
+        assert!((map[7] as f64 - 1.426_572_28).abs() < 2e-3, "{}", map[7]);
+        assert!(map.iter().enumerate().all(|(i, &e)| i == 7 || e == 0.0));
+        let (mean, _) = delta_e_itp(&reference, &test).unwrap();
+        assert!((map.iter().map(|&e| e as f64).sum::<f64>() / 10.0 - mean).abs() < 1e-7);
+        assert!(delta_e_itp_map(&reference, &grey(3, 3, 1.0)).is_err());
     }
 
     #[test]
