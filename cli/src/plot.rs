@@ -86,18 +86,18 @@ pub struct Series {
     pub points: Vec<(f64, f64, f64, String)>,
 }
 
-/// The sweep a configuration label belongs to: `family:pN` for a variant that is letters then a
-/// number (`jxr:q90` and `jxr:q10` → `jxr:qN`; `jxr(jxrlib-enc):q0.9` → `jxr(jxrlib-enc):qN`;
-/// `bc6h:effort2` → `bc6h:effortN`); any other label is its own.
+/// The sweep a configuration label belongs to: `family:pN` for a variant that ends in letters
+/// then a number (`jxr:q90` and `jxr:q10` → `jxr:qN`; `jxr(jxrlib-enc):q0.9` →
+/// `jxr(jxrlib-enc):qN`; `bc6h:effort2` → `bc6h:effortN`), after a fixed part ending in `-` or
+/// `_` if any (`avif(avifenc):10bit-qp20` → `avif(avifenc):10bit-qpN`); any other label is its
+/// own. [`series`] draws a key with a single configuration as that configuration.
 pub fn sweep_key(label: &str) -> String {
     if let Some((family, variant)) = label.rsplit_once(':') {
-        let digits = variant.find(|c: char| c.is_ascii_digit()).unwrap_or(variant.len());
-        let (letters, number) = variant.split_at(digits);
-        let is_number = !number.is_empty()
-            && number.chars().all(|c| c.is_ascii_digit() || c == '.')
-            && number.parse::<f64>().is_ok();
-        if !letters.is_empty() && letters.chars().all(|c| c.is_ascii_alphabetic()) && is_number {
-            return format!("{family}:{letters}N");
+        let (head, number) = variant.split_at(variant.trim_end_matches(|c: char| c.is_ascii_digit() || c == '.').len());
+        let (prefix, letters) = head.split_at(head.trim_end_matches(|c: char| c.is_ascii_alphabetic()).len());
+        let fixed_part = prefix.is_empty() || prefix.ends_with(['-', '_']);
+        if !letters.is_empty() && !number.is_empty() && number.parse::<f64>().is_ok() && fixed_part {
+            return format!("{family}:{prefix}{letters}N");
         }
     }
     label.to_string()
@@ -125,6 +125,11 @@ pub fn series(report: &Report) -> Vec<Series> {
     }
     for s in &mut out {
         s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // A line needs two points: a lone configuration keeps its own label (`hdrc:raw-f16`
+        // has the shape of a sweep but is not one).
+        if let [(.., config)] = s.points.as_slice() {
+            s.name = config.clone();
+        }
     }
     out
 }
@@ -331,8 +336,11 @@ mod tests {
         assert_eq!(sweep_key("ultrahdr(libultrahdr):q50"), "ultrahdr(libultrahdr):qN");
         assert_eq!(sweep_key("bc6h:effort2"), "bc6h:effortN");
         assert_eq!(sweep_key("jxl(cjxl):d1.5"), "jxl(cjxl):dN");
+        assert_eq!(sweep_key("avif(avifenc):10bit-qp20"), "avif(avifenc):10bit-qpN");
+        assert_eq!(sweep_key("avif(avifenc):12bit-qp2"), "avif(avifenc):12bit-qpN");
+        assert_ne!(sweep_key("avif(avifenc):10bit-qp2"), sweep_key("avif(avifenc):12bit-qp2"));
         // Not a sweep: each its own point.
-        for label in ["exr:zip-half", "rgbe", "rgbe:truncate", "jpeg-hdr:q85-post", "hdrc:raw-f16", "x:1.2.3"] {
+        for label in ["exr:zip-half", "rgbe", "rgbe:truncate", "jpeg-hdr:q85-post", "x:1.2.3", "x:10bitq2"] {
             assert_eq!(sweep_key(label), label);
         }
     }
@@ -341,7 +349,7 @@ mod tests {
     fn a_quality_sweep_is_one_line_and_the_rest_are_points() {
         use crate::bench;
         let registry = hdrcodec::registry();
-        let wanted = ["jxr:q100", "jxr:q90", "jxr:q50", "jxr:q10", "exr:b44-half", "exr:zip-float"];
+        let wanted = ["jxr:q100", "jxr:q90", "jxr:q50", "jxr:q10", "exr:b44-half", "exr:zip-float", "hdrc:raw-f16"];
         let configs: Vec<bench::Config> =
             bench::configurations(&registry).into_iter().filter(|c| wanted.contains(&c.label.as_str())).collect();
         assert_eq!(configs.len(), wanted.len());
@@ -352,11 +360,12 @@ mod tests {
         let s = series(&report);
         let names: Vec<&str> = s.iter().map(|s| s.name.as_str()).collect();
         // exr:zip-float is lossless (identical: not a rate-distortion point); jxr:q100 asks for
-        // lossless coding: a point of its own.
-        assert_eq!(names, ["exr:b44-half", "jxr:q100", "jxr:qN"], "{s:?}");
-        let line: Vec<&str> = s[2].points.iter().map(|p| p.3.as_str()).collect();
+        // lossless coding: a point of its own; hdrc:raw-f16 (half floats: lossy) is alone under
+        // its sweep key, so it keeps its label.
+        assert_eq!(names, ["exr:b44-half", "hdrc:raw-f16", "jxr:q100", "jxr:qN"], "{s:?}");
+        let line: Vec<&str> = s[3].points.iter().map(|p| p.3.as_str()).collect();
         assert_eq!(line, ["jxr:q10", "jxr:q50", "jxr:q90"], "by bits per pixel");
-        assert!(s[2].points.windows(2).all(|w| w[0].0 < w[1].0 && w[0].2 > w[1].2), "{s:?}");
+        assert!(s[3].points.windows(2).all(|w| w[0].0 < w[1].0 && w[0].2 > w[1].2), "{s:?}");
     }
 
     #[test]
