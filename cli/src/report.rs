@@ -131,22 +131,34 @@ fn civil_from_days(days: i64) -> (i64, u32, u32) {
 }
 
 /// The commit of the source tree this binary was built from (asked of git at report time),
-/// with "+ uncommitted changes" when the tree differs from it.
-fn commit() -> String {
-    let dir = env!("CARGO_MANIFEST_DIR");
-    match first_line("git", &["-C", dir, "rev-parse", "--short=12", "HEAD"]) {
-        None => "unknown (no git repository at the build's source)".into(),
-        Some(head) => {
-            let dirty = Command::new("git")
-                .args(["-C", dir, "status", "--porcelain", "--untracked-files=no"])
-                .output()
-                .is_ok_and(|o| !o.stdout.is_empty());
-            if dirty {
-                format!("{head} + uncommitted changes")
-            } else {
-                head
-            }
-        }
+/// with "+ uncommitted changes" when the tree differs from it in other files than `own`, the
+/// report's own outputs (a page regenerated in place is not a change to the source).
+fn commit(own: &[&Path]) -> String {
+    commit_of(env!("CARGO_MANIFEST_DIR"), own)
+}
+
+/// [`commit`] of the git work tree that holds `dir`.
+fn commit_of(dir: &str, own: &[&Path]) -> String {
+    let (Some(head), Some(root)) = (
+        first_line("git", &["-C", dir, "rev-parse", "--short=12", "HEAD"]),
+        first_line("git", &["-C", dir, "rev-parse", "--show-toplevel"]),
+    ) else {
+        return "unknown (no git repository at the build's source)".into();
+    };
+    let own: Vec<PathBuf> = own.iter().filter_map(|p| p.canonicalize().ok()).collect();
+    let changed = Command::new("git").args(["-C", &root, "status", "--porcelain", "--untracked-files=no"]).output();
+    // Porcelain lines are `XY path` (renames `XY old -> new`), paths relative to the root.
+    let dirty = changed.is_ok_and(|o| {
+        String::from_utf8_lossy(&o.stdout).lines().filter_map(|l| l.get(3..)).any(|path| {
+            let path = path.rsplit(" -> ").next().unwrap_or(path).trim_matches('"');
+            let full = Path::new(&root).join(path);
+            !full.canonicalize().is_ok_and(|f| own.contains(&f))
+        })
+    });
+    if dirty {
+        format!("{head} + uncommitted changes")
+    } else {
+        head
     }
 }
 
@@ -261,7 +273,7 @@ pub fn markdown(report: &Report, context: &Context, path: &Path) -> String {
         ("cores", cores),
         ("OS", os()),
         ("load average (1, 5, 15 min) before / after the run", format!("{load_before} / {load_after}")),
-        ("hdrcodec", format!("{}, {build}, commit {}", env!("CARGO_PKG_VERSION"), commit())),
+        ("hdrcodec", format!("{}, {build}, commit {}", env!("CARGO_PKG_VERSION"), commit(&[path, &rd, &speed]))),
         ("images", format!("{} from {}", images(report).len(), report.source)),
         ("timed runs per measurement (median)", format!("at most {}", report.runs)),
         ("threads of the all-thread columns", report.threads.to_string()),
@@ -328,6 +340,35 @@ fn size_of(context: &Context, image: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_pages_own_files_do_not_make_the_tree_dirty() {
+        let dir = std::env::temp_dir().join(format!("hdrcodec-report-git-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let git = |args: &[&str]| {
+            let ok = Command::new("git")
+                .args(["-C", dir.to_str().unwrap(), "-c", "user.name=t", "-c", "user.email=t@t"])
+                .args(args)
+                .output()
+                .is_ok_and(|o| o.status.success());
+            assert!(ok, "git {args:?}");
+        };
+        let (page, source) = (dir.join("PAGE.md"), dir.join("source.rs"));
+        std::fs::write(&page, "old").unwrap();
+        std::fs::write(&source, "old").unwrap();
+        git(&["init", "-q"]);
+        git(&["add", "."]);
+        git(&["commit", "-q", "-m", "x"]);
+        let d = dir.to_str().unwrap();
+        assert!(!commit_of(d, &[&page]).contains("uncommitted"));
+        std::fs::write(&page, "regenerated").unwrap();
+        assert!(!commit_of(d, &[&page]).contains("uncommitted"), "the page itself");
+        assert!(commit_of(d, &[]).contains("uncommitted"), "the page, when it is not ours");
+        std::fs::write(&source, "changed").unwrap();
+        assert!(commit_of(d, &[&page]).contains("uncommitted"), "a source file");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn dates_from_days() {
