@@ -98,6 +98,25 @@ impl ThreadPool {
         }
     }
 
+    /// `f((i, item))` for every item of `items`, in parallel on the pool, results in order; one
+    /// after the other on the calling thread for a single-threaded handle (a rayon parallel
+    /// iterator run there would reach rayon's global pool, every core, behind the caller's back).
+    pub fn map_vec<T: Send, R: Send>(&self, items: Vec<T>, f: impl Fn((usize, T)) -> R + Sync + Send) -> Vec<R> {
+        match &self.pool {
+            None => items.into_iter().enumerate().map(f).collect(),
+            Some(p) => p.install(|| items.into_par_iter().enumerate().map(f).collect()),
+        }
+    }
+
+    /// `(a(), b())`, the two at once on the pool, or one after the other on the calling thread
+    /// for a single-threaded handle (as [`ThreadPool::map_vec`]).
+    pub fn join<A: Send, B: Send>(&self, a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
+        match &self.pool {
+            None => (a(), b()),
+            Some(p) => p.install(|| rayon::join(a, b)),
+        }
+    }
+
     /// `f(index, chunk)` for every `chunk_len`-sized chunk of `data` (the last may be shorter),
     /// in parallel on the pool.
     pub fn for_each_chunk_mut<T: Send>(
@@ -149,6 +168,21 @@ mod tests {
         let me = std::thread::current().id();
         assert!(p.map(4, |_| std::thread::current().id()).iter().all(|&t| t == me));
         assert_eq!(ThreadPool::new(1).unwrap(), ThreadPool::single());
+    }
+
+    #[test]
+    fn map_vec_and_join_keep_order_and_a_single_handle_on_the_calling_thread() {
+        let me = std::thread::current().id();
+        let single = ThreadPool::single();
+        let items: Vec<u32> = (0..64).collect();
+        let out = single.map_vec(items.clone(), |(i, x)| (i, x * 2, std::thread::current().id()));
+        assert!(out.iter().enumerate().all(|(k, &(i, x, t))| i == k && x == 2 * k as u32 && t == me));
+        let (a, b) = single.join(|| std::thread::current().id(), || std::thread::current().id());
+        assert_eq!((a, b), (me, me));
+        let pool = ThreadPool::new(2).unwrap();
+        let out = pool.map_vec(items, |(i, x)| i as u32 + x);
+        assert_eq!(out, (0..64).map(|k| 2 * k).collect::<Vec<u32>>());
+        assert_eq!(pool.join(|| 1, || 2), (1, 2));
     }
 
     #[test]

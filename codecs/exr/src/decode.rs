@@ -5,7 +5,7 @@
 //! The block-level API of `exr` is used instead of its high-level image reader for three
 //! reasons: only the chosen channels of level 0 are converted (no per-channel buffers of the
 //! whole image), nothing is allocated before the limits are checked, and the parallel
-//! decompression runs on rayon's global pool where a panic inside `exr` is caught per chunk
+//! decompression runs on the caller's pool where a panic inside `exr` is caught per chunk
 //! (the high-level reader builds its own pool, in which a panicking task aborts the process).
 
 use exr::block::chunk::{Chunk, CompressedBlock};
@@ -19,7 +19,6 @@ use hdrcodec_core::{
     Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result,
     ThreadPool,
 };
-use rayon::prelude::*;
 use std::io::Cursor;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -250,7 +249,7 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
         let _blocks = limits.charge(block_bytes * batch.len() as u64, "a batch of decompressed OpenEXR blocks")?;
         let batch = batch.into_iter().map(|(_, c)| c);
         let blocks: Vec<Result<UncompressedBlock>> = if parallel {
-            pool.install(|| batch.collect::<Vec<_>>().into_par_iter().map(decompress).collect())
+            pool.map_vec(batch.collect(), |(_, c)| decompress(c))
         } else {
             batch.map(decompress).collect()
         };

@@ -21,7 +21,6 @@ use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeReport, Error, HdrImage, ImageInfo, PendingHeader, RangeCount, Result,
     RowCounter, RowEncoder, ThreadPool, WriteSeek,
 };
-use rayon::prelude::*;
 use std::io::{Cursor, SeekFrom};
 
 use crate::decode::{guarded, map_err};
@@ -144,13 +143,8 @@ impl ExrWriter {
         let compress = |block: UncompressedBlock| compress_block(block, &headers);
         // No `exr` compressor is known to panic on our data; the guard stays so that an unknown
         // upstream bug becomes an error, not a crash of the caller.
-        let chunks: Vec<exr::error::Result<Chunk>> = guarded("writing an OpenEXR file", || {
-            Ok(if self.pool.is_parallel() {
-                self.pool.install(|| blocks.into_par_iter().map(compress).collect())
-            } else {
-                blocks.into_iter().map(compress).collect()
-            })
-        })?;
+        let chunks: Vec<exr::error::Result<Chunk>> =
+            guarded("writing an OpenEXR file", || Ok(self.pool.map_vec(blocks, |(_, block)| compress(block))))?;
         for chunk in chunks {
             let chunk = chunk.map_err(map_err)?;
             let mut bytes = Vec::new();

@@ -404,7 +404,7 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.as_flattened_mut().chunks_mut(pw)).collect();
         let rows: Vec<Vec<&mut [i32]>> =
             (0..height).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
-        map_items(pool, rows, convert_row).into_iter().fold(Clipped::default(), Clipped::merge)
+        pool.map_vec(rows, convert_row).into_iter().fold(Clipped::default(), Clipped::merge)
     };
     for plane in &mut planes {
         let plane = plane.as_flattened_mut();
@@ -432,7 +432,7 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         Subsampling::Yuv422 => ClrFmt::Yuv422,
         Subsampling::Yuv420 => ClrFmt::Yuv420,
     };
-    let planes = map_items(pool, planes, |(ch, p)| match fmt {
+    let planes = pool.map_vec(planes, |(ch, p)| match fmt {
         ClrFmt::Yuv420 | ClrFmt::Yuv422 if ch > 0 => {
             PlaneData::Sub(downsample(p.as_flattened(), pw, ph, fmt == ClrFmt::Yuv420))
         }
@@ -508,21 +508,6 @@ fn downsample(plane: &[i32], pw: usize, ph: usize, vertical: bool) -> Vec<i32> {
         }
     }
     out
-}
-
-/// `f((i, item))` for each item, results in order: in parallel on `pool`'s workers, or one
-/// after the other on the calling thread when the pool is single-threaded (a rayon parallel
-/// iterator there would run on rayon's global pool, all cores, behind the caller's back: the
-/// one-thread encodes of the speed comparisons used two cores in the transform and the
-/// conversion until 2026-11-26).
-fn map_items<T: Send, R: Send>(pool: &ThreadPool, items: Vec<T>, f: impl Fn((usize, T)) -> R + Sync + Send) -> Vec<R> {
-    if !pool.is_parallel() {
-        return items.into_iter().enumerate().map(f).collect();
-    }
-    pool.install(|| {
-        use rayon::prelude::*;
-        items.into_par_iter().enumerate().map(f).collect()
-    })
 }
 
 /// One channel's integer samples on the macroblock grid, as `encode_codestream` takes them.
@@ -613,7 +598,7 @@ fn encode_codestream(
         }
         Ok(c)
     };
-    let coeffs = map_items(pool, planes, transform_channel).into_iter().collect::<Result<Vec<_>>>()?;
+    let coeffs = pool.map_vec(planes, transform_channel).into_iter().collect::<Result<Vec<_>>>()?;
 
     // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
     // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
@@ -647,7 +632,7 @@ fn encode_codestream(
         trim: (trim > 0).then_some(trim),
     };
     let tiling = rects.len() > 1;
-    let tiles = map_items(pool, rects, |(id, rect)| coding.encode_tile(rect, id));
+    let tiles = pool.map_vec(rects, |(id, rect)| coding.encode_tile(rect, id));
     // The index table lists the packets tile by tile, each tile's bands in order (T.832
     // 8.3.3); they are stored in that order too (JxrEncApp's `-p`).
     let packets: Vec<Vec<u8>> = tiles.into_iter().collect::<Result<Vec<_>>>()?.into_iter().flatten().collect();

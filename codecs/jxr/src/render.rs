@@ -365,11 +365,7 @@ fn decode_impl(
             }
             Ok((rows, previous))
         };
-        let (fetched, this_band) = if options.pool.is_parallel() && count > 0 {
-            options.pool.install(|| rayon::join(fetch_next, transform_all))
-        } else {
-            (fetch_next(), transform_all())
-        };
+        let (fetched, this_band) = options.pool.join(fetch_next, transform_all);
         let (rows, previous) = fetched?;
         pending = rows;
         decoded = next;
