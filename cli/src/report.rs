@@ -169,10 +169,13 @@ struct Tool {
     version: fn() -> Option<String>,
 }
 
-/// A program's `--version` line, if it is on PATH.
-fn program_version(name: &str, args: &[&str]) -> Option<String> {
+/// The first line a program prints for its version argument (asked once per process, as the
+/// peer rows ask it), if it is on PATH.
+fn program_version(name: &str, arg: &str) -> Option<String> {
     crate::jxrlib::tool(name)?;
-    first_line(name, args).or_else(|| Some("installed, version unknown".into()))
+    let text = crate::peers::version_text(name, arg);
+    let line = text.as_deref().and_then(|t| t.lines().map(str::trim).find(|l| !l.is_empty()));
+    Some(line.map_or_else(|| "installed, version unknown".into(), str::to_string))
 }
 
 /// jxrlib's programs print no version: the Debian package's.
@@ -195,10 +198,10 @@ const TOOLS: &[Tool] = &[
             first_line(&python.to_string_lossy(), &["-c", script])
         },
     },
-    Tool { name: "cjxl", version: || program_version("cjxl", &["--version"]) },
-    Tool { name: "avifenc", version: || program_version("avifenc", &["--version"]) },
-    Tool { name: "oiiotool", version: || program_version("oiiotool", &["--version"]) },
-    Tool { name: "ffmpeg", version: || program_version("ffmpeg", &["-version"]) },
+    Tool { name: "cjxl", version: || program_version("cjxl", "--version") },
+    Tool { name: "avifenc", version: || program_version("avifenc", "--version") },
+    Tool { name: "oiiotool", version: || program_version("oiiotool", "--version") },
+    Tool { name: "ffmpeg", version: || program_version("ffmpeg", "-version") },
 ];
 
 /// The configurations whose rows name `tool` as their encoder or peer decoder.
