@@ -131,22 +131,25 @@ pub struct EncodeSummary {
     pub bytes: u64,
 }
 
-/// AV1 Annex A.3 level limits: (seq_level_idx, MaxPicSize, MaxHSize, MaxVSize, MaxDisplayRate).
+/// AV1 Annex A.3 level limits: (seq_level_idx, MaxPicSize, MaxHSize, MaxVSize, MaxDisplayRate),
+/// transcribed from the first table of A.3 (levels 2.0 to 6.3; the levels the table leaves
+/// out, such as 2.2 and 7.0, are undefined and never chosen). MaxDisplayRate, not the table's
+/// MaxDecodeRate column, bounds the shown-frame rate, which is what `fps` gives.
 const LEVELS: [(u8, u64, u64, u64, u64); 14] = [
     (0, 147_456, 2048, 1152, 4_423_680),
     (1, 278_784, 2816, 1584, 8_363_520),
     (4, 665_856, 4352, 2448, 19_975_680),
     (5, 1_065_024, 5504, 3096, 31_950_720),
-    (8, 2_359_296, 6144, 3456, 77_856_768),
-    (9, 2_359_296, 6144, 3456, 155_713_536),
-    (12, 8_912_896, 8192, 4352, 273_715_200),
-    (13, 8_912_896, 8192, 4352, 547_430_400),
-    (14, 8_912_896, 8192, 4352, 1_094_860_800),
-    (15, 8_912_896, 8192, 4352, 1_176_502_272),
-    (16, 35_651_584, 16384, 8704, 1_176_502_272),
-    (17, 35_651_584, 16384, 8704, 2_189_721_600),
-    (18, 35_651_584, 16384, 8704, 4_379_443_200),
-    (19, 35_651_584, 16384, 8704, 4_706_009_088),
+    (8, 2_359_296, 6144, 3456, 70_778_880),
+    (9, 2_359_296, 6144, 3456, 141_557_760),
+    (12, 8_912_896, 8192, 4352, 267_386_880),
+    (13, 8_912_896, 8192, 4352, 534_773_760),
+    (14, 8_912_896, 8192, 4352, 1_069_547_520),
+    (15, 8_912_896, 8192, 4352, 1_069_547_520),
+    (16, 35_651_584, 16384, 8704, 1_069_547_520),
+    (17, 35_651_584, 16384, 8704, 2_139_095_040),
+    (18, 35_651_584, 16384, 8704, 4_278_190_080),
+    (19, 35_651_584, 16384, 8704, 4_278_190_080),
 ];
 
 /// The smallest level whose picture-size and display-rate limits hold `width` × `height` at
@@ -508,6 +511,12 @@ mod tests {
         assert_eq!(level_for(1920, 1080, 30), 8); // 4.0
         assert_eq!(level_for(1920, 1080, 60), 9); // 4.1
         assert_eq!(level_for(3840, 2160, 60), 13); // 5.1
+                                                   // Past a level's MaxDisplayRate (not its larger MaxDecodeRate) the next level is needed:
+                                                   // 1920x1080 at 70 frames/s is 145 152 000 samples/s, over 4.1's 141 557 760.
+        assert_eq!(level_for(1920, 1080, 68), 9); // 141 004 800: still 4.1
+        assert_eq!(level_for(1920, 1080, 70), 12); // 5.0
+                                                   // 1 078 272 000 samples/s: over 5.3's and 6.0's 1 069 547 520 (the same), so 6.1.
+        assert_eq!(level_for(3840, 2160, 130), 17);
         assert_eq!(level_for(100_000, 10, 1), 31);
         assert_eq!(Av1Options::quantizer_for_quality(100), 0);
         assert_eq!(Av1Options::quantizer_for_quality(0), 255);
