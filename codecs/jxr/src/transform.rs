@@ -1724,7 +1724,10 @@ pub struct ForwardRows {
     dc: Vec<i32>,
     /// The macroblock rows `my` and `my + 1` (by `my % 2`).
     mbs: [Vec<MbCoeffs>; 2],
+    /// Coefficient-major scratch of the sample rows, and of the block-DC rows (apart, so that
+    /// neither is resized, and zeroed again, on every row).
     cm: Vec<i32>,
+    cm_dc: Vec<i32>,
 }
 
 /// Sample rows a [`ForwardRows`] window holds: a macroblock row and the two rows the
@@ -1747,6 +1750,7 @@ impl ForwardRows {
             dc: vec![0; 8 * 4 * mb_w],
             mbs: [vec![[0; MB_COEFFS]; mb_w], vec![[0; MB_COEFFS]; mb_w]],
             cm: Vec::new(),
+            cm_dc: Vec::new(),
         })
     }
 
@@ -1795,7 +1799,7 @@ impl ForwardRows {
             let keys = if my == 0 { 0..=4 } else { d0 + 1..=d0 + 4 };
             let end = (d0 + 8).min(dh);
             let mut p = Rows { data: &mut self.dc[..(end - d0) * dw], stride: dw, y_base: d0 };
-            pot4_region(&mut p, Rect { x0: 0, x1: dw, y0: 0, y1: dh }, &keys, Dir::Forward, &mut self.cm);
+            pot4_region(&mut p, Rect { x0: 0, x1: dw, y0: 0, y1: dh }, &keys, Dir::Forward, &mut self.cm_dc);
         }
         let mbs = &mut self.mbs[my % 2];
         for (mx, c) in mbs.iter_mut().enumerate() {
