@@ -6,6 +6,16 @@
 # the two decodes are compared.
 #
 #   scripts/jxr-callgrind.sh [FILE.jxr...]
+#   scripts/jxr-callgrind.sh --encode [FILE.jxr]
+#
+# With --encode: instructions of one encode instead, of the image of FILE (a 48bppRGBHalf
+# file; default the GoldenGate corpus file) to 48bppRGBHalf at JxrEncApp's settings for -q 1.0,
+# 0.9, 0.6 and 0.3 (jxrlib_shim.c's `jxrlib_shim_encode` from half floats, what the encode
+# bench times) against ours at quality 100 / 90 / 60 / 30 with one quantizer set
+# (`examples/jxr_encode`, JXR_ADAPTIVE=0, `encoder::encode` from the f32 image, one thread);
+# only the encode is counted on either side: jxrlib's call, and ours as the whole run minus a
+# run that only decodes the input (JXR_TIMES=0; a toggle on `encoder::encode*` would switch
+# collection off again in the nested functions of the same prefix).
 #
 # Without files: the three corpus .jxr files and GoldenGate re-encoded by jxrlib with
 # JxrEncApp's settings (tests/peers/jxrlib_shim.c's encoder) at q 0.3 and 0.6, as
@@ -21,6 +31,28 @@ mkdir -p "$work"
 # shellcheck disable=SC2046
 cc -O2 -o "$work/jxrlib_driver" "$root/tests/peers/jxrlib_driver.c" "$root/tests/peers/jxrlib_shim.c" \
     $(pkg-config --cflags --libs libjxr)
+count() { # callgrind output file -> instructions of the collected part
+    awk '/^summary:/ { print $2 }' "$1"
+}
+if [ "${1:-}" = "--encode" ]; then
+    (cd "$root" && CARGO_PROFILE_RELEASE_DEBUG=line-tables-only cargo build -q --release -j1 -p hdrcodec-jxr --example jxr_encode)
+    ours="${CARGO_TARGET_DIR:-$root/target}/release/examples/jxr_encode"
+    src=${2:-$corpus/jxr/GoldenGate_48bppRGBHalf_lossless.jxr}
+    printf '| %s, 1 thread | ours (M instructions) | jxrlib | jxrlib / ours |\n|---|---|---|---|\n' "$(basename "$src" .jxr)"
+    JXR_TIMES=0 valgrind --tool=callgrind --callgrind-out-file="$work/ours.dec.cg" "$ours" "$src" 2>/dev/null
+    decode=$(count "$work/ours.dec.cg")
+    for q in 1.0 0.9 0.6 0.3; do
+        quality=$(awk -v q="$q" 'BEGIN { printf "%.0f", q * 100 }')
+        JXR_ADAPTIVE=0 JXR_OUT="$work/ours.enc.q$q.jxr" valgrind --tool=callgrind \
+            --callgrind-out-file="$work/ours.enc.q$q.cg" "$ours" "$src" "$quality" 2>/dev/null
+        valgrind --tool=callgrind --callgrind-out-file="$work/jxrlib.enc.q$q.cg" --toggle-collect=jxrlib_shim_encode \
+            "$work/jxrlib_driver" encode "$src" "$work/jxrlib.enc.q$q.jxr" "$q" half 2>/dev/null
+        a=$(($(count "$work/ours.enc.q$q.cg") - decode))
+        b=$(count "$work/jxrlib.enc.q$q.cg")
+        awk -v n="q $quality / $q" -v a="$a" -v b="$b" 'BEGIN { printf "| %s | %.1f | %.1f | %.2f× |\n", n, a / 1e6, b / 1e6, b / a }'
+    done
+    exit 0
+fi
 (cd "$root" && CARGO_PROFILE_RELEASE_DEBUG=line-tables-only cargo build -q --release -j1 -p hdrcodec-jxr --example jxr_raw)
 ours="${CARGO_TARGET_DIR:-$root/target}/release/examples/jxr_raw"
 files=("$@")
@@ -35,9 +67,6 @@ if [ ${#files[@]} -eq 0 ]; then
         done
     done
 fi
-count() { # callgrind output file -> instructions of the collected part
-    awk '/^summary:/ { print $2 }' "$1"
-}
 printf '| file | ours (M instructions) | jxrlib | jxrlib / ours |\n|---|---|---|---|\n'
 for f in "${files[@]}"; do
     name=$(basename "$f" .jxr)

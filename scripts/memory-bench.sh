@@ -87,6 +87,11 @@ measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.exr" --opt pixel=half
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.tif"
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.dds" --effort 0
 measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.hdrc" --opt payload=raw-f16 --opt tile=512
+# The JPEG XR encoder (a band of macroblock rows at a time), at a fine and a coarse quality.
+for q in 90 30; do
+  measure "$dir/big.pfm" convert "$dir/big.pfm" "$dir/out.jxr" --quality "$q"
+  rm -f "$dir/out.jxr"
+done
 if $check && [ "$missed" -gt 0 ]; then
   echo "memory-bench: $missed commands missed the peak-memory target" >&2
   exit 1

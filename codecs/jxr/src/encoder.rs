@@ -21,7 +21,7 @@ use crate::output::{forward_cc, half_codes};
 use crate::predict;
 use crate::quant;
 use crate::transform::{
-    forward_plane, forward_plane_in_place, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams,
+    forward_plane, forward_plane_in_place, ForwardRows, OperatorSet, OverlapMode, Plane, PlaneKind, TransformParams,
 };
 use hdrcodec_core::{Channels, EncodeReport, EncodeSettings, Error, HdrImage, Result, ThreadPool};
 
@@ -360,104 +360,117 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
     let shift = if options.scaled() { 3 } else { 0 };
     let alpha_shift = if alpha_options.scaled() { 3 } else { 0 };
 
-    // Samples to integers (T.832 9.10 backwards), then the forward colour transform, into
-    // three planes the size of the macroblock grid, and alpha into a fourth; the extension
-    // repeats the last column and row, as jxrlib's encoder pads.
+    // Samples to integers (T.832 9.10 backwards), then the forward colour transform, a row of
+    // every channel at a time, on the macroblock grid (`pw` wide, `ph` high; the extension
+    // repeats the last column and row, as jxrlib's encoder pads); alpha is a channel of its
+    // own codestream. Rows past the image are converted again from its last row, their
+    // clipping not counted twice.
     let (pw, ph) = (16 * mb_w, 16 * mb_h);
-    // Each plane is held in the macroblock array that the forward transform turns it into
-    // (`forward_plane_in_place`; the array flattened is the plane, `pw` wide).
-    let mut planes: Vec<Vec<MbCoeffs>> = vec![vec![[0; MB_COEFFS]; mb_w * mb_h]; spp];
-    // Samples to integer codes (`input`); rows in parallel on the pool, each counting what
-    // it clipped.
     let coder = SampleCoder::new(options.format, image.color.nits_per_unit);
-    let convert_row = |(y, mut out): (usize, Vec<&mut [i32]>)| -> Clipped {
+    let half_rgb = matches!(options.format, SampleFormat::Half | SampleFormat::HalfPadded) && !alpha;
+    let extend = |y: usize, out: &mut [&mut [i32]], clipped: Clipped| {
+        for o in out.iter_mut() {
+            let last = o[width - 1];
+            o[width..pw].fill(last);
+        }
+        if y < height {
+            clipped
+        } else {
+            Clipped::default()
+        }
+    };
+    let colour_row = |y: usize, out: &mut [&mut [i32]]| -> Clipped {
         let mut clipped = Clipped::default();
-        let row = image.row(y as u32);
-        if matches!(options.format, SampleFormat::Half | SampleFormat::HalfPadded) && !alpha {
+        let row = image.row(y.min(height - 1) as u32);
+        let [o0, o1, o2] = out else { unreachable!("three colour channels") };
+        if half_rgb {
             // Half RGB: the whole row's codes in one vectorised pass, then the colour
             // transform pixel by pixel.
             let mut codes = vec![0i32; width * 3];
-            let (nan, above) = half_codes(&row[..width * 3], scale, &mut codes);
-            let [o0, o1, o2] = &mut out[..] else { unreachable!("three planes without alpha") };
+            (clipped.nan, clipped.above) = half_codes(&row[..width * 3], scale, &mut codes);
             for (((p, yy), u), v) in codes.chunks_exact(3).zip(o0.iter_mut()).zip(o1.iter_mut()).zip(o2.iter_mut()) {
                 (*yy, *u, *v) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
             }
-            return Clipped { nan, above, ..clipped };
-        }
-        for x in 0..width {
-            let p = &row[x * spp..][..spp];
-            let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);
-            let (yy, u, v) = forward_cc(r, g, b);
-            out[0][x] = yy;
-            out[1][x] = u;
-            out[2][x] = v;
-            if alpha {
-                // Alpha is coded like a colour sample of the same format (the decoder's
-                // output formatting treats it so, T.832 9.10), but it is not light: no
-                // scRGB scaling, no transfer function and no colour transform.
-                out[3][x] = coder.alpha(p[3], &mut clipped) << alpha_shift;
+        } else {
+            for (x, p) in row.chunks_exact(spp).take(width).enumerate() {
+                let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);
+                (o0[x], o1[x], o2[x]) = forward_cc(r, g, b);
             }
         }
-        clipped
+        extend(y, out, clipped)
     };
-    let clipped = {
-        let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.as_flattened_mut().chunks_mut(pw)).collect();
-        let rows: Vec<Vec<&mut [i32]>> =
-            (0..height).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
-        pool.map_vec(rows, convert_row).into_iter().fold(Clipped::default(), Clipped::merge)
-    };
-    for plane in &mut planes {
-        let plane = plane.as_flattened_mut();
-        for y in 0..ph {
-            let src = y.min(height - 1) * pw;
-            let last = plane[src + width - 1];
-            if y >= height {
-                plane.copy_within(src..src + width, y * pw);
-            }
-            plane[y * pw + width..(y + 1) * pw].fill(last);
+    // Alpha is coded like a colour sample of the same format (the decoder's output formatting
+    // treats it so, T.832 9.10), but it is not light: no scRGB scaling, no transfer function
+    // and no colour transform.
+    let alpha_row = |y: usize, out: &mut [&mut [i32]]| -> Clipped {
+        let mut clipped = Clipped::default();
+        let row = image.row(y.min(height - 1) as u32);
+        for (o, p) in out[0].iter_mut().zip(row.chunks_exact(spp).take(width)) {
+            *o = coder.alpha(p[3], &mut clipped) << alpha_shift;
         }
-    }
-    for note in clipped.notes(options.format) {
-        report.note(note);
-    }
+        extend(y, out, clipped)
+    };
 
     // Colour as YUV 4:4:4 in an RGB (or RGBE) image (OUTPUT_CLR_FMT 7 or 8); alpha as a planar alpha
     // codestream of one YONLY plane (T.832 Table A.4: ALPHA_OFFSET), labelled OUTPUT_CLR_FMT
     // 0 with the colour's bit depth, as jxrlib writes it, on the same tile grid.
     // Each colour macroblock's HP quantizer set, from its luminance; alpha uses one set.
     let mb_set = macroblock_qp_sets(image, scale, mb_w, mb_h, options.lp_sets().max(options.hp_sets()));
-    let alpha_plane = if alpha { planes.pop() } else { None };
     let fmt = match options.subsampling {
         Subsampling::Yuv444 => ClrFmt::Yuv444,
         Subsampling::Yuv422 => ClrFmt::Yuv422,
         Subsampling::Yuv420 => ClrFmt::Yuv420,
     };
-    let planes = pool.map_vec(planes, |(ch, p)| match fmt {
-        ClrFmt::Yuv420 | ClrFmt::Yuv422 if ch > 0 => {
-            PlaneData::Sub(downsample(p.as_flattened(), pw, ph, fmt == ClrFmt::Yuv420))
-        }
-        _ => PlaneData::Full(p),
-    });
-    let codestream = encode_codestream(planes, (width, height), fmt, format.color as u8, &mb_set, options, pool)?;
-    let alpha_codestream = alpha_plane
-        .map(|a| {
-            let mb_set = vec![0; mb_w * mb_h];
-            let code = |a: Vec<MbCoeffs>, options: &EncodeOptions| {
-                encode_codestream(vec![PlaneData::Full(a)], (width, height), ClrFmt::YOnly, 0, &mb_set, options, pool)
-            };
-            if !alpha_options.lossless() || alpha_options.overlap.is_some() {
-                return code(a, &alpha_options);
-            }
+    let code = |source: Source, fmt: ClrFmt, output_clr_fmt: u8, mb_set: &[u8], options: &EncodeOptions| {
+        encode_codestream(source, (width, height), fmt, output_clr_fmt, mb_set, options, pool)
+    };
+    let (codestream, mut clipped) = if fmt == ClrFmt::Yuv444 {
+        // 4:4:4: converted, transformed, quantized and coded a band of rows at a time.
+        code(Source::Rows(3, &colour_row), fmt, format.color as u8, &mb_set, options)?
+    } else {
+        // Chroma downsampling filters whole planes: they are converted first. Each plane is
+        // held in the macroblock array that the forward transform turns it into
+        // (`forward_plane_in_place`; the array flattened is the plane, `pw` wide).
+        let mut planes: Vec<Vec<MbCoeffs>> = vec![vec![[0; MB_COEFFS]; mb_w * mb_h]; 3];
+        let clipped = {
+            let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.as_flattened_mut().chunks_mut(pw)).collect();
+            let rows: Vec<Vec<&mut [i32]>> =
+                (0..ph).map(|_| chunks.iter_mut().filter_map(|c| c.next()).collect()).collect();
+            pool.map_vec(rows, |(y, mut out)| colour_row(y, &mut out))
+                .into_iter()
+                .fold(Clipped::default(), Clipped::merge)
+        };
+        let planes = pool.map_vec(planes, |(ch, p)| match ch {
+            0 => PlaneData::Full(p),
+            _ => PlaneData::Sub(downsample(p.as_flattened(), pw, ph, fmt == ClrFmt::Yuv420)),
+        });
+        let (codestream, _) = code(Source::Planes(planes), fmt, format.color as u8, &mb_set, options)?;
+        (codestream, clipped)
+    };
+    let alpha_codestream = if alpha {
+        let mb_set = vec![0; mb_w * mb_h];
+        let code = |options: &EncodeOptions| code(Source::Rows(1, &alpha_row), ClrFmt::YOnly, 0, &mb_set, options);
+        let (alpha_codestream, alpha_clipped) = if !alpha_options.lossless() || alpha_options.overlap.is_some() {
+            code(&alpha_options)?
+        } else {
             // Lossless alpha: overlap filtering only moves bits around (there are no block
             // edges to hide), and on a flat plane its rounding leaves a residue in every
             // block that costs 1-2 bits per pixel where no overlap costs almost nothing; on
             // varied alpha one stage can be a little smaller. Both are tried, the smaller
-            // kept.
+            // kept (the samples, and what they clipped, are the same).
             let with = |overlap| EncodeOptions { overlap: Some(overlap), ..alpha_options.clone() };
-            let (none, one) = (code(a.clone(), &with(OverlapMode::None))?, code(a, &with(OverlapMode::One))?);
-            Ok(if none.len() <= one.len() { none } else { one })
-        })
-        .transpose()?;
+            let (none, clipped) = code(&with(OverlapMode::None))?;
+            let (one, _) = code(&with(OverlapMode::One))?;
+            (if none.len() <= one.len() { none } else { one }, clipped)
+        };
+        clipped = clipped.merge(alpha_clipped);
+        Some(alpha_codestream)
+    } else {
+        None
+    };
+    for note in clipped.notes(options.format) {
+        report.note(note);
+    }
     let meta =
         ContainerMeta { ptm_color_info: options.format.ptm_color_info(ptm_color_info), ..ContainerMeta::default() };
     let file = container::write_container(
@@ -519,6 +532,19 @@ enum PlaneData {
     Sub(Vec<i32>),
 }
 
+/// Writes row `y` of every channel of a codestream (`16 · mb_w` samples each, the extension
+/// included) into the slices given, and says what it clipped.
+type RowFill<'a> = dyn Fn(usize, &mut [&mut [i32]]) -> Clipped + Sync + 'a;
+
+/// Where `encode_codestream` takes its integer samples from.
+enum Source<'a> {
+    /// Whole planes, one per channel.
+    Planes(Vec<PlaneData>),
+    /// That many full-resolution channels, converted row by row as the transform asks for
+    /// them ([`ForwardRows`]).
+    Rows(usize, &'a RowFill<'a>),
+}
+
 /// The plane kind of channel `ch` in internal colour format `fmt`.
 fn plane_kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
     match (fmt, ch) {
@@ -528,25 +554,29 @@ fn plane_kind(fmt: ClrFmt, ch: usize) -> PlaneKind {
     }
 }
 
-/// One codestream (T.832 8.3) of `planes`, integer samples on the macroblock grid of a
-/// `width` × `height` image (after the colour transform, if any) in internal colour format
+/// One codestream (T.832 8.3) of the integer samples of `source`, on the macroblock grid of
+/// a `width` × `height` image (after the colour transform, if any) in internal colour format
 /// `fmt`, labelled OUTPUT_CLR_FMT `output_clr_fmt`: the forward transform, quantization,
-/// tiles coded in parallel on `pool`, and the headers; `mb_set` is each macroblock's HP
-/// quantizer set (raster order, below `options.hp_sets()`). Used for the colour codestream
-/// and the planar alpha codestream alike.
+/// prediction and entropy coding a macroblock row at a time, tiles side by side in parallel
+/// on `pool`, and the headers; `mb_set` is each macroblock's HP quantizer set (raster order,
+/// below `options.hp_sets()`). Used for the colour codestream and the planar alpha
+/// codestream alike. Also returns what the conversion of a row source clipped.
 #[allow(clippy::too_many_arguments)]
 fn encode_codestream(
-    planes: Vec<PlaneData>,
+    source: Source,
     (width, height): (usize, usize),
     fmt: ClrFmt,
     output_clr_fmt: u8,
     mb_set: &[u8],
     options: &EncodeOptions,
     pool: &ThreadPool,
-) -> Result<Vec<u8>> {
+) -> Result<(Vec<u8>, Clipped)> {
     let (mb_w, mb_h) = (width.div_ceil(16), height.div_ceil(16));
     let scaled = options.scaled();
-    let channels = planes.len();
+    let channels = match &source {
+        Source::Planes(planes) => planes.len(),
+        Source::Rows(n, _) => *n,
+    };
     let (lp_sets, hp_sets) = (options.lp_sets(), options.hp_sets());
     let bands = options.bands;
     // The sets in the order the tile headers list them, and each macroblock's position in
@@ -556,38 +586,28 @@ fn encode_codestream(
     let set_index = |q: u8, k: usize, n: usize| set_index(q, if n > 1 { order[k] } else { k });
     let bitdepth = options.format.bit_depth() as u8;
 
-    // The forward transform, then quantization.
     let overlap = options.overlap();
     let params = TransformParams { overlap, scaled, hard: None, operators: OperatorSet::JpegXr };
     let [qdc, qlp, qhp] = options.qp_indices();
     // Channel 0 is luma, the others chroma.
     let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
-    // Channels are independent here: one per thread of the pool.
-    let transform_channel = |(ch, data): (usize, PlaneData)| -> Result<Vec<MbCoeffs>> {
-        // 4:2:0 and 4:2:2 chroma planes are half as wide (and 4:2:0 half as high).
-        let kind = plane_kind(fmt, ch);
-        let (bx, by) = kind.blocks();
-        let mut c = match (data, kind) {
-            (PlaneData::Full(mbs), PlaneKind::Full) => forward_plane_in_place(&params, ch, mb_w, mb_h, mbs)?,
-            (data, _) => {
-                let data = match data {
-                    PlaneData::Full(mbs) => mbs.into_flattened(),
-                    PlaneData::Sub(data) => data,
-                };
-                let plane = Plane { width: 4 * bx * mb_w, height: 4 * by * mb_h, data };
-                forward_plane(&params, kind, ch, mb_w, mb_h, plane)?
-            }
-        };
-        let luma = ch == 0;
-        let dc = quant::step(pick(qdc, ch), scaled, luma);
-        let lp: Vec<i32> =
-            (0..lp_sets).map(|k| quant::step(set_index(pick(qlp, ch), k, lp_sets), scaled, luma)).collect();
-        let hp: Vec<i32> =
-            (0..hp_sets).map(|k| quant::step(set_index(pick(qhp, ch), k, hp_sets), scaled, true)).collect();
+    // Each channel's quantizer steps: DC, LP and HP of every set.
+    let steps: Vec<(i32, Vec<i32>, Vec<i32>)> = (0..channels)
+        .map(|ch| {
+            let luma = ch == 0;
+            let dc = quant::step(pick(qdc, ch), scaled, luma);
+            let lp = (0..lp_sets).map(|k| quant::step(set_index(pick(qlp, ch), k, lp_sets), scaled, luma)).collect();
+            let hp = (0..hp_sets).map(|k| quant::step(set_index(pick(qhp, ch), k, hp_sets), scaled, true)).collect();
+            (dc, lp, hp)
+        })
+        .collect();
+    // Quantization of macroblock row `my` of channel `ch`.
+    let quantize_row = |ch: usize, my: usize, row: &mut [MbCoeffs]| {
+        let (dc, lp, hp) = &steps[ch];
         let shape = quant::channel_shape(fmt, ch);
-        for (mb, &set) in c.iter_mut().zip(mb_set) {
+        for (mb, &set) in row.iter_mut().zip(&mb_set[my * mb_w..]) {
             let (lp, hp) = (lp[usize::from(set).min(lp_sets - 1)], hp[usize::from(set).min(hp_sets - 1)]);
-            quant::quantize(mb, shape, dc, lp, hp);
+            quant::quantize(mb, shape, *dc, lp, hp);
             // The bands left out are zero for the decoder.
             if !bands.has_lp() {
                 mb[1..16].fill(0);
@@ -596,9 +616,7 @@ fn encode_codestream(
                 mb[16..].fill(0);
             }
         }
-        Ok(c)
     };
-    let coeffs = pool.map_vec(planes, transform_channel).into_iter().collect::<Result<Vec<_>>>()?;
 
     // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
     // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
@@ -613,14 +631,13 @@ fn encode_codestream(
     let (lp_qp_sets, hp_qp_sets) = (sets(qlp, lp_sets), sets(qhp, hp_sets));
 
     // Prediction and entropy coding, each tile on its own (its own adaptive state, predictions
-    // stopping at its edges), in parallel on the pool.
+    // stopping at its edges); the tiles of a macroblock row in parallel on the pool.
     let (tile_widths, tile_heights) = (tile_sizes(mb_w, options.tile_mbs), tile_sizes(mb_h, options.tile_mbs));
     let rects = tile_rects(&tile_widths, &tile_heights);
     let frequency = options.order == BitstreamOrder::Frequency;
     // TRIM_FLEXBITS matters only where flexbits are coded.
     let trim = if bands.has_flex() { u32::from(options.trim_flexbits.min(15)) } else { 0 };
     let coding = TileCoding {
-        coeffs: &coeffs,
         mb_set,
         lp_qp_sets: &lp_qp_sets,
         hp_qp_sets: &hp_qp_sets,
@@ -632,10 +649,88 @@ fn encode_codestream(
         trim: (trim > 0).then_some(trim),
     };
     let tiling = rects.len() > 1;
-    let tiles = pool.map_vec(rects, |(id, rect)| coding.encode_tile(rect, id));
+    let mut tiles =
+        rects.iter().enumerate().map(|(id, &rect)| coding.start_tile(rect, id)).collect::<Result<Vec<_>>>()?;
+    // Codes macroblock row `my` (each channel's quantized row) in the tiles it crosses.
+    let mut code_row = |my: usize, row: &[&[MbCoeffs]]| -> Result<()> {
+        let crossing: Vec<&mut TileState> =
+            tiles.iter_mut().filter(|t| (t.rect.y0..t.rect.y0 + t.rect.h).contains(&my)).collect();
+        pool.map_vec(crossing, |(_, t)| coding.code_row(t, row)).into_iter().collect()
+    };
+
+    let mut clipped = Clipped::default();
+    match source {
+        Source::Planes(planes) => {
+            // The forward transform of whole planes, channels one per thread of the pool.
+            let transform_channel = |(ch, data): (usize, PlaneData)| -> Result<Vec<MbCoeffs>> {
+                // 4:2:0 and 4:2:2 chroma planes are half as wide (and 4:2:0 half as high).
+                let kind = plane_kind(fmt, ch);
+                let (bx, by) = kind.blocks();
+                let mut c = match (data, kind) {
+                    (PlaneData::Full(mbs), PlaneKind::Full) => forward_plane_in_place(&params, ch, mb_w, mb_h, mbs)?,
+                    (data, _) => {
+                        let data = match data {
+                            PlaneData::Full(mbs) => mbs.into_flattened(),
+                            PlaneData::Sub(data) => data,
+                        };
+                        let plane = Plane { width: 4 * bx * mb_w, height: 4 * by * mb_h, data };
+                        forward_plane(&params, kind, ch, mb_w, mb_h, plane)?
+                    }
+                };
+                for (my, row) in c.chunks_exact_mut(mb_w).enumerate() {
+                    quantize_row(ch, my, row);
+                }
+                Ok(c)
+            };
+            let coeffs = pool.map_vec(planes, transform_channel).into_iter().collect::<Result<Vec<_>>>()?;
+            for my in 0..mb_h {
+                let row: Vec<&[MbCoeffs]> = coeffs.iter().map(|c| &c[my * mb_w..][..mb_w]).collect();
+                code_row(my, &row)?;
+            }
+        }
+        Source::Rows(_, fill) => {
+            // A band of macroblock rows at a time: samples converted into each channel's
+            // window, its stage 1 a row ahead of its stage 2, quantized and coded as each row
+            // is done. Channels one per thread of the pool, rows converted in parallel.
+            let pw = 16 * mb_w;
+            let mut rows =
+                (0..channels).map(|ch| ForwardRows::new(&params, ch, mb_w, mb_h)).collect::<Result<Vec<_>>>()?;
+            for step in 0..=mb_h {
+                if step < mb_h {
+                    let mut first = 0;
+                    let mut chunks: Vec<_> = rows
+                        .iter_mut()
+                        .map(|r| {
+                            let (y, data) = r.rows_to_fill(step);
+                            first = y;
+                            data.chunks_mut(pw)
+                        })
+                        .collect();
+                    let lines: Vec<Vec<&mut [i32]>> = std::iter::from_fn(|| {
+                        let line: Vec<&mut [i32]> = chunks.iter_mut().filter_map(|c| c.next()).collect();
+                        (!line.is_empty()).then_some(line)
+                    })
+                    .collect();
+                    clipped = pool
+                        .map_vec(lines, |(i, mut line)| fill(first + i, &mut line))
+                        .into_iter()
+                        .fold(clipped, Clipped::merge);
+                    pool.map_vec(rows.iter_mut().collect(), |(_, r)| r.stage1(step));
+                }
+                if let Some(my) = step.checked_sub(1) {
+                    let row = pool.map_vec(rows.iter_mut().collect(), |(ch, r)| {
+                        let row = r.stage2(my);
+                        quantize_row(ch, my, row);
+                        &*row
+                    });
+                    code_row(my, &row)?;
+                }
+            }
+        }
+    }
     // The index table lists the packets tile by tile, each tile's bands in order (T.832
     // 8.3.3); they are stored in that order too (JxrEncApp's `-p`).
-    let packets: Vec<Vec<u8>> = tiles.into_iter().collect::<Result<Vec<_>>>()?.into_iter().flatten().collect();
+    let packets: Vec<Vec<u8>> = tiles.into_iter().flat_map(TileState::finish).collect();
 
     let image_header = ImageHeader {
         tiling,
@@ -682,7 +777,7 @@ fn encode_codestream(
         lp,
         hp,
     };
-    header::write_codestream(&image_header, &plane_header, None, &packets)
+    Ok((header::write_codestream(&image_header, &plane_header, None, &packets)?, clipped))
 }
 
 /// The LP and HP quantizer sets of adaptive quantization: QP index offsets from the base (16
@@ -850,11 +945,8 @@ fn tile_rects(widths: &[usize], heights: &[usize]) -> Vec<TileRect> {
     out
 }
 
-/// What the tiles of one codestream share: the quantized coefficients and quantizers, and how
-/// they are coded.
+/// What the tiles of one codestream share: the quantizers, and how they are coded.
 struct TileCoding<'a> {
-    /// Each channel's quantized macroblocks of the whole image, `mb_w` across.
-    coeffs: &'a [Vec<MbCoeffs>],
     /// Each macroblock's LP and HP quantizer set.
     mb_set: &'a [u8],
     lp_qp_sets: &'a [QpSet],
@@ -871,30 +963,47 @@ struct TileCoding<'a> {
 /// Packet types (jxrlib `writePacketHeader`): spatial, DC, LP, HP, FLEXBITS.
 const PACKET_SPATIAL: u32 = 0;
 
+/// One tile being coded, a macroblock row at a time.
+struct TileState {
+    rect: TileRect,
+    /// Spatial: everything in writer 0. Frequency: DC, LP, HP, FLEXBITS in 0..=3.
+    ws: Vec<BitWriter>,
+    enc: PlaneEncoder,
+    /// The rows coded so far.
+    my: usize,
+    /// Each macroblock's coded block patterns, this row and the one above (by `my % 2`).
+    cbp_rows: [Vec<u32>; 2],
+    /// The quantized macroblocks, each macroblock's channels together, this row and the one
+    /// above (by `my % 2`).
+    rows: [Vec<i32>; 2],
+    /// The residuals of the macroblock being coded.
+    res: Vec<i32>,
+}
+
+impl TileState {
+    /// The tile's packets, each byte-aligned.
+    fn finish(self) -> Vec<Vec<u8>> {
+        self.ws
+            .into_iter()
+            .map(|mut w| {
+                w.align();
+                w.into_bytes()
+            })
+            .collect()
+    }
+}
+
 impl TileCoding<'_> {
-    /// The packets of one tile: in spatial order one (T.832 8.4.1, TILE_SPATIAL), in
+    /// The start of one tile's packets: in spatial order one (T.832 8.4.1, TILE_SPATIAL), in
     /// frequency order one per band present (8.4.2: TILE_DC, TILE_LOWPASS, TILE_HIGHPASS,
-    /// TILE_FLEXBITS); each a packet header, the tile headers of its band, then the band of
-    /// every macroblock of the tile in raster order (prediction, then entropy coding, exactly
-    /// undoing `tiles.rs`), byte-aligned.
-    fn encode_tile(&self, tile: TileRect, id: usize) -> Result<Vec<Vec<u8>>> {
-        let (fmt, channels, bands) = (self.fmt, self.channels, self.bands);
-        let (mb_w, lp_qp_sets, hp_qp_sets) = (self.mb_w, self.lp_qp_sets, self.hp_qp_sets);
-        let stride = channels * MB_COEFFS;
-        // Row `my` of the tile into `row`: each macroblock's channels together (`stride`
-        // values), as the decoder holds them.
-        let fill_row = |my: usize, row: &mut [i32]| {
-            for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
-                for (c, dst) in self.coeffs.iter().zip(mb.chunks_exact_mut(MB_COEFFS)) {
-                    dst.copy_from_slice(&c[(tile.y0 + my) * mb_w + tile.x0 + mx]);
-                }
-            }
-        };
-        // Spatial: everything in writer 0. Frequency: DC, LP, HP, FLEXBITS in 0..=3.
+    /// TILE_FLEXBITS); each a packet header and the tile headers of its band. Its macroblocks
+    /// follow row by row ([`TileCoding::code_row`]).
+    fn start_tile(&self, tile: TileRect, id: usize) -> Result<TileState> {
+        let (channels, bands) = (self.channels, self.bands);
         let count = if self.frequency { bands.count() } else { 1 };
         let mut ws: Vec<BitWriter> = (0..count).map(|_| BitWriter::new()).collect();
         let band_writer = |band: usize| if self.frequency { band } else { 0 };
-        let (dc_w, lp_w, hp_w, flex_w) = (band_writer(0), band_writer(1), band_writer(2), band_writer(3));
+        let (lp_w, hp_w, flex_w) = (band_writer(1), band_writer(2), band_writer(3));
         // The packet header: a start code, then the tile number modulo 32 and the packet
         // type.
         for (band, w) in ws.iter_mut().enumerate() {
@@ -909,7 +1018,7 @@ impl TileCoding<'_> {
         if let Some(trim) = self.trim {
             ws[flex_w].write(trim, 4);
         }
-        for (present, w, sets) in [(bands.has_lp(), lp_w, lp_qp_sets), (bands.has_hp(), hp_w, hp_qp_sets)] {
+        for (present, w, sets) in [(bands.has_lp(), lp_w, self.lp_qp_sets), (bands.has_hp(), hp_w, self.hp_qp_sets)] {
             if present && sets.len() > 1 {
                 let w = &mut ws[w];
                 w.bit(false);
@@ -919,93 +1028,112 @@ impl TileCoding<'_> {
                 }
             }
         }
-        let trim = self.trim.unwrap_or(0);
+        let mut enc = PlaneEncoder::new(self.fmt, channels);
+        enc.trim = self.trim.unwrap_or(0);
+        let stride = channels * MB_COEFFS;
+        Ok(TileState {
+            rect: tile,
+            ws,
+            enc,
+            my: 0,
+            cbp_rows: [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]],
+            rows: [vec![0i32; tile.w * stride], vec![0i32; tile.w * stride]],
+            res: vec![0i32; stride],
+        })
+    }
+
+    /// The tile's next macroblock row, from each channel's quantized row of the image
+    /// (`image_row[ch]`, `mb_w` macroblocks): every macroblock of the tile in raster order,
+    /// prediction, then entropy coding, exactly undoing `tiles.rs`.
+    fn code_row(&self, t: &mut TileState, image_row: &[&[MbCoeffs]]) -> Result<()> {
+        let (fmt, channels, bands) = (self.fmt, self.channels, self.bands);
+        let (mb_w, lp_qp_sets, hp_qp_sets) = (self.mb_w, self.lp_qp_sets, self.hp_qp_sets);
+        let tile = t.rect;
+        let my = t.my;
+        t.my += 1;
+        let stride = channels * MB_COEFFS;
+        let band_writer = |band: usize| if self.frequency { band } else { 0 };
+        let (dc_w, lp_w, hp_w, flex_w) = (band_writer(0), band_writer(1), band_writer(2), band_writer(3));
+        let (ws, enc, res) = (&mut t.ws, &mut t.enc, &mut t.res[..]);
+        let trim = enc.trim;
         let tile_w = tile.w as u32;
-        let mut enc = PlaneEncoder::new(fmt, channels);
-        enc.trim = trim;
-        let mut cbp_rows = [vec![0u32; tile.w * channels], vec![0u32; tile.w * channels]];
-        let mut rows = [vec![0i32; tile.w * stride], vec![0i32; tile.w * stride]];
-        let mut res = vec![0i32; stride];
-        for my in 0..tile.h {
-            let [r0, r1] = &mut rows;
-            let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
-            fill_row(my, row);
-            let row = &*row;
-            let [a, b] = &mut cbp_rows;
-            let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
-            for mx in 0..tile.w {
-                let cur = &row[mx * stride..(mx + 1) * stride];
-                let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);
-                let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
-                let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
-                res.copy_from_slice(cur);
-                if bands.has_hp() {
-                    // The HP bits the decoder will not read (all flexbits, or the trimmed
-                    // ones) are rounded away first: multiples of 2^d stay multiples of 2^d
-                    // through HP prediction, so the residuals lose nothing more.
-                    let bits = enc.hp_model_bits();
-                    for (ch, c) in res.chunks_exact_mut(MB_COEFFS).enumerate() {
-                        let m = bits[usize::from(ch > 0)];
-                        round_hp(c, if bands.has_flex() { trim.min(m) } else { m });
-                    }
+        let [r0, r1] = &mut t.rows;
+        let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
+        // The row, each macroblock's channels together (`stride` values), as the decoder
+        // holds them.
+        for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
+            for (c, dst) in image_row.iter().zip(mb.chunks_exact_mut(MB_COEFFS)) {
+                dst.copy_from_slice(&c[tile.x0 + mx]);
+            }
+        }
+        let row = &*row;
+        let [a, b] = &mut t.cbp_rows;
+        let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
+        for mx in 0..tile.w {
+            let cur = &row[mx * stride..(mx + 1) * stride];
+            let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);
+            let top = (my > 0).then(|| &prev_row[mx * stride..(mx + 1) * stride]);
+            let top_left = (mx > 0 && my > 0).then(|| &prev_row[(mx - 1) * stride..mx * stride]);
+            res.copy_from_slice(cur);
+            if bands.has_hp() {
+                // The HP bits the decoder will not read (all flexbits, or the trimmed
+                // ones) are rounded away first: multiples of 2^d stay multiples of 2^d
+                // through HP prediction, so the residuals lose nothing more.
+                let bits = enc.hp_model_bits();
+                for (ch, c) in res.chunks_exact_mut(MB_COEFFS).enumerate() {
+                    let m = bits[usize::from(ch > 0)];
+                    round_hp(c, if bands.has_flex() { trim.min(m) } else { m });
                 }
-                // LP is predicted only from neighbours with the same LP quantizers.
-                let set_at = |mx: usize, my: usize| self.mb_set[(tile.y0 + my) * mb_w + tile.x0 + mx];
-                let set = set_at(mx, my);
-                let lp_index = bands.has_lp() && lp_qp_sets.len() > 1;
-                let same_left = !lp_index || (mx > 0 && set_at(mx - 1, my) == set);
-                let same_top = !lp_index || (my > 0 && set_at(mx, my - 1) == set);
-                predict::unpredict_dclp(fmt, channels, &mut res, left, top, top_left, same_left, same_top);
-                // The decoder chooses the HP prediction from the predicted (final) LP values.
-                let mode = predict::hp_mode(fmt, cur);
-                let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
-                for ch in 0..hp_channels {
-                    predict::unpredict_hp(fmt, &mut res, ch, mode);
+            }
+            // LP is predicted only from neighbours with the same LP quantizers.
+            let set_at = |mx: usize, my: usize| self.mb_set[(tile.y0 + my) * mb_w + tile.x0 + mx];
+            let set = set_at(mx, my);
+            let lp_index = bands.has_lp() && lp_qp_sets.len() > 1;
+            let same_left = !lp_index || (mx > 0 && set_at(mx - 1, my) == set);
+            let same_top = !lp_index || (my > 0 && set_at(mx, my - 1) == set);
+            predict::unpredict_dclp(fmt, channels, res, left, top, top_left, same_left, same_top);
+            // The decoder chooses the HP prediction from the predicted (final) LP values.
+            let mode = predict::hp_mode(fmt, cur);
+            let hp_channels = if matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422) { 1 } else { channels };
+            for ch in 0..hp_channels {
+                predict::unpredict_hp(fmt, res, ch, mode);
+            }
+            // Spatial order puts the LP and HP quantizer indices first, frequency order
+            // each at the start of the macroblock's data in its band.
+            let hp_index = bands.has_hp() && hp_qp_sets.len() > 1;
+            if !self.frequency {
+                if lp_index {
+                    quant::write_qp_index(&mut ws[0], set, lp_qp_sets.len());
                 }
-                // Spatial order puts the LP and HP quantizer indices first, frequency order
-                // each at the start of the macroblock's data in its band.
-                let hp_index = bands.has_hp() && hp_qp_sets.len() > 1;
-                if !self.frequency {
-                    if lp_index {
-                        quant::write_qp_index(&mut ws[0], set, lp_qp_sets.len());
-                    }
-                    if hp_index {
-                        quant::write_qp_index(&mut ws[0], set, hp_qp_sets.len());
-                    }
+                if hp_index {
+                    quant::write_qp_index(&mut ws[0], set, hp_qp_sets.len());
                 }
-                enc.dc(&mut ws[dc_w], &res, mx as u32, tile_w)?;
-                if bands.has_lp() {
-                    if lp_index && self.frequency {
-                        quant::write_qp_index(&mut ws[lp_w], set, lp_qp_sets.len());
-                    }
-                    enc.lp(&mut ws[lp_w], &res, mx as u32, tile_w)?;
+            }
+            enc.dc(&mut ws[dc_w], res, mx as u32, tile_w)?;
+            if bands.has_lp() {
+                if lp_index && self.frequency {
+                    quant::write_qp_index(&mut ws[lp_w], set, lp_qp_sets.len());
                 }
-                if bands.has_hp() {
-                    if hp_index && self.frequency {
-                        quant::write_qp_index(&mut ws[hp_w], set, hp_qp_sets.len());
-                    }
-                    let (before, rest) = cur_cbp.split_at_mut(mx * channels);
-                    let left_cbp = (mx > 0).then(|| &before[(mx - 1) * channels..]);
-                    let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
-                    let cbp = &mut rest[..channels];
-                    // Spatial order: each block's flexbits follow it; frequency order: in the
-                    // FLEXBITS packet.
-                    let inline = bands.has_flex() && !self.frequency;
-                    let bits =
-                        enc.cbp_hp(&mut ws[hp_w], &res, left_cbp, top_cbp, cbp, mode, mx as u32, tile_w, inline)?;
-                    if bands.has_flex() && self.frequency {
-                        flex_mb_encode(&mut ws[flex_w], &res, fmt, channels, trim, bits)?;
-                    }
+                enc.lp(&mut ws[lp_w], res, mx as u32, tile_w)?;
+            }
+            if bands.has_hp() {
+                if hp_index && self.frequency {
+                    quant::write_qp_index(&mut ws[hp_w], set, hp_qp_sets.len());
+                }
+                let (before, rest) = cur_cbp.split_at_mut(mx * channels);
+                let left_cbp = (mx > 0).then(|| &before[(mx - 1) * channels..]);
+                let top_cbp = (my > 0).then(|| &top_cbp[mx * channels..(mx + 1) * channels]);
+                let cbp = &mut rest[..channels];
+                // Spatial order: each block's flexbits follow it; frequency order: in the
+                // FLEXBITS packet.
+                let inline = bands.has_flex() && !self.frequency;
+                let bits = enc.cbp_hp(&mut ws[hp_w], res, left_cbp, top_cbp, cbp, mode, mx as u32, tile_w, inline)?;
+                if bands.has_flex() && self.frequency {
+                    flex_mb_encode(&mut ws[flex_w], res, fmt, channels, trim, bits)?;
                 }
             }
         }
-        Ok(ws
-            .into_iter()
-            .map(|mut w| {
-                w.align();
-                w.into_bytes()
-            })
-            .collect())
+        Ok(())
     }
 }
 

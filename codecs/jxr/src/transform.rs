@@ -1700,6 +1700,121 @@ pub fn forward_plane_in_place(
     Ok(mbs)
 }
 
+/// The forward transform of a full-resolution plane ([`PlaneKind::Full`], no hard tiles) one
+/// macroblock row at a time, from a window of its sample rows: the same coefficients as
+/// [`forward_plane`] with buffers of a few macroblock rows instead of planes, so that an
+/// encoder can convert, transform, quantize and code a band of rows while it is in cache.
+///
+/// Row `my`'s stage 1 ([`ForwardRows::stage1`]) needs sample rows `16·my .. 16·my + 18` (the
+/// stage-1 POT across the next macroblock row's top edge reaches two rows into it); the
+/// caller fills those not yet given ([`ForwardRows::rows_to_fill`]). Its stage 2
+/// ([`ForwardRows::stage2`]) needs the stage 1 of row `my + 1` (the second overlap stage
+/// reaches two block-DC rows into it), so an encoder runs stage 1 one row ahead. Operations
+/// are split between rows by the keys of [`pot4_region`], which give the whole plane's result
+/// for any split.
+#[derive(Debug)]
+pub struct ForwardRows {
+    overlap: OverlapMode,
+    double: bool,
+    mb_w: usize,
+    mb_h: usize,
+    /// Sample rows `16·my ..` of the row whose stage 1 is next, `16 · mb_w` wide.
+    window: Vec<i32>,
+    /// Block-DC rows `4·my .. 4·my + 8` of the row whose stage 2 is next, `4 · mb_w` wide.
+    dc: Vec<i32>,
+    /// The macroblock rows `my` and `my + 1` (by `my % 2`).
+    mbs: [Vec<MbCoeffs>; 2],
+    /// Coefficient-major scratch of the sample rows, and of the block-DC rows (apart, so that
+    /// neither is resized, and zeroed again, on every row).
+    cm: Vec<i32>,
+    cm_dc: Vec<i32>,
+}
+
+/// Sample rows a [`ForwardRows`] window holds: a macroblock row and the two rows the
+/// stage-1 POT reaches below it.
+const WINDOW_ROWS: usize = 18;
+
+impl ForwardRows {
+    /// The streaming transform of channel `channel` of an `mb_w` × `mb_h` macroblock grid.
+    pub fn new(params: &TransformParams, channel: usize, mb_w: usize, mb_h: usize) -> Result<Self> {
+        if params.operators != OperatorSet::JpegXr || params.hard.is_some() {
+            return Err(Error::unsupported("the row-by-row forward transform with HD Photo operators or hard tiles"));
+        }
+        plane_size(PlaneKind::Full, mb_w, mb_h)?;
+        Ok(ForwardRows {
+            overlap: params.overlap,
+            double: params.scaled && channel > 0,
+            mb_w,
+            mb_h,
+            window: vec![0; WINDOW_ROWS * 16 * mb_w],
+            dc: vec![0; 8 * 4 * mb_w],
+            mbs: [vec![[0; MB_COEFFS]; mb_w], vec![[0; MB_COEFFS]; mb_w]],
+            cm: Vec::new(),
+            cm_dc: Vec::new(),
+        })
+    }
+
+    /// The first sample row the caller fills before [`ForwardRows::stage1`] of row `my`, and
+    /// the rows to fill from there (`16 · mb_w` samples each, as many rows as the slice holds):
+    /// rows `16·my + 2 ..` (from 0 for the first), up to `16·my + 18` or the plane's end.
+    pub fn rows_to_fill(&mut self, my: usize) -> (usize, &mut [i32]) {
+        let pw = 16 * self.mb_w;
+        let first = if my == 0 { 0 } else { 16 * my + 2 };
+        let end = (16 * my + WINDOW_ROWS).min(16 * self.mb_h);
+        (first, &mut self.window[(first - 16 * my) * pw..(end - 16 * my) * pw])
+    }
+
+    /// Stage 1 of macroblock row `my` (rows in order, the window filled): the stage-1 POT
+    /// operations keyed by its rows, then the stage-1 PCT of its blocks.
+    pub fn stage1(&mut self, my: usize) {
+        let (mb_w, mb_h) = (self.mb_w, self.mb_h);
+        let (pw, ph) = (16 * mb_w, 16 * mb_h);
+        let y0 = 16 * my;
+        if self.overlap != OverlapMode::None {
+            let keys = if my == 0 { 0..=16 } else { y0 + 1..=y0 + 16 };
+            let end = (y0 + WINDOW_ROWS).min(ph);
+            let mut p = Rows { data: &mut self.window[..(end - y0) * pw], stride: pw, y_base: y0 };
+            pot4_region(&mut p, Rect { x0: 0, x1: pw, y0: 0, y1: ph }, &keys, Dir::Forward, &mut self.cm);
+        }
+        // The DC rows go after the four of the row before (still waiting for its stage 2).
+        let dw = 4 * mb_w;
+        let dc = &mut self.dc[if my == 0 { 0 } else { 4 * dw }..][..4 * dw];
+        forward_stage1(PlaneKind::Full, mb_w, 1, &self.window[..16 * pw], dc, &mut self.mbs[my % 2], &mut self.cm);
+        // The two rows below this macroblock row, already filtered across its edge, start
+        // the next window.
+        if y0 + 16 < ph {
+            self.window.copy_within(16 * pw..WINDOW_ROWS * pw, 0);
+        }
+    }
+
+    /// Stage 2 of macroblock row `my` (after the stage 1 of row `my + 1`, if there is one):
+    /// the second overlap stage's operations keyed by its block-DC rows, each macroblock's
+    /// DC/LP transform; its coefficients, `mb_w` macroblocks, are the caller's until the stage
+    /// 1 of row `my + 2`.
+    pub fn stage2(&mut self, my: usize) -> &mut [MbCoeffs] {
+        let (mb_w, mb_h) = (self.mb_w, self.mb_h);
+        let (dw, dh) = (4 * mb_w, 4 * mb_h);
+        let d0 = 4 * my;
+        if self.overlap == OverlapMode::Two {
+            let keys = if my == 0 { 0..=4 } else { d0 + 1..=d0 + 4 };
+            let end = (d0 + 8).min(dh);
+            let mut p = Rows { data: &mut self.dc[..(end - d0) * dw], stride: dw, y_base: d0 };
+            pot4_region(&mut p, Rect { x0: 0, x1: dw, y0: 0, y1: dh }, &keys, Dir::Forward, &mut self.cm_dc);
+        }
+        let mbs = &mut self.mbs[my % 2];
+        for (mx, c) in mbs.iter_mut().enumerate() {
+            let mut v = [0i32; 16];
+            for (j, v) in v.chunks_exact_mut(4).enumerate() {
+                v.copy_from_slice(&self.dc[j * dw + 4 * mx..][..4]);
+            }
+            stage2_forward(PlaneKind::Full, self.double, &v, c);
+        }
+        // The next row's block DCs move up.
+        self.dc.copy_within(4 * dw.., 0);
+        mbs
+    }
+}
+
 /// The first overlap stage of [`forward_plane`] on the plane `data` (nothing without
 /// overlap).
 fn forward_overlap1(
@@ -1984,6 +2099,44 @@ mod tests {
         let params =
             TransformParams { overlap: OverlapMode::One, scaled: false, hard: None, operators: OperatorSet::JpegXr };
         assert!(forward_plane_in_place(&params, 0, 2, 2, vec![[0; MB_COEFFS]; 3]).is_err());
+    }
+
+    /// The row-by-row forward transform (a window of sample rows filled as it asks, stage 1
+    /// a row ahead of stage 2) gives `forward_plane`'s coefficients, for every overlap mode,
+    /// scaled or not, luma and chroma, one macroblock row or many; hard edges are refused.
+    #[test]
+    fn forward_rows_match_forward_plane() {
+        let mut r = rng(13);
+        for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+            for &(mb_w, mb_h) in &[(1, 1), (3, 1), (3, 2), (5, 3), (2, 17)] {
+                for (scaled, channel) in [(false, 0), (true, 0), (true, 1)] {
+                    let params = TransformParams { overlap, scaled, hard: None, operators: OperatorSet::JpegXr };
+                    let plane = random_plane(&mut r, PlaneKind::Full, mb_w, mb_h, 17);
+                    let pw = plane.width;
+                    let mut rows = ForwardRows::new(&params, channel, mb_w, mb_h).unwrap();
+                    let mut got = Vec::new();
+                    let mut filled = 0;
+                    for step in 0..=mb_h {
+                        if step < mb_h {
+                            let (first, data) = rows.rows_to_fill(step);
+                            assert_eq!(first, filled, "rows asked for in order");
+                            data.copy_from_slice(&plane.data[first * pw..][..data.len()]);
+                            filled += data.len() / pw;
+                            rows.stage1(step);
+                        }
+                        if step > 0 {
+                            got.extend_from_slice(rows.stage2(step - 1));
+                        }
+                    }
+                    assert_eq!(filled, plane.height);
+                    let want = forward_plane(&params, PlaneKind::Full, channel, mb_w, mb_h, plane).unwrap();
+                    assert!(got == want, "{overlap:?} {mb_w}x{mb_h} scaled {scaled} channel {channel}");
+                }
+            }
+        }
+        let hard = Some(HardEdges::from_tiles(&[0, 1], &[0], true));
+        let params = TransformParams { overlap: OverlapMode::One, scaled: false, hard, operators: OperatorSet::JpegXr };
+        assert!(ForwardRows::new(&params, 0, 2, 2).is_err());
     }
 
     #[test]
