@@ -103,6 +103,8 @@ impl ThreadPool {
     /// iterator run there would reach rayon's global pool, every core, behind the caller's back).
     pub fn map_vec<T: Send, R: Send>(&self, items: Vec<T>, f: impl Fn((usize, T)) -> R + Sync + Send) -> Vec<R> {
         match &self.pool {
+            // One item has nothing to share: no hand-off to the pool.
+            _ if items.len() < 2 => items.into_iter().enumerate().map(f).collect(),
             None => items.into_iter().enumerate().map(f).collect(),
             Some(p) => p.install(|| items.into_par_iter().enumerate().map(f).collect()),
         }

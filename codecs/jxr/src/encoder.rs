@@ -309,6 +309,14 @@ impl EncodeOptions {
 
 /// Encodes `image` (RGB, or RGBA with alpha as a planar alpha codestream) as a JPEG XR file.
 pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
+    // On one of the pool's workers, the encoder's many small parallel steps (a few per
+    // macroblock row) are work shared among the workers; from an outside thread each would be
+    // handed to the pool and waited for, and that hand-off cost more than the step gained.
+    pool.install(|| encode_rated(image, options, pool))
+}
+
+/// [`encode`] on the calling thread.
+fn encode_rated(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
     let Some(target) = options.target_bpp else { return encode_at(image, options, pool) };
     // Rate control: file size falls with quality, so bisect for the highest quality (0-99,
     // lossy) whose file fits, in at most 7 encodes.
