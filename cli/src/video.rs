@@ -425,7 +425,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
         None => None,
     };
     let lpuv_json = lpuv.map(|l| {
-        json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273})
+        json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273, "plane_mapping": format!("{:?}", l.mapping)})
     });
     if as_json {
         let out = json!({
@@ -466,8 +466,8 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
     }
     if let Some(l) = lpuv {
         println!(
-            "planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits over {:e} … {:e} cd/m², u'v' ×410; RGB out in H.273 primaries {}",
-            l.curve, l.bits, l.min_nits, l.max_nits, l.primaries_h273
+            "planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits over {:e} … {:e} cd/m², u'v' ×410, codes in the planes: {:?}; RGB out in H.273 primaries {}",
+            l.curve, l.bits, l.min_nits, l.max_nits, l.mapping, l.primaries_h273
         );
     }
     crate::cli::print_hdr10(hdr10);

@@ -497,7 +497,7 @@ impl<'a> Av1Decoder<'a> {
                 nits_per_unit: self.options.nits_per_unit,
                 ..ColorInfo::default()
             };
-            return lpuv_yuv_to_frame(psi, &yuv, color).map(Some);
+            return lpuv_yuv_to_frame(psi, &yuv, color, info.mapping).map(Some);
         }
         if self.sdr {
             return sdr_yuv_to_frame(&yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);

@@ -371,7 +371,10 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
         }
         let yuv = match (&self.options.sdr, &self.psi) {
             (Some(sdr), _) => sdr.frame_to_yuv(frame, self.options.subsampling),
-            (None, Some(psi)) => frame_to_lpuv_yuv(psi, frame, self.options.subsampling)?,
+            (None, Some(psi)) => {
+                let mapping = self.options.lpuv.as_ref().map(|l| l.mapping).unwrap_or_default();
+                frame_to_lpuv_yuv(psi, frame, self.options.subsampling, mapping)?
+            }
             (None, None) => {
                 let (yuv, clipped) =
                     frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
