@@ -417,8 +417,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// left untouched: the data goes (buffered) to a temporary file in the same directory, is flushed
 /// to disk (fsync) and renamed over `path` only when `write` succeeds; on any error the temporary
 /// file is removed. Nothing of the content is held in memory beyond the write buffer. `write`
-/// may seek (formats whose index precedes the data fill it in last).
-pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) -> Result<T>) -> Result<T> {
+/// may seek (formats whose index precedes the data fill it in last); the writer is `Send`, so a
+/// stream encoder ([`core::VideoEncoder`]) may own a borrow of it.
+pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut (dyn WriteSeek + Send)) -> Result<T>) -> Result<T> {
     let name = path
         .file_name()
         .and_then(|n| n.to_str())

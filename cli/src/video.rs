@@ -3,11 +3,10 @@
 
 use hdrcodec::core::{
     ContentLightLevel, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, HdrImage, ImageInfo, Limits, Result,
-    ThreadPool, VideoCodec, WriteSeek,
+    StreamReport, ThreadPool, VideoCodec, WriteSeek,
 };
 use hdrcodec_video::codec::Av1Codec;
 use hdrcodec_video::decode::probe_ivf;
-use hdrcodec_video::encode::{Av1Encoder, Av1Options, EncodeSummary, TemporalUnitSink};
 use hdrcodec_video::hdr10::{content_light_level, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
 use hdrcodec_video::mp4::probe_mp4;
@@ -195,74 +194,49 @@ impl FrameSource {
     }
 }
 
-/// Codes every frame of `source` into `encoder`, ticking `bar`, and completes the file.
-fn encode_frames<S: TemporalUnitSink>(
-    mut encoder: Av1Encoder<S>,
-    source: &FrameSource,
-    bar: &ProgressBar,
-) -> Result<EncodeSummary> {
-    source.for_each(None, |frame| {
-        encoder.push_frame(&frame)?;
-        bar.inc(1);
-        Ok(())
-    })?;
-    Ok(encoder.finish()?.0)
-}
-
-/// The containers `video encode` writes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Container {
-    Ivf,
-    Mp4,
-    /// Matroska; WebM when true.
-    Mkv(bool),
-}
-
-/// The container `path`'s extension names; other extensions are an error.
-fn container_of(path: &Path) -> Result<Container> {
+/// The `container` option of [`Av1Codec`] that `path`'s extension names; other extensions
+/// are an error.
+fn container_of(path: &Path) -> Result<&'static str> {
     match extension(path).as_str() {
-        "ivf" => Ok(Container::Ivf),
-        "mp4" => Ok(Container::Mp4),
-        "mkv" => Ok(Container::Mkv(false)),
-        "webm" => Ok(Container::Mkv(true)),
+        "ivf" => Ok("ivf"),
+        "mp4" => Ok("mp4"),
+        "mkv" => Ok("mkv"),
+        "webm" => Ok("webm"),
         _ => Err(Error::unsupported(format!("'{}': video is written as .ivf, .mp4, .mkv or .webm", path.display()))),
     }
 }
 
 /// The frames of one `video encode`, encoded once per output.
 struct Stream<'a> {
-    width: u32,
-    height: u32,
-    count: Option<u64>,
+    info: &'a ImageInfo,
     source: &'a FrameSource,
     bar: &'a ProgressBar,
 }
 
 impl Stream<'_> {
-    /// Encodes every frame with `options` into `out`, in `container`.
-    fn encode(&self, container: Container, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
-        let (w, h) = (self.width, self.height);
-        match container {
-            Container::Mp4 => encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar),
-            Container::Mkv(webm) => {
-                encode_frames(Av1Encoder::begin_mkv(w, h, options, out, webm)?, self.source, self.bar)
-            }
-            Container::Ivf => {
-                let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
-                encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
-            }
-        }
+    /// Encodes every frame through [`Av1Codec`] (the family's `VideoCodec`) with `settings`
+    /// (its `container` option included) into `out`, ticking the bar.
+    fn encode(&self, settings: &EncodeSettings, out: &mut (dyn WriteSeek + Send)) -> Result<StreamReport> {
+        let mut encoder = Av1Codec.begin_encode_seekable(self.info, settings, Box::new(out))?;
+        self.source.for_each(None, |frame| {
+            encoder.push_frame(&frame)?;
+            self.bar.inc(1);
+            Ok(())
+        })?;
+        encoder.finish_report()
     }
 }
 
-/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension). The
-/// options go through [`Av1Codec::av1_options`], as for any caller of the codec. Frames are
+/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension),
+/// through [`Av1Codec`] as core's `VideoCodec` (`begin_encode_seekable`, `finish_report`), as
+/// any caller of the codec would. Frames are
 /// read twice for PQ, once to measure MaxCLL/MaxFALL (needed before the stream's first
 /// header) and once to encode, one frame at a time. The file is written atomically. Returns
 /// notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     let container = container_of(a.output)?;
     let sdr = match a.sdr {
+        // The peak is checked before any frame is read.
         Some(path) => Some((path, container_of(path)?, SdrRendition::new(a.sdr_peak)?)),
         None => None,
     };
@@ -296,15 +270,19 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         options = Av1Codec::av1_options(&info, &settings)?;
     }
     let count = source.count();
+    info.frames = count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
     let passes = if sdr.is_some() { 2 } else { 1 };
     let bar = crate::cli::progress_bar(count.unwrap_or(0) as usize * passes, a.json);
-    let stream = Stream { width: info.width, height: info.height, count, source: &source, bar: &bar };
+    let stream = Stream { info: &info, source: &source, bar: &bar };
     // The SDR file is written inside the HDR file's atomic write: either both appear or neither.
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        let summary = stream.encode(container, &options, out)?;
-        if let Some((path, sdr_container, rendition)) = &sdr {
-            let sdr_options = Av1Options { sdr: Some(rendition.clone()), ..options.clone() };
-            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_container, &sdr_options, sdr_out))?;
+        let summary = stream.encode(&settings.clone().with_option("container", container), out)?;
+        if let Some((path, sdr_container, _)) = &sdr {
+            let sdr_settings = settings
+                .clone()
+                .with_option("container", *sdr_container)
+                .with_option("sdr_peak", a.sdr_peak.to_string());
+            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(&sdr_settings, sdr_out))?;
         }
         Ok(summary)
     });
@@ -323,13 +301,14 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     }
     if a.json {
         let cll = summary.content_light.map(|c| json!({"max_cll": c.max_cll, "max_fall": c.max_fall}));
+        let bytes = summary.bytes;
         println!(
             "{}",
             json!({
                 "output": a.output.display().to_string(),
                 "sdr_output": a.sdr.map(|p| p.display().to_string()),
                 "frames": summary.frames,
-                "bytes": summary.bytes,
+                "bytes": bytes,
                 "content_light": cll,
                 "notes": notes,
             })

@@ -3,7 +3,7 @@
 
 use hdrcodec_core::{
     ColorPrimaries, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, HdrImage, ImageInfo, Limits, MasteringDisplay,
-    VideoCodec,
+    StreamReport, VideoCodec,
 };
 use hdrcodec_video::codec::Av1Codec;
 use hdrcodec_video::decode::{decode_ivf, Av1DecodeOptions};
@@ -24,6 +24,11 @@ fn frames(n: u32, peak: f32) -> Vec<HdrImage> {
 /// Encodes `frames` through the trait with `settings` (into a file, as a tool would); returns
 /// the stream.
 fn encode(frames: &[HdrImage], info: &ImageInfo, settings: &EncodeSettings) -> Vec<u8> {
+    encode_reporting(frames, info, settings).0
+}
+
+/// [`encode`], with the encoder's report.
+fn encode_reporting(frames: &[HdrImage], info: &ImageInfo, settings: &EncodeSettings) -> (Vec<u8>, StreamReport) {
     static COUNT: AtomicUsize = AtomicUsize::new(0);
     let path = temp_file(&format!("{}.ivf", COUNT.fetch_add(1, Ordering::Relaxed)));
     let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
@@ -31,10 +36,12 @@ fn encode(frames: &[HdrImage], info: &ImageInfo, settings: &EncodeSettings) -> V
     for f in frames {
         enc.push_frame(f).unwrap();
     }
-    assert_eq!(enc.finish().unwrap(), frames.len() as u64);
+    let report = enc.finish_report().unwrap();
+    assert_eq!(report.frames, frames.len() as u64);
     let bytes = std::fs::read(&path).unwrap();
     std::fs::remove_file(&path).unwrap();
-    bytes
+    assert_eq!(report.bytes, Some(bytes.len() as u64));
+    (bytes, report)
 }
 
 fn fast() -> EncodeSettings {
@@ -127,6 +134,71 @@ fn mantiuk_and_mp4_through_the_trait() {
         assert_eq!(dec.next_frame().unwrap().unwrap().samples(), want.samples());
     }
     assert!(dec.next_frame().unwrap().is_none());
+}
+
+/// MP4, Matroska and WebM through the trait: `begin_encode` (the file built in memory, then
+/// copied to the plain writer) and `begin_encode_seekable` (straight to a borrowed writer that
+/// seeks) write the same bytes as the typed API; `finish_report` keeps the clipped samples and
+/// the content light written; the MP4 decodes through the trait as the typed decoder reads it.
+#[test]
+fn mp4_and_matroska_through_the_trait_with_the_report() {
+    use hdrcodec_video::encode::Av1Encoder;
+    let frames = frames(2, 50_000.0); // above PQ's peak: clipped, and counted
+    let cll = content_light_level(&frames, Transfer::Pq);
+    let mut info = ImageInfo::of(&frames[0]).with_frames(2);
+    info.color.hdr10 = Some(Hdr10Metadata { mastering_display: None, content_light_level: Some(cll) });
+    let options = Av1Codec::av1_options(&info, &fast()).unwrap();
+    let (w, h) = (info.width, info.height);
+    for container in ["ivf", "mp4", "mkv", "webm"] {
+        let settings = fast().with_option("container", container);
+        let (bytes, report) = encode_reporting(&frames, &info, &settings);
+        assert_eq!(report.content_light, Some(cll), "{container}");
+        assert!(report.clipped.above_peak > 0, "{container}: {:?}", report.clipped);
+        // Straight to a borrowed writer that seeks.
+        let mut cursor = std::io::Cursor::new(Vec::new());
+        let mut enc = Av1Codec.begin_encode_seekable(&info, &settings, Box::new(&mut cursor)).unwrap();
+        for f in &frames {
+            enc.push_frame(f).unwrap();
+        }
+        assert_eq!(enc.finish_report().unwrap(), report, "{container}");
+        assert_eq!(cursor.get_ref(), &bytes, "{container}: seekable and in-memory writes differ");
+        // The typed API's bytes.
+        let out = std::io::Cursor::new(Vec::new());
+        let typed = match container {
+            "ivf" => Av1Encoder::begin(w, h, 2, &options, Vec::new()).and_then(|mut e| {
+                frames.iter().try_for_each(|f| e.push_frame(f))?;
+                e.finish().map(|(_, v)| v)
+            }),
+            "mp4" => Av1Encoder::begin_mp4(w, h, &options, out).and_then(|mut e| {
+                frames.iter().try_for_each(|f| e.push_frame(f))?;
+                e.finish().map(|(_, c)| c.into_inner())
+            }),
+            _ => Av1Encoder::begin_mkv(w, h, &options, out, container == "webm").and_then(|mut e| {
+                frames.iter().try_for_each(|f| e.push_frame(f))?;
+                e.finish().map(|(_, c)| c.into_inner())
+            }),
+        };
+        assert_eq!(typed.unwrap(), bytes, "{container}: trait and typed API differ");
+        match container {
+            "mp4" => {
+                assert_eq!(&bytes[4..8], b"ftyp");
+                let want = decode_ivf(&bytes, &Av1DecodeOptions::default()).unwrap();
+                let mut dec = Av1Codec.begin_decode(bytes.into(), &DecodeOptions::new(Limits::default())).unwrap();
+                for want in &want {
+                    assert_eq!(dec.next_frame().unwrap().unwrap().samples(), want.samples());
+                }
+            }
+            "mkv" | "webm" => {
+                assert_eq!(&bytes[..4], &[0x1a, 0x45, 0xdf, 0xa3]); // EBML
+                let doc_type: &[u8] = if container == "webm" { b"webm" } else { b"matroska" };
+                assert!(bytes.windows(doc_type.len()).any(|w| w == doc_type));
+            }
+            _ => assert_eq!(&bytes[..4], b"DKIF"),
+        }
+    }
+    let bad = fast().with_option("container", "avi");
+    let err = Av1Codec.begin_encode(&info, &bad, Box::new(std::io::sink())).err().unwrap().to_string();
+    assert!(err.contains("ivf, mp4, mkv or webm"), "{err}");
 }
 
 /// The generated moving light (a 6-pixel disc at exactly its peak, 64x48, 3 frames): the
