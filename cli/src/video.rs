@@ -6,9 +6,10 @@ use hdrcodec::core::{
     StreamReport, ThreadPool, VideoCodec, WriteSeek,
 };
 use hdrcodec_video::codec::Av1Codec;
-use hdrcodec_video::decode::probe_ivf;
+use hdrcodec_video::decode::{probe_ivf, probe_stream};
 use hdrcodec_video::hdr10::{content_light_level, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
+use hdrcodec_video::mkv::MkvTrack;
 use hdrcodec_video::mp4::probe_mp4;
 use hdrcodec_video::obu::chroma_sample_position;
 use hdrcodec_video::sdr::SdrRendition;
@@ -54,6 +55,11 @@ fn extension(path: &Path) -> String {
 
 fn is_ivf(path: &Path) -> bool {
     extension(path) == "ivf"
+}
+
+/// Matroska and WebM, which `info` and `video decode` read.
+fn is_matroska(path: &Path) -> bool {
+    matches!(extension(path).as_str(), "mkv" | "webm")
 }
 
 /// MP4 and its ISO base media siblings that `info` and `video decode` read.
@@ -333,7 +339,7 @@ fn video_codec_for(path: &Path) -> Result<Arc<dyn VideoCodec>> {
         .ok_or_else(|| Error::unsupported(format!("'{}': video is read from {}", path.display(), known.join(", "))))
 }
 
-/// `hdrcodec video decode IN.ivf|IN.mp4|IN.hdrc OUT_DIR`, through the facade's stream codecs:
+/// `hdrcodec video decode IN.ivf|IN.mp4|IN.mkv|IN.webm|IN.hdrc OUT_DIR`, through the facade's stream codecs:
 /// every frame as `frame_NNNNN.exr` (float, linear; AV1 gives BT.2020, or for L_p u'v' the
 /// primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are
 /// removed. Returns the number of frames.
@@ -377,14 +383,27 @@ pub fn decode(input: &Path, out_dir: &Path, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `hdrcodec info FILE.ivf|FILE.mp4`: the IVF header, the sequence header's colour signalling and the
+/// `hdrcodec info FILE.ivf|FILE.mkv|FILE.webm|FILE.mp4`: the IVF header (or the Matroska Colour element), the sequence header's colour signalling and the
 /// HDR10 metadata, read by our own parsers without decoding.
 pub fn info(file: &Path, as_json: bool) -> Result<()> {
     let data = hdrcodec::read_file(file)?;
     if is_mp4(file) {
         return mp4_info(file, &data, as_json);
     }
-    let (header, summary) = probe_ivf(&data, &Limits::default())?;
+    // Matroska: the stream through its blocks, and the track's Colour element as written.
+    let (container, ivf_rate, colour, summary) = if is_matroska(file) {
+        let track = MkvTrack::first_video(&data, &Limits::default())?;
+        let colour = track.colour.map(|c| {
+            json!({"matrix": c.matrix, "transfer": c.transfer, "primaries": c.primaries, "range": c.range,
+                "bits_per_channel": c.bits_per_channel, "max_cll": c.max_cll, "max_fall": c.max_fall,
+                "mastering_display": c.mastering_display.is_some()})
+        });
+        let container = if track.doc_type == "webm" { "WebM" } else { "Matroska" };
+        (container, None, colour, probe_stream(&data, &Limits::default())?)
+    } else {
+        let (header, summary) = probe_ivf(&data, &Limits::default())?;
+        ("IVF", Some([header.timebase_den, header.timebase_num]), None, summary)
+    };
     let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
     let c = seq.color;
     let subsampling = match (c.subsampling_x, c.subsampling_y) {
@@ -414,7 +433,9 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
             "frames": summary.temporal_units,
             "width": seq.max_frame_width,
             "height": seq.max_frame_height,
-            "ivf_frame_rate": [header.timebase_den, header.timebase_num],
+            "container": container,
+            "ivf_frame_rate": ivf_rate,
+            "matroska_colour": colour,
             "profile": seq.profile,
             "level_idx": seq.level_idx,
             "bit_depth": c.bit_depth,
@@ -429,7 +450,10 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
         println!("{out}");
         return Ok(());
     }
-    println!("file:          {} ({} bytes, AV1 in IVF)", file.display(), data.len());
+    println!("file:          {} ({} bytes, AV1 in {container})", file.display(), data.len());
+    if let Some(colour) = colour {
+        println!("Matroska Colour: {colour}");
+    }
     println!("frames:        {}", summary.temporal_units);
     println!("dimensions:    {} x {}", seq.max_frame_width, seq.max_frame_height);
     println!("profile:       {} (level index {})", seq.profile, seq.level_idx);
@@ -455,7 +479,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
 
 /// True for a file `info` reads through [`info`] rather than the image registry.
 pub fn handles(file: &Path) -> bool {
-    is_ivf(file) || is_mp4(file)
+    is_ivf(file) || is_mp4(file) || is_matroska(file)
 }
 
 /// H.273 code points with their names, as `info` prints them.

@@ -168,7 +168,7 @@ impl VideoCodec for Av1Codec {
     }
 
     fn extensions(&self) -> &'static [&'static str] {
-        &["ivf", "mp4"]
+        &["ivf", "mp4", "mkv", "webm"]
     }
 
     fn begin_encode(

@@ -192,6 +192,7 @@ fn mp4_and_matroska_through_the_trait_with_the_report() {
                 assert_eq!(&bytes[..4], &[0x1a, 0x45, 0xdf, 0xa3]); // EBML
                 let doc_type: &[u8] = if container == "webm" { b"webm" } else { b"matroska" };
                 assert!(bytes.windows(doc_type.len()).any(|w| w == doc_type));
+                matroska_reads_back(&bytes, &frames, cll);
             }
             _ => assert_eq!(&bytes[..4], b"DKIF"),
         }
@@ -199,6 +200,58 @@ fn mp4_and_matroska_through_the_trait_with_the_report() {
     let bad = fast().with_option("container", "avi");
     let err = Av1Codec.begin_encode(&info, &bad, Box::new(std::io::sink())).err().unwrap().to_string();
     assert!(err.contains("ivf, mp4, mkv or webm"), "{err}");
+}
+
+/// Our Matroska file read back: the trait's decode equals the typed decode of the same encode
+/// in IVF, the stream's content light is ours; with the Segment and Cluster sizes made unknown
+/// (as a live writer leaves them) the same frames come back; every truncation and bit flip is
+/// an error or fewer frames, never a panic.
+fn matroska_reads_back(mkv: &[u8], frames: &[HdrImage], cll: hdrcodec_core::ContentLightLevel) {
+    use hdrcodec_video::decode::probe_stream;
+    let options = Av1Options { speed: 10, quantizer: 30, content_light: Some(cll), ..Av1Options::default() };
+    let (_, ivf) = hdrcodec_video::encode::encode_sequence(frames, &options, Vec::new()).unwrap();
+    let want = decode_ivf(&ivf, &Av1DecodeOptions::default()).unwrap();
+    let decode_all = |data: &[u8]| -> Vec<HdrImage> {
+        let mut dec = Av1Codec.begin_decode(data.to_vec().into(), &DecodeOptions::new(Limits::default())).unwrap();
+        assert_eq!(dec.info().frames, frames.len() as u32);
+        assert_eq!(dec.info().color.hdr10.unwrap().content_light_level, Some(cll));
+        std::iter::from_fn(|| dec.next_frame().unwrap()).collect()
+    };
+    let got = decode_all(mkv);
+    assert_eq!(got.len(), want.len());
+    for (a, b) in got.iter().zip(&want) {
+        assert_eq!(a.samples(), b.samples());
+    }
+    // Unknown sizes: our sizes are 8-byte EBML numbers, 0x01 then seven bytes; all ones is unknown.
+    let mut live = mkv.to_vec();
+    for id in [&[0x18, 0x53, 0x80, 0x67][..], &[0x1f, 0x43, 0xb6, 0x75]] {
+        let mut at = 0;
+        while let Some(p) = live[at..].windows(4).position(|w| w == id) {
+            let size = at + p + 4;
+            live[size..size + 8].copy_from_slice(&[0x01, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff]);
+            at = size + 8;
+        }
+    }
+    assert_ne!(live, mkv);
+    assert_eq!(
+        decode_all(&live).iter().map(|f| f.samples().to_vec()).collect::<Vec<_>>(),
+        want.iter().map(|f| f.samples().to_vec()).collect::<Vec<_>>()
+    );
+    // Damage: never a panic; a cut file gives an error or fewer frames.
+    let limits = Limits::default();
+    for len in 0..mkv.len() {
+        if let Ok(s) = probe_stream(&mkv[..len], &limits) {
+            assert!(s.temporal_units <= frames.len() as u64);
+        }
+    }
+    for at in 0..mkv.len() {
+        let mut bad = mkv.to_vec();
+        bad[at] ^= 0x5a;
+        let _ = probe_stream(&bad, &limits);
+    }
+    // A block larger than the limits allow is refused before it is used.
+    let small = Limits::default().with_max_alloc_bytes(16);
+    assert!(matches!(probe_stream(mkv, &small), Err(Error::LimitExceeded { .. })));
 }
 
 /// The generated moving light (a 6-pixel disc at exactly its peak, 64x48, 3 frames): the
