@@ -76,7 +76,12 @@ impl<'a> TemporalUnits<'a> {
             }
             // The AV1CodecConfigurationRecord: 4 bytes of fields, then the configuration OBUs.
             let prefix = track.codec_private.and_then(|c| c.get(4..)).filter(|obus| !obus.is_empty());
-            return Ok(TemporalUnits::Mkv { blocks: track.blocks(), prefix, colour: track.colour.map(Box::new), index: 0 });
+            return Ok(TemporalUnits::Mkv {
+                blocks: track.blocks(),
+                prefix,
+                colour: track.colour.map(Box::new),
+                index: 0,
+            });
         }
         if is_mp4(data) {
             let track = Mp4Track::first_video(data, limits)?;
