@@ -160,10 +160,13 @@ pub fn gainmap_jpeg(data: &[u8]) {
 
 /// IVF and AV1 OBU parsing (hdrcodec-video without its encoder and decoder): the IVF reader
 /// under `Limits::fuzzing()`, the OBU walker, sequence header and metadata OBU parsers on each
-/// frame, and the same parsers on the raw input as one temporal unit. What parses as a
-/// mastering display or a leb128 number must write back to the same value.
+/// frame, and the same parsers on the raw input as one temporal unit; the Matroska/WebM reader
+/// (EBML header, first video track with its Colour element, every block of the track within
+/// the input and the limits). What parses as a mastering display or a leb128 number must write
+/// back to the same value.
 pub fn ivf_obu(data: &[u8]) {
     use hdrcodec_video::ivf::IvfReader;
+    use hdrcodec_video::mkv::MkvTrack;
     use hdrcodec_video::obu::{
         mdcv_body, read_leb128, write_leb128, Metadata, ObuReader, SequenceHeader, StreamSummary,
     };
@@ -177,6 +180,16 @@ pub fn ivf_obu(data: &[u8]) {
             }
         }
         let _ = summary.hdr10();
+    }
+    if let Ok(track) = MkvTrack::first_video(data, &limits) {
+        let mut blocks = track.blocks();
+        let mut summary = StreamSummary::default();
+        while let Ok(Some(frame)) = blocks.next_frame() {
+            assert!(frame.len() as u64 <= limits.max_alloc_bytes);
+            if summary.add_temporal_unit(frame).is_err() {
+                break;
+            }
+        }
     }
     for obu in ObuReader::new(data).flatten() {
         let _ = SequenceHeader::parse(obu.payload);

@@ -69,12 +69,23 @@ pub struct Registry {
     codecs: Vec<Arc<dyn ImageCodec>>,
 }
 
+/// What a `.hdrc` file may carry: every standard codec and, with the `video` feature, L_p u'v'
+/// codes with their description ([`video::lpuv_image::LpuvImageCodec`], `payload=lpuv`), which
+/// has no file of its own and so is not among the registry's codecs.
+fn payload_codecs() -> Vec<Arc<dyn ImageCodec>> {
+    #[allow(unused_mut)]
+    let mut codecs = standard_codecs();
+    #[cfg(feature = "video")]
+    codecs.push(Arc::new(video::lpuv_image::LpuvImageCodec));
+    codecs
+}
+
 impl Default for Registry {
     /// Every codec of the family, plus the `.hdrc` container that can carry any of them.
     fn default() -> Self {
         let mut codecs = standard_codecs();
         // The container adds its own raw payload codecs (raw-f32, raw-f16).
-        codecs.push(Arc::new(container::HdrcCodec::new(codecs.clone())));
+        codecs.push(Arc::new(container::HdrcCodec::new(payload_codecs())));
         Registry { codecs }
     }
 }
@@ -215,7 +226,7 @@ impl Registry {
 pub fn video_codecs() -> Vec<Arc<dyn crate::core::VideoCodec>> {
     #[allow(unused_mut)]
     let mut codecs: Vec<Arc<dyn crate::core::VideoCodec>> =
-        vec![Arc::new(container::HdrcVideoCodec::new(registry().codecs().to_vec()))];
+        vec![Arc::new(container::HdrcVideoCodec::new(payload_codecs()))];
     #[cfg(feature = "video")]
     codecs.push(Arc::new(video::codec::Av1Codec));
     codecs
@@ -417,8 +428,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// left untouched: the data goes (buffered) to a temporary file in the same directory, is flushed
 /// to disk (fsync) and renamed over `path` only when `write` succeeds; on any error the temporary
 /// file is removed. Nothing of the content is held in memory beyond the write buffer. `write`
-/// may seek (formats whose index precedes the data fill it in last).
-pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut dyn WriteSeek) -> Result<T>) -> Result<T> {
+/// may seek (formats whose index precedes the data fill it in last); the writer is `Send`, so a
+/// stream encoder ([`core::VideoEncoder`]) may own a borrow of it.
+pub fn write_atomic_with<T>(path: &Path, write: impl FnOnce(&mut (dyn WriteSeek + Send)) -> Result<T>) -> Result<T> {
     let name = path
         .file_name()
         .and_then(|n| n.to_str())

@@ -179,3 +179,42 @@ fn payloads_say_nothing_about_colour_the_header_records() {
         assert!(mean <= alone_mean + 1e-3 && p99 <= alone_p99 + 1e-3, "{} in {payload}", primaries.name());
     }
 }
+
+/// L_p u'v' frames in a `.hdrc` sequence (`payload=lpuv`, through the facade's stream codec):
+/// every tile carries the same description as the AV1 stream's T.35 message (curve, bits,
+/// range, primaries), and the frames decode back to linear light within what the L_p u'v'
+/// quantizers do (11-bit ψ, 8-bit u'v').
+#[test]
+fn lpuv_frames_in_hdrc_carry_their_description_and_decode_to_linear() {
+    use hdrcodec_core::metrics::{delta_e_itp, pu21_psnr};
+    use hdrcodec_core::{DecodeOptions, ImageInfo};
+    use hdrcodec_video::lpuv_av1::{LpuvStreamInfo, T35_COUNTRY_CODE};
+    use hdrcodec_video::sequences::moving_light_frame;
+    let frames: Vec<HdrImage> = (0..3).map(|t| moving_light_frame(64, 48, 4000.0, 6.0, t, 3)).collect();
+    let codec = hdrcodec::video_codecs().into_iter().find(|c| c.name() == "hdrc").unwrap();
+    let out = std::env::temp_dir().join(format!("hdrcodec-lpuv-{}.hdrc", std::process::id()));
+    let settings = EncodeSettings::default().with_option("payload", "lpuv").with_option("tile", "32");
+    let file = std::io::BufWriter::new(std::fs::File::create(&out).unwrap());
+    let mut enc = codec.begin_encode(&ImageInfo::of(&frames[0]).with_frames(3), &settings, Box::new(file)).unwrap();
+    for f in &frames {
+        enc.push_frame(f).unwrap();
+    }
+    assert_eq!(enc.finish().unwrap(), 3);
+    let bytes = std::fs::read(&out).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    // Every tile (2x2 per frame) starts with the description: the T.35 payload's bytes.
+    let at: Vec<usize> = bytes.windows(13).enumerate().filter(|(_, w)| w == b"hdrcodec-lpuv").map(|(i, _)| i).collect();
+    assert_eq!(at.len(), 12);
+    let info = LpuvStreamInfo::from_t35(T35_COUNTRY_CODE, &bytes[at[0]..]).unwrap().unwrap();
+    assert_eq!((info.bits, info.primaries().unwrap()), (11, ColorPrimaries::Bt2020));
+    assert_eq!((info.min_nits, info.max_nits), (1e-4, 1e8));
+    let mut dec = codec.begin_decode(bytes.into(), &DecodeOptions::new(Limits::default())).unwrap();
+    for source in &frames {
+        let back = dec.next_frame().unwrap().unwrap();
+        assert_eq!((back.color.primaries, back.color.nits_per_unit), (ColorPrimaries::Bt2020, 100.0));
+        let (pu21, (de, _)) = (pu21_psnr(source, &back).unwrap(), delta_e_itp(source, &back).unwrap());
+        eprintln!("L_p u'v' in .hdrc: PU21-PSNR {pu21:.1} dB, mean ΔE ITP {de:.2}");
+        assert!(pu21 > 57.0 && de < 0.8, "PU21-PSNR {pu21}, ΔE ITP {de}");
+    }
+    assert!(dec.next_frame().unwrap().is_none());
+}

@@ -498,6 +498,61 @@ fn ffprobe_reads_our_matroska_colour_elements_and_ffmpeg_decodes_it_as_the_ivf()
     }
 }
 
+/// Matroska and WebM written by FFmpeg (`ffmpeg -i x.ivf -c copy x.mkv`, also to a pipe) and by us read in our
+/// decoder: the same samples as the IVF, the same HDR10 metadata, and the Colour element FFmpeg
+/// wrote (9/16/9, limited range) read back from the track.
+#[test]
+fn we_read_ffmpeg_s_and_our_matroska_as_the_ivf() {
+    use hdrcodec_core::Limits;
+    use hdrcodec_video::decode::{decode_ivf, probe_stream};
+    use hdrcodec_video::encode::Av1Encoder;
+    use hdrcodec_video::mkv::MkvTrack;
+    let Some(_) = require(tool("ffmpeg"), "ffmpeg (Debian ffmpeg)") else { return };
+    let dir = temp_dir("video_ffmpeg_mkv_read");
+    let frames = frames();
+    let cll = content_light_level(&frames, Transfer::Pq);
+    let options = Av1Options { mastering_display: MasteringDisplay::p3_d65_1000(), content_light: Some(cll), ..fast() };
+    let ivf = write_frames(&dir, "pq.ivf", &frames, &options);
+    let ivf_bytes = std::fs::read(&ivf).unwrap();
+    let want = decode_ivf(&ivf_bytes, &Av1DecodeOptions::default()).unwrap();
+    let want_hdr10 = probe_stream(&ivf_bytes, &Limits::default()).unwrap().hdr10();
+    assert!(want_hdr10.is_some());
+    let mut enc = Av1Encoder::begin_mkv(96, 64, &options, std::io::Cursor::new(Vec::new()), false).unwrap();
+    for f in &frames {
+        enc.push_frame(f).unwrap();
+    }
+    let ours = enc.finish().unwrap().1.into_inner();
+    for name in ["ff.mkv", "ff.webm", "pipe.webm", "ours.mkv"] {
+        let path = dir.join(name);
+        if name == "ours.mkv" {
+            std::fs::write(&path, &ours).unwrap();
+        } else if name == "pipe.webm" {
+            // Written to a pipe, FFmpeg cannot go back: the Segment's size stays unknown.
+            let out = run_ok(
+                Command::new("ffmpeg").args(["-v", "error", "-i"]).arg(&ivf).args(["-c", "copy", "-f", "webm", "-"]),
+            );
+            std::fs::write(&path, out.stdout).unwrap();
+        } else {
+            run_ok(Command::new("ffmpeg").args(["-v", "error", "-y", "-i"]).arg(&ivf).args(["-c", "copy"]).arg(&path));
+        }
+        let data = std::fs::read(&path).unwrap();
+        let track = MkvTrack::first_video(&data, &Limits::default()).unwrap();
+        assert_eq!(track.codec_id, "V_AV1", "{name}");
+        assert_eq!(track.doc_type, if name.ends_with("webm") { "webm" } else { "matroska" });
+        let c = track.colour.unwrap_or_else(|| panic!("{name}: no Colour element"));
+        assert_eq!((c.matrix, c.transfer, c.primaries, c.range), (Some(9), Some(16), Some(9), Some(1)), "{name}");
+        if name == "ours.mkv" {
+            assert_eq!((c.max_cll, c.max_fall), (Some(cll.max_cll.into()), Some(cll.max_fall.into())));
+        }
+        assert_eq!(probe_stream(&data, &Limits::default()).unwrap().hdr10(), want_hdr10, "{name}");
+        let got = decode_ivf(&data, &Av1DecodeOptions::default()).unwrap();
+        assert_eq!(got.len(), want.len(), "{name}");
+        for (a, b) in got.iter().zip(&want) {
+            assert_eq!(a.samples(), b.samples(), "{name}");
+        }
+    }
+}
+
 /// The string values of `keys` in an ffprobe JSON object ("" where absent).
 fn fields(object: &Value, keys: &[&str]) -> Vec<String> {
     keys.iter().map(|k| object[*k].as_str().unwrap_or("").to_string()).collect()

@@ -3,13 +3,13 @@
 
 use hdrcodec::core::{
     ContentLightLevel, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, HdrImage, ImageInfo, Limits, Result,
-    ThreadPool, VideoCodec, WriteSeek,
+    StreamReport, ThreadPool, VideoCodec, WriteSeek,
 };
 use hdrcodec_video::codec::Av1Codec;
-use hdrcodec_video::decode::probe_ivf;
-use hdrcodec_video::encode::{Av1Encoder, Av1Options, EncodeSummary, TemporalUnitSink};
+use hdrcodec_video::decode::{probe_ivf, probe_stream};
 use hdrcodec_video::hdr10::{content_light_level, Transfer};
 use hdrcodec_video::lpuv_av1::LpuvStreamInfo;
+use hdrcodec_video::mkv::MkvTrack;
 use hdrcodec_video::mp4::probe_mp4;
 use hdrcodec_video::obu::chroma_sample_position;
 use hdrcodec_video::sdr::SdrRendition;
@@ -55,6 +55,11 @@ fn extension(path: &Path) -> String {
 
 fn is_ivf(path: &Path) -> bool {
     extension(path) == "ivf"
+}
+
+/// Matroska and WebM, which `info` and `video decode` read.
+fn is_matroska(path: &Path) -> bool {
+    matches!(extension(path).as_str(), "mkv" | "webm")
 }
 
 /// MP4 and its ISO base media siblings that `info` and `video decode` read.
@@ -195,74 +200,49 @@ impl FrameSource {
     }
 }
 
-/// Codes every frame of `source` into `encoder`, ticking `bar`, and completes the file.
-fn encode_frames<S: TemporalUnitSink>(
-    mut encoder: Av1Encoder<S>,
-    source: &FrameSource,
-    bar: &ProgressBar,
-) -> Result<EncodeSummary> {
-    source.for_each(None, |frame| {
-        encoder.push_frame(&frame)?;
-        bar.inc(1);
-        Ok(())
-    })?;
-    Ok(encoder.finish()?.0)
-}
-
-/// The containers `video encode` writes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Container {
-    Ivf,
-    Mp4,
-    /// Matroska; WebM when true.
-    Mkv(bool),
-}
-
-/// The container `path`'s extension names; other extensions are an error.
-fn container_of(path: &Path) -> Result<Container> {
+/// The `container` option of [`Av1Codec`] that `path`'s extension names; other extensions
+/// are an error.
+fn container_of(path: &Path) -> Result<&'static str> {
     match extension(path).as_str() {
-        "ivf" => Ok(Container::Ivf),
-        "mp4" => Ok(Container::Mp4),
-        "mkv" => Ok(Container::Mkv(false)),
-        "webm" => Ok(Container::Mkv(true)),
+        "ivf" => Ok("ivf"),
+        "mp4" => Ok("mp4"),
+        "mkv" => Ok("mkv"),
+        "webm" => Ok("webm"),
         _ => Err(Error::unsupported(format!("'{}': video is written as .ivf, .mp4, .mkv or .webm", path.display()))),
     }
 }
 
 /// The frames of one `video encode`, encoded once per output.
 struct Stream<'a> {
-    width: u32,
-    height: u32,
-    count: Option<u64>,
+    info: &'a ImageInfo,
     source: &'a FrameSource,
     bar: &'a ProgressBar,
 }
 
 impl Stream<'_> {
-    /// Encodes every frame with `options` into `out`, in `container`.
-    fn encode(&self, container: Container, options: &Av1Options, out: &mut dyn WriteSeek) -> Result<EncodeSummary> {
-        let (w, h) = (self.width, self.height);
-        match container {
-            Container::Mp4 => encode_frames(Av1Encoder::begin_mp4(w, h, options, out)?, self.source, self.bar),
-            Container::Mkv(webm) => {
-                encode_frames(Av1Encoder::begin_mkv(w, h, options, out, webm)?, self.source, self.bar)
-            }
-            Container::Ivf => {
-                let count = self.count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
-                encode_frames(Av1Encoder::begin(w, h, count, options, out)?, self.source, self.bar)
-            }
-        }
+    /// Encodes every frame through [`Av1Codec`] (the family's `VideoCodec`) with `settings`
+    /// (its `container` option included) into `out`, ticking the bar.
+    fn encode(&self, settings: &EncodeSettings, out: &mut (dyn WriteSeek + Send)) -> Result<StreamReport> {
+        let mut encoder = Av1Codec.begin_encode_seekable(self.info, settings, Box::new(out))?;
+        self.source.for_each(None, |frame| {
+            encoder.push_frame(&frame)?;
+            self.bar.inc(1);
+            Ok(())
+        })?;
+        encoder.finish_report()
     }
 }
 
-/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension). The
-/// options go through [`Av1Codec::av1_options`], as for any caller of the codec. Frames are
+/// `hdrcodec video encode FRAMES... OUT.ivf|.mp4|.mkv|.webm` (the container from the extension),
+/// through [`Av1Codec`] as core's `VideoCodec` (`begin_encode_seekable`, `finish_report`), as
+/// any caller of the codec would. Frames are
 /// read twice for PQ, once to measure MaxCLL/MaxFALL (needed before the stream's first
 /// header) and once to encode, one frame at a time. The file is written atomically. Returns
 /// notes for stderr (values the PQ or HLG signal could not hold).
 pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     let container = container_of(a.output)?;
     let sdr = match a.sdr {
+        // The peak is checked before any frame is read.
         Some(path) => Some((path, container_of(path)?, SdrRendition::new(a.sdr_peak)?)),
         None => None,
     };
@@ -296,15 +276,19 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         options = Av1Codec::av1_options(&info, &settings)?;
     }
     let count = source.count();
+    info.frames = count.and_then(|c| u32::try_from(c).ok()).unwrap_or(0);
     let passes = if sdr.is_some() { 2 } else { 1 };
     let bar = crate::cli::progress_bar(count.unwrap_or(0) as usize * passes, a.json);
-    let stream = Stream { width: info.width, height: info.height, count, source: &source, bar: &bar };
+    let stream = Stream { info: &info, source: &source, bar: &bar };
     // The SDR file is written inside the HDR file's atomic write: either both appear or neither.
     let summary = hdrcodec::write_atomic_with(a.output, |out| {
-        let summary = stream.encode(container, &options, out)?;
-        if let Some((path, sdr_container, rendition)) = &sdr {
-            let sdr_options = Av1Options { sdr: Some(rendition.clone()), ..options.clone() };
-            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(*sdr_container, &sdr_options, sdr_out))?;
+        let summary = stream.encode(&settings.clone().with_option("container", container), out)?;
+        if let Some((path, sdr_container, _)) = &sdr {
+            let sdr_settings = settings
+                .clone()
+                .with_option("container", *sdr_container)
+                .with_option("sdr_peak", a.sdr_peak.to_string());
+            hdrcodec::write_atomic_with(path, |sdr_out| stream.encode(&sdr_settings, sdr_out))?;
         }
         Ok(summary)
     });
@@ -323,13 +307,14 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
     }
     if a.json {
         let cll = summary.content_light.map(|c| json!({"max_cll": c.max_cll, "max_fall": c.max_fall}));
+        let bytes = summary.bytes;
         println!(
             "{}",
             json!({
                 "output": a.output.display().to_string(),
                 "sdr_output": a.sdr.map(|p| p.display().to_string()),
                 "frames": summary.frames,
-                "bytes": summary.bytes,
+                "bytes": bytes,
                 "content_light": cll,
                 "notes": notes,
             })
@@ -354,7 +339,7 @@ fn video_codec_for(path: &Path) -> Result<Arc<dyn VideoCodec>> {
         .ok_or_else(|| Error::unsupported(format!("'{}': video is read from {}", path.display(), known.join(", "))))
 }
 
-/// `hdrcodec video decode IN.ivf|IN.mp4|IN.hdrc OUT_DIR`, through the facade's stream codecs:
+/// `hdrcodec video decode IN.ivf|IN.mp4|IN.mkv|IN.webm|IN.hdrc OUT_DIR`, through the facade's stream codecs:
 /// every frame as `frame_NNNNN.exr` (float, linear; AV1 gives BT.2020, or for L_p u'v' the
 /// primaries its T.35 names; 1.0 = 100 cd/m²). On failure the frames written so far are
 /// removed. Returns the number of frames.
@@ -398,14 +383,27 @@ pub fn decode(input: &Path, out_dir: &Path, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `hdrcodec info FILE.ivf|FILE.mp4`: the IVF header, the sequence header's colour signalling and the
+/// `hdrcodec info FILE.ivf|FILE.mkv|FILE.webm|FILE.mp4`: the IVF header (or the Matroska Colour element), the sequence header's colour signalling and the
 /// HDR10 metadata, read by our own parsers without decoding.
 pub fn info(file: &Path, as_json: bool) -> Result<()> {
     let data = hdrcodec::read_file(file)?;
     if is_mp4(file) {
         return mp4_info(file, &data, as_json);
     }
-    let (header, summary) = probe_ivf(&data, &Limits::default())?;
+    // Matroska: the stream through its blocks, and the track's Colour element as written.
+    let (container, ivf_rate, colour, summary) = if is_matroska(file) {
+        let track = MkvTrack::first_video(&data, &Limits::default())?;
+        let colour = track.colour.map(|c| {
+            json!({"matrix": c.matrix, "transfer": c.transfer, "primaries": c.primaries, "range": c.range,
+                "bits_per_channel": c.bits_per_channel, "max_cll": c.max_cll, "max_fall": c.max_fall,
+                "mastering_display": c.mastering_display.is_some()})
+        });
+        let container = if track.doc_type == "webm" { "WebM" } else { "Matroska" };
+        (container, None, colour, probe_stream(&data, &Limits::default())?)
+    } else {
+        let (header, summary) = probe_ivf(&data, &Limits::default())?;
+        ("IVF", Some([header.timebase_den, header.timebase_num]), None, summary)
+    };
     let seq = summary.sequence_header.ok_or_else(|| Error::invalid("an AV1 stream without a sequence header"))?;
     let c = seq.color;
     let subsampling = match (c.subsampling_x, c.subsampling_y) {
@@ -425,7 +423,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
         None => None,
     };
     let lpuv_json = lpuv.map(|l| {
-        json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273})
+        json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273, "plane_mapping": format!("{:?}", l.mapping)})
     });
     if as_json {
         let out = json!({
@@ -435,7 +433,9 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
             "frames": summary.temporal_units,
             "width": seq.max_frame_width,
             "height": seq.max_frame_height,
-            "ivf_frame_rate": [header.timebase_den, header.timebase_num],
+            "container": container,
+            "ivf_frame_rate": ivf_rate,
+            "matroska_colour": colour,
             "profile": seq.profile,
             "level_idx": seq.level_idx,
             "bit_depth": c.bit_depth,
@@ -450,7 +450,10 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
         println!("{out}");
         return Ok(());
     }
-    println!("file:          {} ({} bytes, AV1 in IVF)", file.display(), data.len());
+    println!("file:          {} ({} bytes, AV1 in {container})", file.display(), data.len());
+    if let Some(colour) = colour {
+        println!("Matroska Colour: {colour}");
+    }
     println!("frames:        {}", summary.temporal_units);
     println!("dimensions:    {} x {}", seq.max_frame_width, seq.max_frame_height);
     println!("profile:       {} (level index {})", seq.profile, seq.level_idx);
@@ -466,8 +469,8 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
     }
     if let Some(l) = lpuv {
         println!(
-            "planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits over {:e} … {:e} cd/m², u'v' ×410; RGB out in H.273 primaries {}",
-            l.curve, l.bits, l.min_nits, l.max_nits, l.primaries_h273
+            "planes:        L_p u'v' (Mantiuk 2004): luma {:?} at {} bits over {:e} … {:e} cd/m², u'v' ×410, codes in the planes: {:?}; RGB out in H.273 primaries {}",
+            l.curve, l.bits, l.min_nits, l.max_nits, l.mapping, l.primaries_h273
         );
     }
     crate::cli::print_hdr10(hdr10);
@@ -476,7 +479,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
 
 /// True for a file `info` reads through [`info`] rather than the image registry.
 pub fn handles(file: &Path) -> bool {
-    is_ivf(file) || is_mp4(file)
+    is_ivf(file) || is_mp4(file) || is_matroska(file)
 }
 
 /// H.273 code points with their names, as `info` prints them.

@@ -1216,6 +1216,22 @@ fn video_encode_writes_an_sdr_rendition_beside_the_hdr_stream() {
         assert_eq!(bytes[..4], [0x1A, 0x45, 0xDF, 0xA3], "{name}: the EBML header");
         let doc_type: &[u8] = if name.ends_with("webm") { b"webm" } else { b"matroska" };
         assert!(bytes.windows(doc_type.len()).any(|w| w == doc_type), "{name}");
+        // Read back: `info` (the stream and the track's Colour element) and `video decode`.
+        let i = json(&hdrcodec(&[&"info", &dir.join(name), &"--json"]));
+        let container = if name.ends_with("webm") { "WebM" } else { "Matroska" };
+        assert_eq!((i["container"].as_str(), i["frames"].as_u64()), (Some(container), Some(2)), "{i}");
+        assert_eq!(i["color_description"], serde_json::json!([9, 16, 9]), "{i}");
+        assert_eq!(
+            (i["matroska_colour"]["transfer"].as_u64(), i["matroska_colour"]["range"].as_u64()),
+            (Some(16), Some(1))
+        );
+        assert_eq!(
+            i["hdr10"]["content_light_level"], v["content_light"],
+            "{name}: the content light of the same frames"
+        );
+        let out = dir.join(format!("{name}-frames"));
+        ok(&hdrcodec(&[&"video", &"decode", &dir.join(name), &out]));
+        assert!(out.join("frame_00001.exr").exists() && !out.join("frame_00002.exr").exists());
     }
     // Bad SDR options: one line, neither file written.
     let (hdr2, sdr2) = (dir.join("hdr2.ivf"), dir.join("sdr2.ivf"));

@@ -420,6 +420,41 @@ pub trait VideoEncoder: Send {
     fn push_frame(&mut self, frame: &HdrImage) -> Result<()>;
     /// Flushes what is buffered and completes the stream; returns how many frames it holds.
     fn finish(self: Box<Self>) -> Result<u64>;
+    /// [`finish`](Self::finish), returning what the encoder knows of the stream it wrote: the
+    /// frames, and where the encoder reports them, the bytes written, the samples its signal
+    /// could not hold and the content light level it wrote. The default reports the frame
+    /// count alone; encoders that know more override it.
+    fn finish_report(self: Box<Self>) -> Result<StreamReport> {
+        let frames = self.finish()?;
+        Ok(StreamReport { frames, ..StreamReport::default() })
+    }
+}
+
+/// What a [`VideoEncoder`] wrote ([`VideoEncoder::finish_report`]). Fields an encoder does not
+/// know are `None` or empty.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct StreamReport {
+    /// Frames in the stream.
+    pub frames: u64,
+    /// Bytes written to the output.
+    pub bytes: Option<u64>,
+    /// Samples changed because the stream's signal could not hold them.
+    pub clipped: crate::hdr10::ClipReport,
+    /// The content light level (MaxCLL, MaxFALL) written into the stream.
+    pub content_light: Option<crate::ContentLightLevel>,
+}
+
+impl StreamReport {
+    /// A report of `frames` frames, `bytes` bytes, `clipped` samples and `content_light`.
+    pub fn new(
+        frames: u64,
+        bytes: Option<u64>,
+        clipped: crate::hdr10::ClipReport,
+        content_light: Option<crate::ContentLightLevel>,
+    ) -> Self {
+        StreamReport { frames, bytes, clipped, content_light }
+    }
 }
 
 /// A stream of frames being decoded, one at a time.
@@ -446,6 +481,18 @@ pub trait VideoCodec: Send + Sync {
     ) -> Result<Box<dyn VideoEncoder>>;
     /// Starts decoding the stream in `data`.
     fn begin_decode(&self, data: std::sync::Arc<[u8]>, options: &DecodeOptions) -> Result<Box<dyn VideoDecoder>>;
+    /// [`begin_encode`](Self::begin_encode) to a writer that seeks and may borrow (a file being
+    /// written atomically): for containers whose sizes and indexes are patched in place once
+    /// the stream is complete (MP4, Matroska). The default is `Unsupported`: codecs whose
+    /// files never seek need only [`begin_encode`](Self::begin_encode).
+    fn begin_encode_seekable<'a>(
+        &self,
+        _info: &ImageInfo,
+        _settings: &EncodeSettings,
+        _out: Box<dyn WriteSeek + Send + 'a>,
+    ) -> Result<Box<dyn VideoEncoder + 'a>> {
+        Err(Error::unsupported(format!("{}: no encoder to a seekable writer (use begin_encode)", self.name())))
+    }
 }
 
 /// What every encoder understands, plus codec-specific `key=value` options that the codec

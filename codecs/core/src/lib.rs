@@ -47,12 +47,12 @@ pub mod transfer;
 
 pub use codec::{
     decode_image, encode_rows, encode_via_seekable, split_option, ColorSignalling, DecodeOptions, EncodeReport,
-    EncodeSettings, ImageCodec, ImageInfo, PendingHeader, RowCounter, RowEncoder, VideoCodec, VideoDecoder,
-    VideoEncoder, WriteSeek,
+    EncodeSettings, ImageCodec, ImageInfo, PendingHeader, RowCounter, RowEncoder, StreamReport, VideoCodec,
+    VideoDecoder, VideoEncoder, WriteSeek,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};
-pub use hdr10::{Av1MdcvUnits, ContentLightLevel, Hdr10Metadata, MasteringDisplay, St2086Units};
+pub use hdr10::{Av1MdcvUnits, ClipReport, ContentLightLevel, Hdr10Metadata, MasteringDisplay, St2086Units};
 pub use image::{Channels, ColorInfo, HdrImage, RangeCount};
 pub use limits::{Allocation, Limits};
 pub use metrics::Comparison;

@@ -2,19 +2,25 @@
 //! tools can start an encoder or a decoder of AV1 streams as they do for `.hdrc` frame
 //! sequences, with core's [`EncodeSettings`] and [`DecodeOptions`].
 
-use hdrcodec_core::{DecodeOptions, EncodeSettings, Error, ImageInfo, Result, VideoCodec, VideoDecoder, VideoEncoder};
+use hdrcodec_core::{
+    DecodeOptions, EncodeSettings, Error, ImageInfo, Result, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
+};
 use std::io::Write;
 use std::sync::Arc;
 
 /// AV1 (rav1e to encode, libdav1d to decode) as a [`VideoCodec`]: name `av1`, extensions
 /// `ivf` and `mp4`.
 ///
-/// - [`begin_encode`](VideoCodec::begin_encode) writes IVF (MP4 needs a writer that seeks:
-///   [`Av1Encoder::begin_mp4`](crate::encode::Av1Encoder::begin_mp4)). The stream's frame count
-///   (`info.frames`, 0 when unknown) goes into the IVF header; its mastering display and
-///   MaxCLL/MaxFALL are `info.color.hdr10`'s (an encoder that streams cannot measure them
-///   before the first frame; none are written when absent). Settings: see
-///   [`av1_options`](Av1Codec::av1_options).
+/// - [`begin_encode`](VideoCodec::begin_encode) writes the container of option `container`:
+///   `ivf` (default) as it goes; `mp4`, `mkv` and `webm` into memory first, copied to the
+///   writer when the stream finishes (their sizes are patched in place, which the trait's plain
+///   `Write` cannot do). [`begin_encode_seekable`](VideoCodec::begin_encode_seekable) writes
+///   every container straight to a writer that seeks (the CLI's atomic file). The stream's
+///   frame count (`info.frames`, 0 when unknown) goes into the IVF header; its mastering
+///   display and MaxCLL/MaxFALL are `info.color.hdr10`'s (an encoder that streams cannot
+///   measure them before the first frame; none are written when absent).
+///   [`finish_report`](VideoEncoder::finish_report) gives the frames, bytes, clipped samples
+///   and content light written. Settings: see [`av1_options`](Av1Codec::av1_options).
 /// - [`begin_decode`](VideoCodec::begin_decode) reads IVF or MP4; the decoder's
 ///   [`info`](VideoDecoder::info) gives the size, colour (BT.2020 with the stream's HDR10
 ///   metadata, or for L_p u'v' the primaries its T.35 names), `nits_per_unit` and the frame
@@ -27,7 +33,7 @@ pub struct Av1Codec;
 impl Av1Codec {
     /// The `key=value` options of [`begin_encode`](VideoCodec::begin_encode).
     pub const ENCODE_OPTIONS: &'static [&'static str] =
-        &["transfer", "chroma", "range", "speed", "quantizer", "fps", "keyint", "tiles"];
+        &["transfer", "chroma", "range", "speed", "quantizer", "fps", "keyint", "tiles", "sdr_peak", "container"];
     /// The `key=value` options of [`begin_decode`](VideoCodec::begin_decode): `nits_per_unit`
     /// (cd/m² of a decoded 1.0, default 100) and `hlg_peak` (the display an HLG stream is
     /// rendered for, cd/m², default 1000).
@@ -41,6 +47,10 @@ impl Av1Codec {
     ///   `info.color`, every frame with its T.35 message), `chroma=420|444` (default 420, 444
     ///   for mantiuk), `range=limited|full`, `fps=N` (default 25), `keyint=N` (frames between
     ///   key frames, default 240), `tiles=N`;
+    /// - `sdr_peak=NITS`: code the SDR rendition of the frames for a display of that peak
+    ///   instead ([`crate::sdr`]; 8-bit BT.709, sRGB transfer);
+    /// - `container=ivf|mp4|mkv|webm` (default ivf): read by `begin_encode`, not here
+    ///   ([`container`](Av1Codec::container));
     /// - threads from `settings.pool`; mastering display and content light from
     ///   `info.color.hdr10` (PQ only).
     ///
@@ -92,6 +102,9 @@ impl Av1Codec {
         if let Some(t) = settings.parse_option::<usize>("tiles")? {
             o.tiles = t;
         }
+        if let Some(peak) = settings.parse_option::<f64>("sdr_peak")? {
+            o.sdr = Some(crate::sdr::SdrRendition::new(peak)?);
+        }
         if mantiuk {
             // The decoder returns the stream's primaries; every T.35 must reach its frame.
             o.lpuv = Some(LpuvStreamInfo::for_primaries(info.color.primaries));
@@ -103,6 +116,17 @@ impl Av1Codec {
             o.content_light = h.content_light_level;
         }
         Ok(o)
+    }
+
+    /// The container option `container` names: `ivf` (default), `mp4`, `mkv` or `webm`.
+    pub fn container(settings: &EncodeSettings) -> Result<Av1Container> {
+        match settings.option("container").map(str::to_ascii_lowercase).as_deref() {
+            None | Some("ivf") => Ok(Av1Container::Ivf),
+            Some("mp4") => Ok(Av1Container::Mp4),
+            Some("mkv") => Ok(Av1Container::Matroska),
+            Some("webm") => Ok(Av1Container::WebM),
+            Some(other) => Err(Error::invalid(format!("container={other}: expected ivf, mp4, mkv or webm"))),
+        }
     }
 
     /// The decoder options `options` ask for (see [`DECODE_OPTIONS`](Self::DECODE_OPTIONS)).
@@ -125,13 +149,26 @@ impl Av1Codec {
     }
 }
 
+/// The files [`Av1Codec`] writes (its option `container`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Av1Container {
+    /// IVF: written as the stream goes, no seeking.
+    Ivf,
+    /// MP4 (`av01` with `av1C`, `colr`, `mdcv`, `clli`).
+    Mp4,
+    /// Matroska (DocType `matroska`) with the colour elements.
+    Matroska,
+    /// WebM (Matroska with DocType `webm`).
+    WebM,
+}
+
 impl VideoCodec for Av1Codec {
     fn name(&self) -> &'static str {
         "av1"
     }
 
     fn extensions(&self) -> &'static [&'static str] {
-        &["ivf", "mp4"]
+        &["ivf", "mp4", "mkv", "webm"]
     }
 
     fn begin_encode(
@@ -142,9 +179,50 @@ impl VideoCodec for Av1Codec {
     ) -> Result<Box<dyn VideoEncoder>> {
         #[cfg(feature = "encode")]
         {
+            use crate::encode::{Av1Encoder, InMemory};
+            use crate::mkv::MkvWriter;
+            use crate::mp4::Mp4Writer;
+            use std::io::Cursor;
             let options = Self::av1_options(info, settings)?;
-            let encoder = crate::encode::Av1Encoder::begin(info.width, info.height, info.frames, &options, out)?;
-            Ok(Box::new(encoder))
+            let (w, h, fps) = (info.width, info.height, options.fps.max(1));
+            let memory = || Cursor::new(Vec::new());
+            Ok(match Self::container(settings)? {
+                Av1Container::Ivf => Box::new(Av1Encoder::begin(w, h, info.frames, &options, out)?),
+                Av1Container::Mp4 => {
+                    let sink = InMemory::new(Mp4Writer::new(memory(), fps)?, out);
+                    Box::new(Av1Encoder::with_sink(w, h, &options, sink)?)
+                }
+                c @ (Av1Container::Matroska | Av1Container::WebM) => {
+                    let sink = InMemory::new(MkvWriter::new(memory(), fps, c == Av1Container::WebM)?, out);
+                    Box::new(Av1Encoder::with_sink(w, h, &options, sink)?)
+                }
+            })
+        }
+        #[cfg(not(feature = "encode"))]
+        {
+            let _ = (info, settings, out);
+            Err(Error::unsupported("AV1 encoding: hdrcodec-video was built without its `encode` feature"))
+        }
+    }
+
+    fn begin_encode_seekable<'a>(
+        &self,
+        info: &ImageInfo,
+        settings: &EncodeSettings,
+        out: Box<dyn WriteSeek + Send + 'a>,
+    ) -> Result<Box<dyn VideoEncoder + 'a>> {
+        #[cfg(feature = "encode")]
+        {
+            use crate::encode::Av1Encoder;
+            let options = Self::av1_options(info, settings)?;
+            let (w, h) = (info.width, info.height);
+            Ok(match Self::container(settings)? {
+                Av1Container::Ivf => Box::new(Av1Encoder::begin(w, h, info.frames, &options, out)?),
+                Av1Container::Mp4 => Box::new(Av1Encoder::begin_mp4(w, h, &options, out)?),
+                c @ (Av1Container::Matroska | Av1Container::WebM) => {
+                    Box::new(Av1Encoder::begin_mkv(w, h, &options, out, c == Av1Container::WebM)?)
+                }
+            })
         }
         #[cfg(not(feature = "encode"))]
         {

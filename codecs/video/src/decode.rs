@@ -1,4 +1,4 @@
-//! AV1 (in IVF or MP4) back to scene-linear frames, decoded by the system's libdav1d through
+//! AV1 (in IVF, MP4 or Matroska/WebM) back to scene-linear frames, decoded by the system's libdav1d through
 //! the safe `dav1d` crate. The colour description and HDR10 metadata come from our own OBU
 //! parser ([`crate::obu`]): the `dav1d` 0.9 crate exposes neither.
 
@@ -6,11 +6,14 @@ use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, Yuv
 use crate::ivf::IvfReader;
 use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
 use crate::mantiuk::Psi04;
+use crate::mkv::{is_mkv, MkvBlocks, MkvColour, MkvTrack};
 use crate::mp4::{is_mp4, Mp4Samples, Mp4Track};
 use crate::obu::{chroma_sample_position, ColorDescription, SequenceHeader, StreamSummary};
 use crate::sdr::{sdr_yuv_to_frame, SDR_BIT_DEPTH};
 use dav1d::{PixelLayout, PlanarImageComponent};
-use hdrcodec_core::{Allocation, Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result};
+use hdrcodec_core::{
+    Allocation, Channels, ColorInfo, ColorPrimaries, ContentLightLevel, Error, HdrImage, ImageInfo, Limits, Result,
+};
 use std::sync::Arc;
 
 /// How to decode.
@@ -44,11 +47,42 @@ pub enum TemporalUnits<'a> {
         /// Samples read so far (their presentation index).
         index: u64,
     },
+    /// Matroska or WebM blocks (temporal units without their delimiter).
+    Mkv {
+        /// The track's frames.
+        blocks: MkvBlocks<'a>,
+        /// The CodecPrivate configuration OBUs, sent first when the blocks carry no sequence
+        /// header.
+        prefix: Option<&'a [u8]>,
+        /// The track's Colour element: its MaxCLL/MaxFALL and mastering display stand in for
+        /// HDR metadata OBUs the stream lacks.
+        colour: Option<Box<MkvColour>>,
+        /// Blocks read so far (their presentation index).
+        index: u64,
+    },
 }
 
 impl<'a> TemporalUnits<'a> {
-    /// Opens `data` as IVF (`DKIF`) or MP4 (`ftyp` first); anything else is an error.
+    /// Opens `data` as IVF (`DKIF`), MP4 (`ftyp` first) or Matroska/WebM (EBML); anything else
+    /// is an error.
     pub fn open(data: &'a [u8], limits: &Limits) -> Result<Self> {
+        if is_mkv(data) {
+            let track = MkvTrack::first_video(data, limits)?;
+            if track.codec_id != "V_AV1" {
+                return Err(Error::unsupported(format!(
+                    "Matroska video of CodecID '{}': only AV1 ('V_AV1') is decoded",
+                    track.codec_id
+                )));
+            }
+            // The AV1CodecConfigurationRecord: 4 bytes of fields, then the configuration OBUs.
+            let prefix = track.codec_private.and_then(|c| c.get(4..)).filter(|obus| !obus.is_empty());
+            return Ok(TemporalUnits::Mkv {
+                blocks: track.blocks(),
+                prefix,
+                colour: track.colour.map(Box::new),
+                index: 0,
+            });
+        }
         if is_mp4(data) {
             let track = Mp4Track::first_video(data, limits)?;
             if &track.codec != b"av01" {
@@ -79,20 +113,28 @@ impl<'a> TemporalUnits<'a> {
                 *index += sample.is_some() as u64;
                 Ok(sample.map(|s| (pts, s)))
             }
+            TemporalUnits::Mkv { blocks, index, .. } => {
+                let frame = blocks.next_frame()?;
+                let pts = *index;
+                *index += frame.is_some() as u64;
+                Ok(frame.map(|f| (pts, f)))
+            }
         }
     }
 
-    /// The MP4 track's configuration OBUs, if this is one.
+    /// The MP4 or Matroska track's configuration OBUs, if this is one.
     fn config_obus(&self) -> Option<&'a [u8]> {
         match self {
-            TemporalUnits::Mp4 { prefix, .. } => *prefix,
+            TemporalUnits::Mp4 { prefix, .. } | TemporalUnits::Mkv { prefix, .. } => *prefix,
             TemporalUnits::Ivf(_) => None,
         }
     }
 }
 
-/// Reads the colour signalling and HDR10 metadata of an AV1 stream in IVF or MP4 without
-/// decoding it. When MP4 samples carry no sequence header, the one of `av1C` is taken.
+/// Reads the colour signalling and HDR10 metadata of an AV1 stream in IVF, MP4 or Matroska
+/// without decoding it. When MP4 samples or Matroska blocks carry no sequence header, the one of
+/// `av1C` / CodecPrivate is taken; when a Matroska stream carries no HDR metadata OBUs, its
+/// `Colour` element's MaxCLL/MaxFALL and MasteringMetadata are taken.
 pub fn probe_stream(data: &[u8], limits: &Limits) -> Result<StreamSummary> {
     walk_stream(data, limits, |_, _| Ok(()))
 }
@@ -110,6 +152,17 @@ fn walk_stream(data: &[u8], limits: &Limits, mut each: impl FnMut(u64, &[u8]) ->
             let mut config = StreamSummary::default();
             config.add_temporal_unit(obus)?;
             summary.sequence_header = config.sequence_header;
+        }
+    }
+    if let TemporalUnits::Mkv { colour: Some(c), .. } = &units {
+        if summary.content_light.is_none() {
+            if let (Some(cll), Some(fall)) = (c.max_cll, c.max_fall) {
+                let clamp = |v: u64| v.min(u64::from(u16::MAX)) as u16;
+                summary.content_light = Some(ContentLightLevel { max_cll: clamp(cll), max_fall: clamp(fall) });
+            }
+        }
+        if summary.mastering_display.is_none() {
+            summary.mastering_display = c.mastering_display.map(|m| m.to_av1());
         }
     }
     Ok(summary)
@@ -497,7 +550,7 @@ impl<'a> Av1Decoder<'a> {
                 nits_per_unit: self.options.nits_per_unit,
                 ..ColorInfo::default()
             };
-            return lpuv_yuv_to_frame(psi, &yuv, color).map(Some);
+            return lpuv_yuv_to_frame(psi, &yuv, color, info.mapping).map(Some);
         }
         if self.sdr {
             return sdr_yuv_to_frame(&yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);

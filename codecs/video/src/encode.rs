@@ -17,7 +17,9 @@ use crate::mantiuk::Psi04;
 use crate::mkv::MkvWriter;
 use crate::mp4::Mp4Writer;
 use crate::sdr::{SdrRendition, SDR_BIT_DEPTH};
-use hdrcodec_core::{ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, ThreadPool, VideoEncoder};
+use hdrcodec_core::{
+    ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, StreamReport, ThreadPool, VideoEncoder,
+};
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
     MasteringDisplay as Rav1eMasteringDisplay, MatrixCoefficients, PixelRange, TransferCharacteristics,
@@ -25,7 +27,7 @@ use rav1e::color::{
 use rav1e::config::{Config, EncoderConfig, RateControlConfig};
 use rav1e::data::{EncoderStatus, FrameParameters, FrameType, Rational};
 use rav1e::Context;
-use std::io::{Seek, Write};
+use std::io::{Cursor, Seek, Write};
 
 /// An ITU-T T.35 message to attach to every frame (AV1 `metadata_itut_t35`, §5.8.2).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -256,6 +258,37 @@ impl<W: Write + Seek> TemporalUnitSink for MkvWriter<W> {
     }
 }
 
+/// A container that seeks (MP4, Matroska) built in memory, copied to a writer that need not
+/// seek when the stream is complete: how [`Av1Codec`](crate::codec::Av1Codec)'s
+/// `begin_encode` writes MP4 and Matroska to the trait's plain `Write`. The whole file is held
+/// in memory until then (the coded stream, not the frames); `begin_encode_seekable` writes
+/// straight to a file instead.
+pub struct InMemory<S, W> {
+    inner: S,
+    out: W,
+}
+
+impl<S, W> InMemory<S, W> {
+    /// `inner` writing into memory, then to `out`.
+    pub fn new(inner: S, out: W) -> Self {
+        InMemory { inner, out }
+    }
+}
+
+impl<S: TemporalUnitSink<Output = Cursor<Vec<u8>>>, W: Write> TemporalUnitSink for InMemory<S, W> {
+    type Output = W;
+    fn write_temporal_unit(&mut self, pts: u64, data: &[u8], keyframe: bool) -> Result<()> {
+        self.inner.write_temporal_unit(pts, data, keyframe)
+    }
+    fn finish(self) -> Result<(W, u64)> {
+        let (file, bytes) = self.inner.finish()?;
+        let mut out = self.out;
+        out.write_all(file.get_ref()).map_err(Error::Io)?;
+        out.flush().map_err(Error::Io)?;
+        Ok((out, bytes))
+    }
+}
+
 impl<W: Write + Seek> Av1Encoder<MkvWriter<W>> {
     /// Starts a stream of `width` × `height` frames to a Matroska file (DocType `webm` when
     /// `webm`) with the colour elements.
@@ -374,7 +407,10 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
         }
         let yuv = match (&self.options.sdr, &self.psi) {
             (Some(sdr), _) => sdr.frame_to_yuv(frame, self.options.subsampling),
-            (None, Some(psi)) => frame_to_lpuv_yuv(psi, frame, self.options.subsampling)?,
+            (None, Some(psi)) => {
+                let mapping = self.options.lpuv.as_ref().map(|l| l.mapping).unwrap_or_default();
+                frame_to_lpuv_yuv(psi, frame, self.options.subsampling, mapping)?
+            }
             (None, None) => {
                 let (yuv, clipped) =
                     frame_to_yuv(frame, self.options.transfer, self.options.range, self.options.subsampling);
@@ -452,6 +488,12 @@ impl<S: TemporalUnitSink + Send> VideoEncoder for Av1Encoder<S> {
 
     fn finish(self: Box<Self>) -> Result<u64> {
         Av1Encoder::finish(*self).map(|(summary, _)| summary.frames)
+    }
+
+    /// Frames, bytes, the clipped samples and the content light level written.
+    fn finish_report(self: Box<Self>) -> Result<StreamReport> {
+        let (s, _) = Av1Encoder::finish(*self)?;
+        Ok(StreamReport::new(s.frames, Some(s.bytes), s.clipped, s.content_light))
     }
 }
 

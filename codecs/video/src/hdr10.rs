@@ -76,30 +76,8 @@ pub enum Subsampling {
 /// The bit depth of the coded planes.
 pub const BIT_DEPTH: u32 = 10;
 
-/// Samples changed because the signal could not hold them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ClipReport {
-    /// Components that were NaN (coded as 0).
-    pub nan: u64,
-    /// Components below 0 cd/m² (coded as 0).
-    pub negative: u64,
-    /// Components above the transfer's peak, +∞ included (coded as the peak).
-    pub above_peak: u64,
-}
-
-impl ClipReport {
-    /// Adds another report's counts.
-    pub fn add(&mut self, other: &ClipReport) {
-        self.nan += other.nan;
-        self.negative += other.negative;
-        self.above_peak += other.above_peak;
-    }
-
-    /// True when nothing was changed.
-    pub fn is_empty(&self) -> bool {
-        *self == ClipReport::default()
-    }
-}
+/// Samples changed because the signal could not hold them (core's type, re-exported).
+pub use hdrcodec_core::hdr10::ClipReport;
 
 /// One frame's 10-bit planes, row-major without padding.
 #[derive(Clone, Debug, PartialEq, Eq)]

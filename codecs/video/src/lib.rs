@@ -33,6 +33,7 @@ pub mod hdr10;
 pub mod hevc;
 pub mod ivf;
 pub mod lpuv_av1;
+pub mod lpuv_image;
 pub mod luv;
 pub mod mantiuk;
 pub mod mantiuk06;

@@ -1,7 +1,11 @@
 //! L_p u'v' (Mantiuk et al. 2004) in AV1 planes, and the ITU-T T.35 message that says so.
 //!
-//! The planes hold the codes of [`crate::luv`] unscaled, in a 12-bit stream (AV1 profile 2):
-//! Y = the ψ luma code (0..2047 at 11 bits), U = round(410·u'), V = round(410·v') (0..255).
+//! The planes hold the codes of [`crate::luv`] in a 12-bit stream (AV1 profile 2): the ψ luma
+//! code (0..2047 at 11 bits) and u'v' codes round(410·u'), round(410·v') (0..255). How the codes
+//! sit in the planes is the [`LpuvPlaneMapping`]: by default (version 2 of the message) each
+//! plane's codes are stretched linearly onto the whole 12-bit range, P = round(c·4095/c_max),
+//! and the decoder takes c = round(P·c_max/4095), which gives every code back exactly; version 1
+//! streams (before November 2026) hold the codes as they are and still decode.
 //! They are not a CICP colour space, so the sequence header carries no colour description; the
 //! stream is identified by a T.35 metadata OBU on every frame instead (see [`LpuvStreamInfo`]).
 //! For 4:2:0 the u'v' codes of each 2x2 block are averaged (chromaticity codes, not light:
@@ -24,10 +28,68 @@ pub const T35_COUNTRY_CODE: u8 = 0xFF;
 pub const T35_COUNTRY_CODE_EXTENSION: u8 = 0xFF;
 /// The first bytes of the payload (after the country code and its extension).
 pub const T35_MAGIC: &[u8; 13] = b"hdrcodec-lpuv";
-/// Payload format version.
-pub const T35_VERSION: u8 = 1;
-/// Payload length: magic, version, curve, bits, primaries, u'v' scale (u16), L_min, L_max (f64).
-pub const T35_PAYLOAD_LEN: usize = 13 + 4 + 2 + 8 + 8;
+/// Payload format version written when codes are mapped onto the planes (the newest); version 1
+/// (no mapping: codes as they are) is written for [`LpuvPlaneMapping::codes`].
+pub const T35_VERSION: u8 = 2;
+/// Payload length of version 1: magic, version, curve, bits, primaries, u'v' scale (u16),
+/// L_min, L_max (f64).
+pub const T35_PAYLOAD_LEN_V1: usize = 13 + 4 + 2 + 8 + 8;
+/// Payload length of version 2: version 1's fields and the plane mapping (two u16).
+pub const T35_PAYLOAD_LEN: usize = T35_PAYLOAD_LEN_V1 + 4;
+/// The largest sample of the 12-bit planes.
+const PLANE_MAX: u32 = (1 << LPUV_BIT_DEPTH) - 1;
+/// The largest u'v' code (8 bits).
+const UV_CODE_MAX: u32 = 255;
+
+/// How L_p u'v' codes are placed in the 12-bit planes (version 2 of the payload): the plane
+/// sample of the top code of each plane, luma and u'v'.
+///
+/// rav1e's quantizer steps are steps of plane samples; codes that use a sixteenth of the range
+/// (u'v', 0..255) or half of it (11-bit ψ, 0..2047) are quantized 16 and 2 times more coarsely
+/// than codes that span it. A code c of a plane whose top code is c_max and whose top sample
+/// is P_max sits at P = round(c·P_max/c_max) (half up) and is read back as
+/// c = round(P·c_max/P_max), clamped to c_max: exact for every code since P_max ≥ c_max.
+/// The mapping changes only where codes sit, not the codes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LpuvPlaneMapping {
+    /// The Y sample of the top luma code (2^bits − 1 ..= 4095).
+    pub luma_top: u16,
+    /// The U and V sample of u'v' code 255 (255 ..= 4095).
+    pub uv_top: u16,
+}
+
+impl Default for LpuvPlaneMapping {
+    /// Luma stretched onto the whole 12-bit range, u'v' codes ×4 (P_max 1020); chosen by the
+    /// measurements in the crate README ("L_p u'v' (Mantiuk 2004) in AV1").
+    fn default() -> Self {
+        LpuvPlaneMapping { luma_top: PLANE_MAX as u16, uv_top: 4 * UV_CODE_MAX as u16 }
+    }
+}
+
+impl LpuvPlaneMapping {
+    /// The codes as they are (version 1 streams): top samples 2^`luma_bits` − 1 and 255.
+    pub fn codes(luma_bits: u8) -> Self {
+        LpuvPlaneMapping { luma_top: ((1u32 << luma_bits.min(12)) - 1) as u16, uv_top: UV_CODE_MAX as u16 }
+    }
+
+    /// Whether this is [`codes`](Self::codes) for `luma_bits` (written as a version 1 payload).
+    pub fn is_codes(&self, luma_bits: u8) -> bool {
+        *self == LpuvPlaneMapping::codes(luma_bits)
+    }
+
+    /// The plane sample of `code` (0..=`code_max`) when the top code sits at `top`.
+    pub fn to_plane(code: u16, code_max: u32, top: u16) -> u16 {
+        let top = u32::from(top);
+        ((2 * u32::from(code).min(code_max) * top + code_max) / (2 * code_max.max(1))).min(PLANE_MAX) as u16
+    }
+
+    /// The code of plane sample `sample` (any 12-bit value: a lossy encoder may move it), when
+    /// the top code `code_max` sits at `top`; clamped to `code_max`.
+    pub fn to_code(sample: u16, code_max: u32, top: u16) -> u16 {
+        let top = u32::from(top).max(1);
+        ((2 * u32::from(sample) * code_max + top) / (2 * top)).min(code_max) as u16
+    }
+}
 
 /// The luma curve of an L_p u'v' stream (the payload's curve id).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,10 +120,13 @@ impl LpuvCurve {
 
 /// What an L_p u'v' stream's T.35 message says: how to turn its codes back into light.
 ///
-/// Payload bytes (after country code 0xFF and extension 0xFF), big-endian, 35 bytes:
-/// `"hdrcodec-lpuv"` (13 ASCII bytes), version (1), curve id (1 = ψ 2004 continuous,
+/// Payload bytes (after country code 0xFF and extension 0xFF), big-endian, 39 bytes:
+/// `"hdrcodec-lpuv"` (13 ASCII bytes), version (2), curve id (1 = ψ 2004 continuous,
 /// 2 = ψ by LumaHDRv's recurrence), luma bits (11), H.273 colour primaries of the decoded RGB
-/// (1 BT.709, 9 BT.2020, 12 P3-D65), u'v' scale as u16 (410), L_min and L_max in cd/m² as f64.
+/// (1 BT.709, 9 BT.2020, 12 P3-D65), u'v' scale as u16 (410), L_min and L_max in cd/m² as f64,
+/// the plane mapping ([`LpuvPlaneMapping`]): the Y sample of the top luma code and the U/V
+/// sample of u'v' code 255, two u16. Version 1 is the same without the mapping (35 bytes, codes
+/// as they are); it is still read, and written for [`LpuvPlaneMapping::codes`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LpuvStreamInfo {
     /// The luma curve.
@@ -74,6 +139,8 @@ pub struct LpuvStreamInfo {
     pub min_nits: f64,
     /// Luminance of the top luma code, cd/m².
     pub max_nits: f64,
+    /// Where the codes sit in the planes.
+    pub mapping: LpuvPlaneMapping,
 }
 
 impl Default for LpuvStreamInfo {
@@ -86,6 +153,7 @@ impl Default for LpuvStreamInfo {
             primaries_h273: 1,
             min_nits: psi.min_nits,
             max_nits: psi.max_nits,
+            mapping: LpuvPlaneMapping::default(),
         }
     }
 }
@@ -127,13 +195,19 @@ impl LpuvStreamInfo {
     }
 
     /// The T.35 payload (after the country code and extension byte).
+    /// Version 1 (35 bytes) for [`LpuvPlaneMapping::Codes`], else version 2 (36 bytes).
     pub fn to_t35_payload(&self) -> Vec<u8> {
+        let version = if self.mapping.is_codes(self.bits) { 1 } else { T35_VERSION };
         let mut out = Vec::with_capacity(T35_PAYLOAD_LEN);
         out.extend_from_slice(T35_MAGIC);
-        out.extend_from_slice(&[T35_VERSION, self.curve.id(), self.bits, self.primaries_h273]);
+        out.extend_from_slice(&[version, self.curve.id(), self.bits, self.primaries_h273]);
         out.extend_from_slice(&(UV_SCALE as u16).to_be_bytes());
         out.extend_from_slice(&self.min_nits.to_be_bytes());
         out.extend_from_slice(&self.max_nits.to_be_bytes());
+        if version >= 2 {
+            out.extend_from_slice(&self.mapping.luma_top.to_be_bytes());
+            out.extend_from_slice(&self.mapping.uv_top.to_be_bytes());
+        }
         out
     }
 
@@ -143,10 +217,21 @@ impl LpuvStreamInfo {
         if country_code != T35_COUNTRY_CODE || !payload.starts_with(T35_MAGIC) {
             return Ok(None);
         }
-        let b = payload.get(..T35_PAYLOAD_LEN).ok_or_else(|| Error::truncated("the hdrcodec-lpuv T.35 message"))?;
-        if b[13] != T35_VERSION {
-            return Err(Error::unsupported(format!("hdrcodec-lpuv T.35 message version {}", b[13])));
-        }
+        let truncated = || Error::truncated("the hdrcodec-lpuv T.35 message");
+        let version = *payload.get(13).ok_or_else(truncated)?;
+        let (len, mapping) = match version {
+            1 => (T35_PAYLOAD_LEN_V1, None),
+            2 => {
+                let b = payload.get(..T35_PAYLOAD_LEN).ok_or_else(truncated)?;
+                let mapping = LpuvPlaneMapping {
+                    luma_top: u16::from_be_bytes([b[35], b[36]]),
+                    uv_top: u16::from_be_bytes([b[37], b[38]]),
+                };
+                (T35_PAYLOAD_LEN, Some(mapping))
+            }
+            other => return Err(Error::unsupported(format!("hdrcodec-lpuv T.35 message version {other}"))),
+        };
+        let b = payload.get(..len).ok_or_else(truncated)?;
         let f64_at = |i: usize| {
             let mut a = [0u8; 8];
             a.copy_from_slice(&b[i..i + 8]);
@@ -158,6 +243,7 @@ impl LpuvStreamInfo {
             primaries_h273: b[16],
             min_nits: f64_at(19),
             max_nits: f64_at(27),
+            mapping: mapping.unwrap_or(LpuvPlaneMapping::codes(b[15])),
         };
         let scale = u16::from_be_bytes([b[17], b[18]]);
         if f64::from(scale) != UV_SCALE {
@@ -169,19 +255,35 @@ impl LpuvStreamInfo {
         if !(info.min_nits > 0.0 && info.max_nits > info.min_nits && info.max_nits.is_finite()) {
             return Err(Error::invalid(format!("L_p u'v' range {} … {} cd/m²", info.min_nits, info.max_nits)));
         }
+        let luma_max = (1u32 << info.bits) - 1;
+        let (luma_top, uv_top) = (u32::from(info.mapping.luma_top), u32::from(info.mapping.uv_top));
+        if !(luma_max..=PLANE_MAX).contains(&luma_top) || !(UV_CODE_MAX..=PLANE_MAX).contains(&uv_top) {
+            return Err(Error::invalid(format!(
+                "L_p u'v' planes with top samples {luma_top} (luma, {} bits) and {uv_top} (u'v'): each must be from its top code to 4095",
+                info.bits
+            )));
+        }
         info.primaries()?;
         Ok(Some(info))
     }
 }
 
-/// A frame (any primaries, `nits_per_unit`) → 12-bit AV1 planes of L_p u'v' codes.
-pub fn frame_to_lpuv_yuv(psi: &Psi04, frame: &HdrImage, subsampling: Subsampling) -> Result<YuvFrame> {
+/// A frame (any primaries, `nits_per_unit`) → 12-bit AV1 planes of L_p u'v' codes placed by
+/// `mapping`.
+pub fn frame_to_lpuv_yuv(
+    psi: &Psi04,
+    frame: &HdrImage,
+    subsampling: Subsampling,
+    mapping: LpuvPlaneMapping,
+) -> Result<YuvFrame> {
     let planes = encode_image(psi, frame)?;
     let (w, h) = (planes.width as usize, planes.height as usize);
     let (cw, ch) = YuvFrame::chroma_size(w, h, subsampling);
+    let luma_max = (1u32 << psi.bits()) - 1;
+    let uv = |code: u16| LpuvPlaneMapping::to_plane(code, UV_CODE_MAX, mapping.uv_top);
     let chroma = |codes: &[u8]| -> Vec<u16> {
         match subsampling {
-            Subsampling::Yuv444 => codes.iter().map(|&c| u16::from(c)).collect(),
+            Subsampling::Yuv444 => codes.iter().map(|&c| uv(u16::from(c))).collect(),
             Subsampling::Yuv420 => {
                 let mut out = Vec::with_capacity(cw * ch);
                 for cy in 0..ch {
@@ -194,7 +296,7 @@ pub fn frame_to_lpuv_yuv(psi: &Psi04, frame: &HdrImage, subsampling: Subsampling
                             }
                         }
                         // Rounded mean; n ≥ 1 since every chroma sample covers a luma sample.
-                        out.push(((2 * sum + n) / (2 * n)) as u16);
+                        out.push(uv(((2 * sum + n) / (2 * n)) as u16));
                     }
                 }
                 out
@@ -205,33 +307,39 @@ pub fn frame_to_lpuv_yuv(psi: &Psi04, frame: &HdrImage, subsampling: Subsampling
         width: w,
         height: h,
         subsampling,
-        y: planes.luma.clone(),
+        y: planes.luma.iter().map(|&c| LpuvPlaneMapping::to_plane(c, luma_max, mapping.luma_top)).collect(),
         cb: chroma(&planes.u),
         cr: chroma(&planes.v),
     })
 }
 
-/// 12-bit planes of L_p u'v' codes → a frame in `color` (primaries, `nits_per_unit`). Codes
-/// beyond the curve's top or 255 (a lossy encoder may overshoot) are clamped to them.
-pub fn lpuv_yuv_to_frame(psi: &Psi04, yuv: &YuvFrame, color: ColorInfo) -> Result<HdrImage> {
+/// 12-bit planes of L_p u'v' codes placed by `mapping` → a frame in `color` (primaries,
+/// `nits_per_unit`). Codes beyond the curve's top or 255 (a lossy encoder may overshoot) are
+/// clamped to them.
+pub fn lpuv_yuv_to_frame(psi: &Psi04, yuv: &YuvFrame, color: ColorInfo, mapping: LpuvPlaneMapping) -> Result<HdrImage> {
     let (w, h) = (yuv.width, yuv.height);
     let (cw, ch) = YuvFrame::chroma_size(w, h, yuv.subsampling);
     if yuv.y.len() != w * h || yuv.cb.len() != cw * ch || yuv.cr.len() != cw * ch {
         return Err(Error::invalid("L_p u'v' planes whose sizes do not match the frame"));
     }
-    let top = ((1u32 << psi.bits()) - 1) as u16;
+    let luma_max = (1u32 << psi.bits()) - 1;
     let (sx, sy) = match yuv.subsampling {
         Subsampling::Yuv420 => (1, 1),
         Subsampling::Yuv444 => (0, 0),
     };
     let chroma = |plane: &[u16]| -> Vec<u8> {
-        (0..w * h).map(|i| plane[((i / w) >> sy) * cw + ((i % w) >> sx)].min(255) as u8).collect()
+        (0..w * h)
+            .map(|i| {
+                LpuvPlaneMapping::to_code(plane[((i / w) >> sy) * cw + ((i % w) >> sx)], UV_CODE_MAX, mapping.uv_top)
+                    as u8
+            })
+            .collect()
     };
     let planes = LpuvPlanes {
         width: w as u32,
         height: h as u32,
         bits: psi.bits(),
-        luma: yuv.y.iter().map(|&c| c.min(top)).collect(),
+        luma: yuv.y.iter().map(|&p| LpuvPlaneMapping::to_code(p, luma_max, mapping.luma_top)).collect(),
         u: chroma(&yuv.cb),
         v: chroma(&yuv.cr),
     };
@@ -245,19 +353,24 @@ mod tests {
     #[test]
     fn t35_payload_round_trips_byte_by_byte() {
         let info = LpuvStreamInfo::for_primaries(ColorPrimaries::Bt2020);
+        assert_eq!(info.mapping, LpuvPlaneMapping { luma_top: 4095, uv_top: 1020 });
         let payload = info.to_t35_payload();
         assert_eq!(payload.len(), T35_PAYLOAD_LEN);
         assert_eq!(&payload[..13], b"hdrcodec-lpuv");
-        assert_eq!(&payload[13..19], &[1, 1, 11, 9, 0x01, 0x9a]);
+        assert_eq!(&payload[13..19], &[2, 1, 11, 9, 0x01, 0x9a]);
         assert_eq!(&payload[19..27], &1e-4f64.to_be_bytes());
-        assert_eq!(&payload[27..], &1e8f64.to_be_bytes());
+        assert_eq!(&payload[27..35], &1e8f64.to_be_bytes());
+        assert_eq!(&payload[35..], &[0x0f, 0xff, 0x03, 0xfc]);
         assert_eq!(LpuvStreamInfo::from_t35(0xff, &payload).unwrap(), Some(info));
         // Not ours: other country code or magic.
         assert_eq!(LpuvStreamInfo::from_t35(0xb5, &payload).unwrap(), None);
         assert_eq!(LpuvStreamInfo::from_t35(0xff, b"something else").unwrap(), None);
-        // Ours but broken: truncated, future version, unknown curve, bad range.
-        assert!(LpuvStreamInfo::from_t35(0xff, &payload[..30]).is_err());
-        for (i, v) in [(13, 2u8), (14, 9), (15, 14), (16, 5)] {
+        // Ours but broken: truncated (also inside the mapping), future version, unknown curve,
+        // bits, primaries, top samples below the top code or above 4095, bad range.
+        for len in [13, 30, 35, 38] {
+            assert!(LpuvStreamInfo::from_t35(0xff, &payload[..len]).is_err(), "{len} bytes");
+        }
+        for (i, v) in [(13, 3u8), (14, 9), (15, 14), (16, 5), (35, 0x10), (35, 0x06), (37, 0x00), (37, 0x10)] {
             let mut bad = payload.clone();
             bad[i] = v;
             assert!(LpuvStreamInfo::from_t35(0xff, &bad).is_err(), "byte {i} = {v}");
@@ -268,16 +381,62 @@ mod tests {
     }
 
     #[test]
+    fn version_1_payloads_still_read_as_codes_in_the_planes() {
+        // The bytes a version 1 writer produced (before the mapping existed).
+        let mut v1 = b"hdrcodec-lpuv".to_vec();
+        v1.extend_from_slice(&[1, 1, 11, 9, 0x01, 0x9a]);
+        v1.extend_from_slice(&1e-4f64.to_be_bytes());
+        v1.extend_from_slice(&1e8f64.to_be_bytes());
+        let info = LpuvStreamInfo::from_t35(0xff, &v1).unwrap().unwrap();
+        assert_eq!(info.mapping, LpuvPlaneMapping { luma_top: 2047, uv_top: 255 });
+        let codes = LpuvPlaneMapping::codes(11);
+        assert_eq!(info, LpuvStreamInfo { mapping: codes, ..LpuvStreamInfo::for_primaries(ColorPrimaries::Bt2020) });
+        // And a stream of codes as they are is written as version 1, byte for byte.
+        assert_eq!(info.to_t35_payload(), v1);
+        assert!(LpuvStreamInfo::from_t35(0xff, &v1[..34]).is_err());
+    }
+
+    #[test]
+    fn mapped_planes_invert_every_code() {
+        for (code_max, top) in [(255u32, 255u16), (255, 1020), (255, 4095), (2047, 2047), (2047, 4095), (1023, 3000)] {
+            let (to_plane, to_code) = (LpuvPlaneMapping::to_plane, LpuvPlaneMapping::to_code);
+            assert_eq!((to_plane(0, code_max, top), to_plane(code_max as u16, code_max, top)), (0, top));
+            let mut last = None;
+            for c in 0..=code_max as u16 {
+                let p = to_plane(c, code_max, top);
+                assert!(last < Some(p), "strictly increasing at {c}");
+                last = Some(p);
+                assert_eq!(to_code(p, code_max, top), c, "code {c} of {code_max} onto {top}");
+                // Plane errors within half a code's width (less the rounding) decode to the code.
+                let half = ((u32::from(top) / code_max - 1) / 2) as u16;
+                assert_eq!(to_code(p.saturating_sub(half), code_max, top), c);
+                assert_eq!(to_code((p + half).min(4095), code_max, top), c);
+            }
+            assert_eq!(to_code(4095, code_max, top), code_max as u16); // overshoot clamps
+        }
+        assert_eq!(LpuvPlaneMapping::to_plane(128, 255, 4095), 2056); // 128·4095/255 = 2055.53
+        assert_eq!(LpuvPlaneMapping::to_plane(1024, 2047, 4095), 2049); // 1024·4095/2047 = 2048.50
+        assert_eq!(LpuvPlaneMapping::to_plane(77, 255, 1020), 308);
+    }
+
+    #[test]
     fn planes_round_trip_without_loss_at_444() {
-        let info = LpuvStreamInfo::default();
-        let psi = info.psi().unwrap();
-        let samples: Vec<f32> = (0..4 * 3 * 3).map(|i| (i as f32 * 0.37).sin().abs() * 50.0).collect();
-        let frame = HdrImage::new(4, 3, hdrcodec_core::Channels::Rgb, samples, ColorInfo::default()).unwrap();
-        let yuv = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv444).unwrap();
-        let back = lpuv_yuv_to_frame(&psi, &yuv, frame.color.clone()).unwrap();
-        assert_eq!(frame_to_lpuv_yuv(&psi, &back, Subsampling::Yuv444).unwrap(), yuv);
-        let yuv420 = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv420).unwrap();
-        assert_eq!((yuv420.cb.len(), &yuv420.y), (4, &yuv.y));
-        assert!(lpuv_yuv_to_frame(&psi, &yuv420, frame.color.clone()).is_ok());
+        for mapping in [LpuvPlaneMapping::codes(11), LpuvPlaneMapping::default()] {
+            let info = LpuvStreamInfo { mapping, ..LpuvStreamInfo::default() };
+            let psi = info.psi().unwrap();
+            let samples: Vec<f32> = (0..4 * 3 * 3).map(|i| (i as f32 * 0.37).sin().abs() * 50.0).collect();
+            let frame = HdrImage::new(4, 3, hdrcodec_core::Channels::Rgb, samples, ColorInfo::default()).unwrap();
+            let yuv = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv444, mapping).unwrap();
+            let back = lpuv_yuv_to_frame(&psi, &yuv, frame.color.clone(), mapping).unwrap();
+            assert_eq!(frame_to_lpuv_yuv(&psi, &back, Subsampling::Yuv444, mapping).unwrap(), yuv);
+            let yuv420 = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv420, mapping).unwrap();
+            assert_eq!((yuv420.cb.len(), &yuv420.y), (4, &yuv.y));
+            assert!(lpuv_yuv_to_frame(&psi, &yuv420, frame.color.clone(), mapping).is_ok());
+            // Both mappings place the same codes.
+            let codes = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv444, LpuvPlaneMapping::codes(11)).unwrap();
+            let placed: Vec<u16> =
+                codes.y.iter().map(|&c| LpuvPlaneMapping::to_plane(c, 2047, mapping.luma_top)).collect();
+            assert_eq!(yuv.y, placed);
+        }
     }
 }
