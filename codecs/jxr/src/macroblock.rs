@@ -1011,6 +1011,24 @@ impl PlaneDecoder {
         tile_w: u32,
         flex_inline: bool,
     ) -> Result<[u32; 2]> {
+        // Two copies: the one without flexbits has fewer values to keep in registers.
+        if flex_inline {
+            self.hp_with::<true>(reader, c, cbp, mode, mx, tile_w)
+        } else {
+            self.hp_with::<false>(reader, c, cbp, mode, mx, tile_w)
+        }
+    }
+
+    /// [`hp`](Self::hp), with the flexbits after each block when `FLEX`.
+    fn hp_with<const FLEX: bool>(
+        &mut self,
+        reader: &mut BitReader,
+        c: &mut [i32],
+        cbp: &[u32],
+        mode: u8,
+        mx: u32,
+        tile_w: u32,
+    ) -> Result<[u32; 2]> {
         self.st.start_hp(mx);
         let bits = self.st.model[BAND_HP].bits;
         // A local copy of the reader stays in registers.
@@ -1034,7 +1052,7 @@ impl PlaneDecoder {
                 if pattern & 1 != 0 {
                     lap_mean[chroma] += hp_block(r, &mut t, chroma, block, scan, model_bits)?;
                 }
-                if flex_inline {
+                if FLEX {
                     block_flex(r, c, ch, b, model_bits, self.trim);
                 }
                 pattern >>= 1;
