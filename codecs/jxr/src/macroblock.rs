@@ -1011,29 +1011,31 @@ impl PlaneDecoder {
         tile_w: u32,
         flex_inline: bool,
     ) -> Result<[u32; 2]> {
-        // Two copies: the one without flexbits has fewer values to keep in registers.
-        if flex_inline {
-            self.hp_with::<true>(reader, c, cbp, mode, mx, tile_w)
-        } else {
-            self.hp_with::<false>(reader, c, cbp, mode, mx, tile_w)
-        }
-    }
-
-    /// [`hp`](Self::hp), with the flexbits after each block when `FLEX`.
-    fn hp_with<const FLEX: bool>(
-        &mut self,
-        reader: &mut BitReader,
-        c: &mut [i32],
-        cbp: &[u32],
-        mode: u8,
-        mx: u32,
-        tile_w: u32,
-    ) -> Result<[u32; 2]> {
         self.st.start_hp(mx);
         let bits = self.st.model[BAND_HP].bits;
         // A local copy of the reader stays in registers.
         let mut local = reader.clone();
-        let r = &mut local;
+        // Two copies: the one without flexbits has fewer values to keep in registers.
+        let lap_mean = if flex_inline {
+            self.hp_blocks::<true>(&mut local, c, cbp, mode, bits)?
+        } else {
+            self.hp_blocks::<false>(&mut local, c, cbp, mode, bits)?
+        };
+        *reader = local;
+        self.st.end_hp(lap_mean, mx, tile_w);
+        Ok(bits)
+    }
+
+    /// The blocks of [`hp`](Self::hp) with the model bits `bits`, with the flexbits after
+    /// each block when `FLEX`; returns the numbers of coded coefficients (luma, chroma).
+    fn hp_blocks<const FLEX: bool>(
+        &mut self,
+        r: &mut BitReader,
+        c: &mut [i32],
+        cbp: &[u32],
+        mode: u8,
+        bits: [u32; 2],
+    ) -> Result<[i32; 2]> {
         let mut lap_mean = [0i32; 2];
         let mut t = HpContexts::new(&self.st.vlc);
         let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
@@ -1059,9 +1061,7 @@ impl PlaneDecoder {
             }
         }
         t.finish(&mut self.st.vlc);
-        *reader = local;
-        self.st.end_hp(lap_mean, mx, tile_w);
-        Ok(bits)
+        Ok(lap_mean)
     }
 }
 
