@@ -454,6 +454,223 @@ fn index_symbol(ctx: &mut AdaptiveVlc, r: &mut BitReader, table: &[u32; 256], ma
 /// (8 + 1 + 8 + 8).
 const SYMBOL_BITS: u32 = 25;
 
+/// [`FIRST_INDEX_LUT`] and [`INDEX_LUT`] for MB_HP, whose contexts keep their tables for a
+/// whole macroblock and whose discriminants are summed locally ([`HpContexts`]): `deltas << 8
+/// | length << 4 | symbol`, where `deltas` is the two discriminant deltas packed into one
+/// 64-bit number, `delta + delta2 × 2^32`, so that one addition counts both.
+static HP_FIRST_LUT: [[u64; 256]; 5] = packed_luts(&FIRST_INDEX_LUT);
+
+/// See [`HP_FIRST_LUT`].
+static HP_INDEX_LUT: [[u64; 256]; 4] = packed_luts(&INDEX_LUT);
+
+/// [`HP_FIRST_LUT`] from [`FIRST_INDEX_LUT`] (or [`HP_INDEX_LUT`] from [`INDEX_LUT`]).
+const fn packed_luts<const T: usize>(luts: &[[u32; 256]; T]) -> [[u64; 256]; T] {
+    let mut t = [[0u64; 256]; T];
+    let mut table = 0;
+    while table < T {
+        let mut w = 0;
+        while w < 256 {
+            let e = luts[table][w];
+            let (a, b) = ((e >> 8) as u8 as i8 as i64, (e >> 16) as u8 as i8 as i64);
+            t[table][w] = (((a + (b << 32)) << 8) as u64) | (e & 0xFF) as u64;
+            w += 1;
+        }
+        table += 1;
+    }
+    t
+}
+
+/// The two discriminant sums packed in a sum of [`HP_FIRST_LUT`] or [`HP_INDEX_LUT`] entries
+/// with their low bytes removed. Exact while each sum stays below 2^23 in magnitude: one
+/// macroblock has at most 16 × 16 × 15 symbols, each changing a sum by at most 2.
+#[inline]
+fn unpack_deltas(sum: i64) -> (i32, i32) {
+    let packed = sum >> 8;
+    let low = packed as i32;
+    (low, ((packed - i64::from(low)) >> 32) as i32)
+}
+
+/// The HP contexts of one MB_HP: the tables of every context (adaptation happens after the
+/// macroblock, so they stay fixed through it) and the discriminant sums since its start,
+/// written back by [`HpContexts::finish`].
+struct HpContexts {
+    /// FIRST_INDEX by luma (0) and chroma (1).
+    first: [&'static [u64; 256]; 2],
+    /// INDEX by luma/chroma and context.
+    index: [[&'static [u64; 256]; 2]; 2],
+    /// ABSLEVEL_INDEX by context.
+    abs: [&'static [u16; 256]; 2],
+    /// Packed sums of FIRST_INDEX luma and chroma (0, 1), INDEX (2 + 2 × chroma + context).
+    sums: [i64; 6],
+    /// Discriminant sums of ABSLEVEL_INDEX by context.
+    abs_sums: [i32; 2],
+}
+
+/// The contexts [`HpContexts`] stands for, in the order of its `sums`.
+const HP_INDEX_CONTEXTS: [V; 6] =
+    [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
+
+impl HpContexts {
+    fn new(vlc: &[AdaptiveVlc; V_COUNT]) -> Self {
+        let t = |v: V| usize::from(vlc[v as usize].table);
+        HpContexts {
+            first: [&HP_FIRST_LUT[t(V::FirstIndHpLum)], &HP_FIRST_LUT[t(V::FirstIndHpChr)]],
+            index: [
+                [&HP_INDEX_LUT[t(V::IndHpLum0)], &HP_INDEX_LUT[t(V::IndHpLum1)]],
+                [&HP_INDEX_LUT[t(V::IndHpChr0)], &HP_INDEX_LUT[t(V::IndHpChr1)]],
+            ],
+            abs: [&ABS_LEVEL_LUT[t(V::AbsLevelHp0) & 1], &ABS_LEVEL_LUT[t(V::AbsLevelHp1) & 1]],
+            sums: [0; 6],
+            abs_sums: [0; 2],
+        }
+    }
+
+    /// Adds the sums to the contexts' discriminants.
+    fn finish(&self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
+        for (v, &sum) in HP_INDEX_CONTEXTS.iter().zip(&self.sums) {
+            debug_assert!({
+                let ctx = &vlc[*v as usize];
+                let max = if matches!(v, V::FirstIndHpLum | V::FirstIndHpChr) { 4 } else { 3 };
+                (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), max)
+            });
+            let (d, d2) = unpack_deltas(sum);
+            let ctx = &mut vlc[*v as usize];
+            ctx.disc += d;
+            ctx.disc2 += d2;
+        }
+        vlc[V::AbsLevelHp0 as usize].disc += self.abs_sums[0];
+        vlc[V::AbsLevelHp1 as usize].disc += self.abs_sums[1];
+    }
+
+    /// One symbol of `table`, its deltas added to `sums[slot]`, with at least 8 bits buffered.
+    #[inline(always)]
+    fn index(sums: &mut [i64; 6], slot: usize, r: &mut BitReader, table: &[u64; 256]) -> u32 {
+        let e = table[r.peek_buffered(8) as usize];
+        let info = e & 0xFF;
+        r.skip((info >> 4) as u32);
+        sums[slot] = sums[slot].wrapping_add((e - info) as i64);
+        (info & 15) as u32
+    }
+
+    /// ABSLEVEL_INDEX of `context` and the level it codes, with at least 8 bits buffered (as
+    /// [`PlaneDecoder::abs_level_buffered`]).
+    #[inline(always)]
+    fn abs_level(&mut self, r: &mut BitReader, context: usize) -> u32 {
+        abs_level_in(self.abs[context], &mut self.abs_sums[context], r)
+    }
+}
+
+/// ABSLEVEL_INDEX of [`ABS_LEVEL_LUT`] table `table` and the level it codes
+/// (`r_DECODE_ABS_LEVEL`), counted in `disc`, with at least 8 bits buffered; the buffer is
+/// topped up again after an escape.
+#[inline(always)]
+fn abs_level_in(table: &[u16; 256], disc: &mut i32, r: &mut BitReader) -> u32 {
+    let e = table[r.peek_buffered(8) as usize];
+    let index = usize::from((e >> 4) & 7);
+    *disc += ABS_LEVEL_DELTA8[index];
+    r.skip(u32::from(e & 15));
+    if index < 6 {
+        return u32::from(e >> 8);
+    }
+    escaped_level(r)
+}
+
+/// The level after the escape symbol of ABSLEVEL_INDEX (`r_DECODE_ABS_LEVEL`); the bit
+/// buffer is topped up again after it.
+#[cold]
+fn escaped_level(r: &mut BitReader) -> u32 {
+    let mut fixed = 4 + r.read(4);
+    if fixed == 19 {
+        fixed += r.read(2);
+        if fixed == 22 {
+            fixed += r.read(3);
+        }
+    }
+    let level = 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed));
+    r.fill();
+    level
+}
+
+/// INDEX of the last two positions of a block (`r_DECODE_BLOCK`), with at least 8 bits
+/// buffered: after `location` 15, Table 61's code ([`vlc::INDEX2`]); after 16, one bit.
+#[inline(always)]
+fn end_index(r: &mut BitReader, location: u32) -> u32 {
+    if location > 15 {
+        let bit = r.peek_buffered(1);
+        r.skip(1);
+        bit
+    } else {
+        let e = vlc::INDEX2[r.peek_buffered(8) as usize];
+        r.skip(u32::from(e & 15));
+        u32::from(e >> 4)
+    }
+}
+
+/// One HP block of run-level symbols (`r_DECODE_BLOCK` at location 1), each level written
+/// (shifted by `model_bits`) straight into `block` (the block's 15 coefficients with the slot
+/// before it) where the adaptive `scan` puts it. Returns the number of symbols.
+#[inline(always)]
+fn hp_block(
+    r: &mut BitReader,
+    t: &mut HpContexts,
+    chroma: usize,
+    block: &mut [i32; 16],
+    scan: &mut Scan,
+    model_bits: u32,
+) -> Result<i32> {
+    r.ensure(SYMBOL_BITS);
+    let index = HpContexts::index(&mut t.sums, chroma, r, t.first[chroma]);
+    let mut srn = index >> 2;
+    let mut context = ((index & 1) & srn) as usize;
+    let sign = r.peek_buffered(1);
+    r.skip(1);
+    let level = if index & 2 != 0 { t.abs_level(r, context) } else { 1 };
+    // location: the 1-based position after the coefficient; the run is at most 14 here.
+    let mut location = 2 + if index & 1 != 0 {
+        0
+    } else {
+        let e = RUN_LUT[14][r.peek_buffered(8) as usize];
+        r.skip(u32::from(e & 15));
+        u32::from(e >> 4)
+    };
+    // −level when the sign bit is set, without a branch.
+    let s = sign.wrapping_neg() as i32;
+    // Scan entries are 1..=15: the mask only spares a bounds check.
+    block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
+    let mut n = 1;
+    while srn != 0 {
+        if n >= 16 {
+            return Err(corrupt("more than 16 coefficients in a block"));
+        }
+        r.ensure(SYMBOL_BITS);
+        if srn & 1 == 0 {
+            // At location 16 no position remains: the table of no run reads nothing, and
+            // the check below fails.
+            let e = RUN_LUT[(15 - location.min(15)) as usize][r.peek_buffered(8) as usize];
+            r.skip(u32::from(e & 15));
+            location += u32::from(e >> 4);
+        }
+        location += 1;
+        if location > 16 {
+            return Err(corrupt("a coefficient past the end of a block"));
+        }
+        let index = if location >= 15 {
+            end_index(r, location)
+        } else {
+            HpContexts::index(&mut t.sums, 2 + 2 * chroma + context, r, t.index[chroma][context])
+        };
+        srn = index >> 1;
+        context &= srn as usize;
+        let sign = r.peek_buffered(1);
+        r.skip(1);
+        let level = if index & 1 != 0 { t.abs_level(r, context) } else { 1 };
+        let s = sign.wrapping_neg() as i32;
+        block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
+        n += 1;
+    }
+    Ok(n)
+}
+
 /// NUM_BLKCBP's luma classes (`_jxr_r_MB_CBP`): class `val` codes `FLC[val]` raw bits that
 /// select `OUT[OFF[val] + bits]`.
 const CBP_FLC: [u32; 6] = [0, 2, 1, 2, 2, 0];
@@ -479,23 +696,7 @@ impl PlaneDecoder {
     /// again after an escape.
     #[inline(always)]
     fn abs_level_buffered(ctx: &mut AdaptiveVlc, r: &mut BitReader) -> u32 {
-        let e = ABS_LEVEL_LUT[usize::from(ctx.table & 1)][r.peek_buffered(8) as usize];
-        let index = usize::from((e >> 4) & 7);
-        ctx.disc += ABS_LEVEL_DELTA8[index];
-        r.skip(u32::from(e & 15));
-        if index < 6 {
-            return u32::from(e >> 8);
-        }
-        let mut fixed = 4 + r.read(4);
-        if fixed == 19 {
-            fixed += r.read(2);
-            if fixed == 22 {
-                fixed += r.read(3);
-            }
-        }
-        let level = 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed));
-        r.fill();
-        level
+        abs_level_in(&ABS_LEVEL_LUT[usize::from(ctx.table & 1)], &mut ctx.disc, r)
     }
 
     /// A run of zeros when at most `max_run` positions remain (`r_DECODE_RUN`), with at least
@@ -554,14 +755,8 @@ impl PlaneDecoder {
             if location > 16 {
                 return Err(corrupt("a coefficient past the end of a block"));
             }
-            let index = if location > 15 {
-                let bit = r.peek_buffered(1) as usize;
-                r.skip(1);
-                bit
-            } else if location == 15 {
-                let e = vlc::INDEX2[r.peek_buffered(8) as usize];
-                r.skip(u32::from(e & 15));
-                usize::from(e >> 4)
+            let index = if location >= 15 {
+                end_index(r, location) as usize
             } else {
                 let ctx = &mut vlc[ind_v[context] as usize];
                 index_symbol(ctx, r, &INDEX_LUT[usize::from(ctx.table)], 3)
@@ -820,13 +1015,34 @@ impl PlaneDecoder {
         let bits = self.st.model[BAND_HP].bits;
         // A local copy of the reader stays in registers.
         let mut local = reader.clone();
-        let r = &mut local;
+        // Two copies: the one without flexbits has fewer values to keep in registers.
+        let lap_mean = if flex_inline {
+            self.hp_blocks::<true>(&mut local, c, cbp, mode, bits)?
+        } else {
+            self.hp_blocks::<false>(&mut local, c, cbp, mode, bits)?
+        };
+        *reader = local;
+        self.st.end_hp(lap_mean, mx, tile_w);
+        Ok(bits)
+    }
+
+    /// The blocks of [`hp`](Self::hp) with the model bits `bits`, with the flexbits after
+    /// each block when `FLEX`; returns the numbers of coded coefficients (luma, chroma).
+    fn hp_blocks<const FLEX: bool>(
+        &mut self,
+        r: &mut BitReader,
+        c: &mut [i32],
+        cbp: &[u32],
+        mode: u8,
+        bits: [u32; 2],
+    ) -> Result<[i32; 2]> {
         let mut lap_mean = [0i32; 2];
-        let mut pairs = [RunLevel::default(); 16];
+        let mut t = HpContexts::new(&self.st.vlc);
+        let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
         for ch in 0..self.st.channels {
-            let chroma = ch > 0;
+            let chroma = usize::from(ch > 0);
             let blocks = predict_blocks(self.st.fmt, ch);
-            let model_bits = bits[usize::from(chroma)];
+            let model_bits = bits[chroma];
             let mut pattern = cbp[ch];
             for block in 0..blocks {
                 let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
@@ -836,35 +1052,16 @@ impl PlaneDecoder {
                     (&mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16]).try_into().expect("a block and the slot before it");
                 block[1..].fill(0);
                 if pattern & 1 != 0 {
-                    let n = self.block(r, chroma, BAND_HP, 1, &mut pairs)?;
-                    // Write each level where the adaptive scan puts it.
-                    let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
-                    let mut k = 1usize;
-                    for p in &pairs[..n] {
-                        k += p.run as usize;
-                        if k >= 16 {
-                            return Err(corrupt("HP past the end"));
-                        }
-                        block[scan.hit(k - 1)] = p.level.wrapping_shl(model_bits);
-                        k += 1;
-                    }
-                    lap_mean[usize::from(chroma)] += n as i32;
+                    lap_mean[chroma] += hp_block(r, &mut t, chroma, block, scan, model_bits)?;
                 }
-                if flex_inline {
-                    self.block_flex(r, c, ch, b, model_bits);
+                if FLEX {
+                    block_flex(r, c, ch, b, model_bits, self.trim);
                 }
                 pattern >>= 1;
             }
         }
-        *reader = local;
-        self.st.end_hp(lap_mean, mx, tile_w);
-        Ok(bits)
-    }
-
-    /// BLOCK_FLEXBITS of block `b` of channel `ch` (see [`block_flex`]).
-    #[inline]
-    pub fn block_flex(&mut self, r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32) {
-        block_flex(r, c, ch, b, model_bits, self.trim);
+        t.finish(&mut self.st.vlc);
+        Ok(lap_mean)
     }
 }
 
@@ -1626,66 +1823,100 @@ pub fn flex_mb_encode(
 /// `b` of channel `ch`, coded or not, `model_bits − trim` each (none when trim ≥ model bits).
 #[inline(always)]
 pub fn block_flex(r: &mut BitReader, c: &mut [i32], ch: usize, b: usize, model_bits: u32, trim: u32) {
-    let c: &mut [i32; MB_COEFFS] = (&mut c[ch * MB_COEFFS..(ch + 1) * MB_COEFFS]).try_into().expect("a channel");
-    flex_channel(r, c, &[b as u8], model_bits, trim);
-}
-
-/// The flexbits of the blocks `blocks` (in that order) of one channel's coefficients `c`, with
-/// the channel's model bits: the block loop of [`flex_block`], chosen once for the number of
-/// bits per coefficient.
-#[inline(always)]
-fn flex_channel(r: &mut BitReader, c: &mut [i32; MB_COEFFS], blocks: &[u8], model_bits: u32, trim: u32) {
     if trim >= model_bits {
         return;
     }
+    let at = ch * MB_COEFFS + hp(b, 1);
+    let block: &mut [i32; 15] = (&mut c[at..at + 15]).try_into().expect("a block");
+    let mut raw = [0u32; 15];
+    flex_raw_blocks(r, block, &mut raw, &[0], model_bits - trim);
+    flex_apply(block, &raw, trim);
+}
+
+/// The flexbits of one channel of a macroblock (`c`: its coefficients from HP block 0 on, as
+/// many blocks as `blocks` names, read in that order), with the channel's model bits: the raw
+/// bits of every block first ([`flex_raw_blocks`]), then all of them applied at once
+/// ([`flex_apply`]).
+#[inline(always)]
+fn flex_channel(r: &mut BitReader, c: &mut [i32], blocks: &[u8], model_bits: u32, trim: u32) {
+    if trim >= model_bits {
+        return;
+    }
+    let len = 15 * blocks.len();
+    debug_assert!(blocks.iter().all(|&b| usize::from(b) < blocks.len()));
+    let mut raw = [0u32; 15 * 16];
+    flex_raw_blocks(r, &c[..len], &mut raw[..len], blocks, model_bits - trim);
+    flex_apply(&mut c[..len], &raw[..len], trim);
+}
+
+/// The serial half of BLOCK_FLEXBITS for the blocks `blocks` (in that order; block `b` is
+/// `c[15 * b..][..15]`): for every coefficient, `n` raw bits and the bit after them, into `raw`
+/// at the coefficient's index (`n` bits, then the next bit of the stream in bit 0). Only a
+/// coefficient that is zero and gets non-zero bits has a sign bit (the bit after them), so
+/// that bit is consumed then and only then; everything else is [`flex_apply`]'s. The
+/// coefficients go in refinement order ([`FLEX_ORDER_FLAT`], unrolled so that every index is
+/// a constant), the bit buffer topped up once per group of as many as fit in 56 bits.
+#[inline(always)]
+fn flex_raw_blocks(r: &mut BitReader, c: &[i32], raw: &mut [u32], blocks: &[u8], n: u32) {
     // Model bits are at most 15: a coefficient takes at most 16 bits (15 and a sign).
-    let n = (model_bits - trim).min(15);
+    let n = n.min(15);
     macro_rules! each_block {
-        ($trim:literal, $group:literal) => {
+        ($group:literal) => {
             for &b in blocks {
-                let at = hp(usize::from(b & 15), 1);
-                let block: &mut [i32; 15] = (&mut c[at..at + 15]).try_into().expect("a block");
-                flex_block::<$trim, $group>(r, block, n, trim);
+                let at = 15 * usize::from(b & 15);
+                let (Some(block), Some(out)) = (c.get(at..at + 15), raw.get_mut(at..at + 15)) else {
+                    continue;
+                };
+                let block: &[i32; 15] = block.try_into().expect("15");
+                let out: &mut [u32; 15] = out.try_into().expect("15");
+                flex_raw::<$group>(r, block, out, n);
             }
         };
     }
-    match (trim, n) {
-        (0, ..=2) => each_block!(false, 15),
-        (0, ..=6) => each_block!(false, 8),
-        (0, ..=10) => each_block!(false, 5),
-        (0, _) => each_block!(false, 3),
-        _ => each_block!(true, 3),
+    match n {
+        0..=2 => each_block!(15),
+        3..=6 => each_block!(8),
+        7..=10 => each_block!(5),
+        _ => each_block!(3),
     }
 }
 
-/// The flexbits of one block, `n` (1..=15) bits per coefficient above the `trim` lowest
-/// (`TRIM` false: `trim` is 0), in refinement order ([`FLEX_ORDER_FLAT`], unrolled so that
-/// every index is a constant), the bit buffer topped up before every `GROUP` coefficients
-/// (`GROUP × (n + 1)` ≤ 56).
+/// [`flex_raw_blocks`] of one block, the bit buffer topped up before every `GROUP`
+/// coefficients (`GROUP × (n + 1)` ≤ 56).
 #[inline(always)]
-fn flex_block<const TRIM: bool, const GROUP: usize>(r: &mut BitReader, block: &mut [i32; 15], n: u32, trim: u32) {
+fn flex_raw<const GROUP: usize>(r: &mut BitReader, block: &[i32; 15], raw: &mut [u32; 15], n: u32) {
     debug_assert!(GROUP * (n as usize + 1) <= 56);
     macro_rules! coefficients {
         ($($k:literal $i:literal),*) => {$({
             if $k % GROUP == 0 {
                 r.fill();
             }
-            let cur = block[$i];
-            // n raw bits, then (for a coefficient that was zero and gets a non-zero value) a
-            // sign bit: peek both, consume what is there.
+            // n raw bits and the bit after them; that bit is the sign only for a zero
+            // coefficient with non-zero bits (v ≥ 2).
             let v = r.peek_buffered(n + 1);
-            let fine = (v >> 1) as i32;
-            let signed = u32::from(cur == 0) & u32::from(fine != 0);
+            let signed = u32::from(block[$i] == 0) & u32::from(v >= 2);
             r.skip(n + signed);
-            // The sign to apply, as a mask: the coefficient's own (zero for a zero
-            // coefficient), or the bit read (only read for a zero coefficient).
-            let mask = (cur >> 31) | -((signed & v & 1) as i32);
-            let f = if TRIM { fine.wrapping_shl(trim) } else { fine };
-            block[$i] = cur.wrapping_add((f ^ mask).wrapping_sub(mask));
+            raw[$i] = v;
         })*};
     }
     // Position in refinement order, and FLEX_ORDER_FLAT's index there.
     coefficients!(0 3, 1 7, 2 11, 3 0, 4 4, 5 8, 6 12, 7 1, 8 5, 9 9, 10 13, 11 2, 12 6, 13 10, 14 14);
+}
+
+/// The other half of BLOCK_FLEXBITS: each coefficient of `c` refined by its raw bits from
+/// [`flex_raw_blocks`] (shifted by `trim`), with the coefficient's own sign, or for a zero
+/// coefficient the sign bit read after them. Lane by lane, without branches, so that it runs
+/// in vectors. A zero coefficient whose bits are zero stays zero whatever bit 0 holds.
+#[inline(always)]
+fn flex_apply(c: &mut [i32], raw: &[u32], trim: u32) {
+    for (x, &v) in c.iter_mut().zip(raw) {
+        let cur = *x;
+        let fine = ((v >> 1) as i32).wrapping_shl(trim);
+        // The sign as a mask: the coefficient's own, or for a zero coefficient the bit read.
+        let zero = -i32::from(cur == 0);
+        let mask = (cur >> 31) | (zero & -((v & 1) as i32));
+        *x = cur.wrapping_add((fine ^ mask).wrapping_sub(mask));
+    }
 }
 
 /// The order of a luma macroblock's blocks in the bitstream ([`HP_BLOCK_ORDER`]), and that of
@@ -1708,10 +1939,9 @@ pub fn flex_mb(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: usi
     let mut local = reader.clone();
     let r = &mut local;
     for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).take(channels).enumerate() {
-        let cc: &mut [i32; MB_COEFFS] = cc.try_into().expect("a channel");
         let blocks = predict_blocks(fmt, ch);
         let order = &FLEX_BLOCKS[usize::from(blocks != 16)][..blocks];
-        flex_channel(r, cc, order, model_bits[usize::from(ch > 0)], trim);
+        flex_channel(r, &mut cc[hp(0, 1)..], order, model_bits[usize::from(ch > 0)], trim);
     }
     *reader = local;
 }
@@ -2109,6 +2339,34 @@ mod tests {
             }
         }
         assert_eq!(dec.st.vlc, enc.st.vlc);
+    }
+
+    #[test]
+    fn packed_index_tables_carry_the_symbols_and_both_deltas() {
+        fn check<const T: usize>(plain: &[[u32; 256]; T], packed: &[[u64; 256]; T]) {
+            for (p, q) in plain.iter().zip(packed) {
+                for (&e, &f) in p.iter().zip(q) {
+                    assert_eq!(f & 0xFF, u64::from(e & 0xFF));
+                    let want = (i32::from((e >> 8) as u8 as i8), i32::from((e >> 16) as u8 as i8));
+                    assert_eq!(unpack_deltas((f - (f & 0xFF)) as i64), want);
+                }
+            }
+        }
+        check(&FIRST_INDEX_LUT, &HP_FIRST_LUT);
+        check(&INDEX_LUT, &HP_INDEX_LUT);
+        // Sums of many entries (more than a macroblock holds) unpack to the two sums.
+        let mut rng = Rng(7);
+        for table in 0..5 {
+            let (mut sum, mut want) = (0i64, (0i32, 0i32));
+            for _ in 0..(16 * 16 * 15 * 4) {
+                let w = rng.below(256) as usize;
+                let (e, f) = (FIRST_INDEX_LUT[table][w], HP_FIRST_LUT[table][w]);
+                sum = sum.wrapping_add((f - (f & 0xFF)) as i64);
+                want.0 += i32::from((e >> 8) as u8 as i8);
+                want.1 += i32::from((e >> 16) as u8 as i8);
+                assert_eq!(unpack_deltas(sum), want);
+            }
+        }
     }
 
     #[test]
