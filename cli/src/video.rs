@@ -418,10 +418,7 @@ pub fn info(file: &Path, as_json: bool) -> Result<()> {
     };
     let cicp = c.color_description.map(|d| [d.color_primaries, d.transfer_characteristics, d.matrix_coefficients]);
     let hdr10 = summary.hdr10();
-    let lpuv = match &summary.first_t35 {
-        Some((country_code, payload)) => LpuvStreamInfo::from_t35(*country_code, payload)?,
-        None => None,
-    };
+    let lpuv = LpuvStreamInfo::from_summary(&summary)?;
     let lpuv_json = lpuv.map(|l| {
         json!({"curve": format!("{:?}", l.curve), "bits": l.bits, "min_nits": l.min_nits, "max_nits": l.max_nits, "primaries_h273": l.primaries_h273, "plane_mapping": format!("{:?}", l.mapping)})
     });
@@ -513,8 +510,8 @@ fn cicp_text([p, t, m]: [u8; 3]) -> String {
 fn mp4_info(file: &Path, data: &[u8], as_json: bool) -> Result<()> {
     let info = probe_mp4(data, &Limits::default())?;
     let codec = String::from_utf8_lossy(&info.codec).into_owned();
-    let lpuv = match info.av1.as_ref().and_then(|s| s.first_t35.as_ref()) {
-        Some((country_code, payload)) => LpuvStreamInfo::from_t35(*country_code, payload)?,
+    let lpuv = match &info.av1 {
+        Some(summary) => LpuvStreamInfo::from_summary(summary)?,
         None => None,
     };
     if as_json {

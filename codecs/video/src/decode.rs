@@ -183,7 +183,7 @@ pub fn probe_ivf(data: &[u8], limits: &Limits) -> Result<(crate::ivf::IvfHeader,
     Ok((header, summary))
 }
 
-/// The L_p u'v' description of a 12-bit stream, from its first T.35 message (our own parser
+/// The L_p u'v' description of a 12-bit stream, from the first of its T.35 messages that is ours (our own parser
 /// reads it from the temporal units: dav1d 1.0.0 keeps only the last T.35 of a picture).
 fn lpuv_info(summary: &StreamSummary) -> Result<LpuvStreamInfo> {
     let refuse = || {
@@ -191,8 +191,7 @@ fn lpuv_info(summary: &StreamSummary) -> Result<LpuvStreamInfo> {
             "a 12-bit AV1 stream without the hdrcodec-lpuv T.35 message: its planes are of an unknown kind",
         )
     };
-    let (country_code, payload) = summary.first_t35.as_ref().ok_or_else(refuse)?;
-    LpuvStreamInfo::from_t35(*country_code, payload)?.ok_or_else(refuse)
+    LpuvStreamInfo::from_summary(summary)?.ok_or_else(refuse)
 }
 
 /// The subsampling a sequence header declares, if we can decode it.

@@ -15,6 +15,7 @@ use crate::curves::LumaCurve;
 use crate::hdr10::{Subsampling, YuvFrame};
 use crate::luv::{decode_image, encode_image, LpuvPlanes, UV_SCALE};
 use crate::mantiuk::{Psi04, PsiIntegration, PsiOptions};
+use crate::obu::StreamSummary;
 use hdrcodec_core::{ColorInfo, ColorPrimaries, Error, HdrImage, Result};
 
 /// Bit depth of the AV1 planes that carry L_p u'v'.
@@ -159,6 +160,17 @@ impl Default for LpuvStreamInfo {
 }
 
 impl LpuvStreamInfo {
+    /// The description from the first of a stream's T.35 messages that is ours (others, such
+    /// as HDR10+ or captions, may come before it); `None` when none is.
+    pub fn from_summary(summary: &StreamSummary) -> Result<Option<Self>> {
+        for (country_code, payload) in &summary.t35_messages {
+            if let Some(info) = LpuvStreamInfo::from_t35(*country_code, payload)? {
+                return Ok(Some(info));
+            }
+        }
+        Ok(None)
+    }
+
     /// The default curve, decoding to `primaries` when H.273 names them (BT.709, BT.2020,
     /// P3-D65), else to BT.2020 (L_p u'v' itself holds every visible colour).
     pub fn for_primaries(primaries: ColorPrimaries) -> Self {
@@ -349,6 +361,17 @@ pub fn lpuv_yuv_to_frame(psi: &Psi04, yuv: &YuvFrame, color: ColorInfo, mapping:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_description_is_found_behind_other_parties_t35_messages() {
+        let ours = LpuvStreamInfo::for_primaries(ColorPrimaries::DisplayP3);
+        // An HDR10+-style message (United States, another provider) first, then ours.
+        let mut summary = StreamSummary::default();
+        summary.t35_messages.push((0xb5, vec![0x00, 0x3c, 0x00, 0x01, 0x04, 0x01]));
+        assert_eq!(LpuvStreamInfo::from_summary(&summary).unwrap(), None);
+        summary.t35_messages.push((T35_COUNTRY_CODE, ours.to_t35_payload()));
+        assert_eq!(LpuvStreamInfo::from_summary(&summary).unwrap(), Some(ours));
+    }
 
     #[test]
     fn t35_payload_round_trips_byte_by_byte() {

@@ -553,7 +553,15 @@ pub struct StreamSummary {
     pub t35_per_temporal_unit: Vec<u32>,
     /// The payload (after the country code) of the first T.35 OBU seen.
     pub first_t35: Option<(u8, Vec<u8>)>,
+    /// The distinct T.35 messages (country code, payload) in the order first seen, at most
+    /// [`MAX_DISTINCT_T35`]: a stream may carry other parties' messages (HDR10+, captions)
+    /// before the one a reader looks for, and repeats its own on every frame.
+    pub t35_messages: Vec<(u8, Vec<u8>)>,
 }
+
+/// How many distinct T.35 messages [`StreamSummary`] keeps; later new ones are counted in
+/// `t35_per_temporal_unit` but not kept.
+pub const MAX_DISTINCT_T35: usize = 8;
 
 impl StreamSummary {
     /// Adds one temporal unit's OBUs. `t35_per_temporal_unit` grows by one entry per call: the
@@ -578,6 +586,10 @@ impl StreamSummary {
                         t35 += 1;
                         if self.first_t35.is_none() {
                             self.first_t35 = Some((country_code, payload.to_vec()));
+                        }
+                        let seen = self.t35_messages.iter().any(|(c, p)| *c == country_code && p == payload);
+                        if !seen && self.t35_messages.len() < MAX_DISTINCT_T35 {
+                            self.t35_messages.push((country_code, payload.to_vec()));
                         }
                     }
                     Metadata::Other { .. } => {}
@@ -645,6 +657,11 @@ pub(crate) mod tests {
         assert_eq!(s.content_light, Some(ContentLightLevel { max_cll: 1000, max_fall: 400 }));
         assert_eq!(s.t35_per_temporal_unit, [2]);
         assert_eq!(s.first_t35, Some((0xb5, vec![0x00, 0x3c, 0x00, 0x00])));
+        // The same temporal unit again: counted, but its messages are not kept twice.
+        s.add_temporal_unit(&tu).unwrap();
+        assert_eq!(s.t35_per_temporal_unit, [2, 2]);
+        // (0xff is followed by its extension byte, which the payload leaves out.)
+        assert_eq!(s.t35_messages, [(0xb5, vec![0x00, 0x3c, 0x00, 0x00]), (0xff, vec![0x01])]);
         let obus: Vec<_> = ObuReader::new(&tu).collect::<Result<_>>().unwrap();
         assert_eq!(obus[0].obu_type, obu_type::TEMPORAL_DELIMITER);
         assert_eq!(
