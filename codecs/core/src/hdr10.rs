@@ -225,6 +225,32 @@ pub struct Av1MdcvUnits {
     pub luminance_min: u32,
 }
 
+/// Samples an encoder changed because its signal could not hold them (e.g. PQ above
+/// 10 000 cd/m²), counted per component over a stream.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClipReport {
+    /// Components that were NaN (coded as 0).
+    pub nan: u64,
+    /// Components below 0 cd/m² (coded as 0).
+    pub negative: u64,
+    /// Components above the transfer's peak, +∞ included (coded as the peak).
+    pub above_peak: u64,
+}
+
+impl ClipReport {
+    /// Adds another report's counts.
+    pub fn add(&mut self, other: &ClipReport) {
+        self.nan += other.nan;
+        self.negative += other.negative;
+        self.above_peak += other.above_peak;
+    }
+
+    /// True when nothing was changed.
+    pub fn is_empty(&self) -> bool {
+        *self == ClipReport::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -295,31 +321,5 @@ mod tests {
             }
         }
         assert!((back.min_luminance - 0.005).abs() <= 0.5 / 16384.0);
-    }
-}
-
-/// Samples an encoder changed because its signal could not hold them (e.g. PQ above
-/// 10 000 cd/m²), counted per component over a stream.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ClipReport {
-    /// Components that were NaN (coded as 0).
-    pub nan: u64,
-    /// Components below 0 cd/m² (coded as 0).
-    pub negative: u64,
-    /// Components above the transfer's peak, +∞ included (coded as the peak).
-    pub above_peak: u64,
-}
-
-impl ClipReport {
-    /// Adds another report's counts.
-    pub fn add(&mut self, other: &ClipReport) {
-        self.nan += other.nan;
-        self.negative += other.negative;
-        self.above_peak += other.above_peak;
-    }
-
-    /// True when nothing was changed.
-    pub fn is_empty(&self) -> bool {
-        *self == ClipReport::default()
     }
 }
