@@ -477,6 +477,9 @@ pub struct Report {
     /// Bytes at equal PU21-PSNR between families of configurations
     /// ([`equal_quality::COMPARISONS`] whose two sides ran).
     pub equal_quality: Vec<equal_quality::Comparison>,
+    /// The HDR10 AV1 rows (`bench --video`; [`crate::video_bench`]), empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub video: Vec<crate::video_bench::VideoRow>,
 }
 
 /// Once the runs of one measurement have taken this long, no further run is started: slow
@@ -799,7 +802,8 @@ pub fn run(
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
         .collect();
     let equal_quality = equal_quality::comparisons(&rows);
-    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped, equal_quality }
+    let video = Vec::new();
+    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped, equal_quality, video }
 }
 
 fn fmt_db(v: f64) -> String {

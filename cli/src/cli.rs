@@ -5,7 +5,7 @@ use hdrcodec::core::{
     metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
 };
 use hdrcodec_cli::conversion::ConversionSettings;
-use hdrcodec_cli::{batch, bench};
+use hdrcodec_cli::{batch, bench, video_bench};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -368,6 +368,8 @@ pub struct BenchOptions {
     pub per_image: bool,
     pub runs: usize,
     pub quick: bool,
+    /// Also the HDR10 AV1 video rows.
+    pub video: bool,
 }
 
 /// Images at most this large are used by `bench --quick`.
@@ -383,9 +385,12 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     }
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
+    let mut video_configs = if o.video { video_bench::configurations() } else { Vec::new() };
     if let Some(f) = &o.filter {
-        configs.retain(|c| f.split(',').any(|part| c.label.contains(part)));
-        if configs.is_empty() {
+        let wanted = |label: &str| f.split(',').any(|part| label.contains(part));
+        configs.retain(|c| wanted(&c.label));
+        video_configs.retain(|c| wanted(&c.label));
+        if configs.is_empty() && video_configs.is_empty() {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
     }
@@ -402,10 +407,15 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
     }
     let context = hdrcodec_cli::report::Context::now(&inputs);
-    let pb = progress_bar(configs.len() * inputs.len(), o.json);
+    let sequences = if video_configs.is_empty() { Vec::new() } else { video_bench::sequences(&inputs, o.quick)? };
+    let pb = progress_bar(configs.len() * inputs.len() + video_configs.len() * sequences.len(), o.json);
     let pool = ThreadPool::new(o.threads)?;
-    let report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
+    let mut report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
         pb.set_position(done as u64);
+        pb.set_message(label.to_string());
+    });
+    report.video = video_bench::run(&video_configs, &sequences, o.runs, |label| {
+        pb.inc(1);
         pb.set_message(label.to_string());
     });
     pb.finish_and_clear();
@@ -422,7 +432,12 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     if o.per_image {
         print!("{}", bench::per_image_table(&report));
     }
-    print!("{}", bench::table(&report));
+    if !configs.is_empty() {
+        print!("{}", bench::table(&report));
+    }
+    if !report.video.is_empty() {
+        print!("{}", video_bench::table(&report.video));
+    }
     Ok(())
 }
 

@@ -200,6 +200,12 @@ struct BenchArgs {
     /// One run per measurement and only the smaller images: for tests.
     #[arg(long, hide = true)]
     quick: bool,
+    /// Also run the HDR10 AV1 video rows: ours (rav1e) and FFmpeg's SVT-AV1 at a sweep of
+    /// quantizers, on a generated moving light (256x144, 12 frames) and a pan across a crop of
+    /// the largest image (320x176 at most), decoded by libdav1d; FFmpeg's libdav1d decode is
+    /// the peer. `--filter` applies to their labels too (`av1:q100`, `av1(svt-av1):crf25`).
+    #[arg(long)]
+    video: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -347,6 +353,7 @@ fn run() -> ExitCode {
             per_image: a.per_image,
             runs: if a.quick { 1 } else { a.runs.max(1) },
             quick: a.quick,
+            video: a.video,
         }),
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),

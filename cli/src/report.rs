@@ -216,6 +216,15 @@ fn rows_using(report: &Report, tool: &str) -> Vec<String> {
             out.push(r.config.clone());
         }
     }
+    for r in &report.video {
+        let named = [Some(&r.encoder), r.peer.as_ref().map(|p| &p.decoder), r.error.as_ref()]
+            .into_iter()
+            .flatten()
+            .any(|s| s.to_ascii_lowercase().contains(&tool));
+        if named && !out.contains(&r.config) {
+            out.push(r.config.clone());
+        }
+    }
     out
 }
 
@@ -317,6 +326,13 @@ pub fn markdown(report: &Report, context: &Context, path: &Path) -> String {
         s.push_str("No comparison of `cli/src/equal_quality.rs` had both of its sides in this run.\n");
     } else {
         s.push_str(&code_block(&eq));
+    }
+    if !report.video.is_empty() {
+        s.push_str(
+            "\n## Video: HDR10 AV1\n\nOurs (`av1:`, hdrcodec-video on rav1e) and FFmpeg's SVT-AV1 (`av1(svt-av1):`) on the same \
+             10-bit Y'CbCr frames, as `hdrcodec bench --video` prints them.\n\n",
+        );
+        s.push_str(&code_block(&crate::video_bench::table(&report.video)));
     }
     s.push_str("\n## Per image\n\n<details><summary>Every configuration on every image</summary>\n\n");
     s.push_str(&code_block(&bench::per_image_table(report)));

@@ -553,6 +553,82 @@ fn bench_on_a_directory_and_as_a_table() {
 }
 
 #[test]
+fn bench_video_rows_compare_ours_with_svt_av1() {
+    if common::require(common::tool("ffmpeg"), "ffmpeg (Debian ffmpeg, with libsvtav1 and libdav1d)").is_none() {
+        return;
+    }
+    let dir = common::temp_dir("cli-bench-video-report");
+    let md = dir.join("V.md");
+    let filter = "av1:q100,av1(svt-av1):crf25";
+    let v = json(&hdrcodec(&[&"bench", &"--video", &"--quick", &"--filter", &filter, &"--json", &"--report", &md]));
+    assert_eq!(v["rows"].as_array().map(Vec::len), Some(0), "only video rows: {v}");
+    let rows = v["video"].as_array().unwrap();
+    let labels: Vec<(&str, &str)> =
+        rows.iter().map(|r| (r["config"].as_str().unwrap(), r["sequence"].as_str().unwrap())).collect();
+    // The moving light, then a pan across the largest of the --quick images.
+    assert_eq!(labels.len(), 4, "{v}");
+    assert_eq!(labels[0], ("av1:q100", "moving-light"));
+    assert!(labels[1].1.starts_with("pan:") && labels[3].0 == "av1(svt-av1):crf25", "{v}");
+    for r in rows {
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!((r["width"].as_u64(), r["height"].as_u64(), r["frames"].as_u64()), (Some(128), Some(72), Some(4)));
+        let (bytes, bpp) = (r["bytes"].as_u64().unwrap(), r["bpp"].as_f64().unwrap());
+        assert!(bytes > 100 && (bpp - bytes as f64 * 8.0 / (128.0 * 72.0 * 4.0)).abs() < 1e-9, "{r}");
+        // Lossy but close: a coarse quantizer on small frames still gives the scene back.
+        let psnr = r["pu21_psnr"].as_f64().unwrap();
+        assert!(psnr.is_finite() && psnr > 25.0, "{r}");
+        assert!(r["de_itp_mean"].as_f64().unwrap() > 0.0 && r["encode_fps"].as_f64().unwrap() > 0.0, "{r}");
+        // Both streams say HDR10, with the same mastering display and content light level.
+        let signalled = r["signalled"].as_str().unwrap();
+        assert!(
+            signalled.starts_with("cicp 9/16/9 limited, 10-bit, chroma colocated, MDCV 1000/0.0001 cd/m², CLL "),
+            "{r}"
+        );
+        // FFmpeg's libdav1d decodes the same planes as ours.
+        assert_eq!(r["peer"]["matches"], true, "{r}");
+        let encoder = r["encoder"].as_str().unwrap();
+        if r["config"].as_str().unwrap().starts_with("av1(svt-av1)") {
+            assert!(encoder.starts_with("ffmpeg ") && encoder.contains("SVT-AV1 v"), "{encoder}");
+        } else {
+            assert!(encoder.starts_with("hdrcodec-video (rav1e 0."), "{encoder}");
+        }
+    }
+    // The page has the video table, and its peer-tool table names the rows that used FFmpeg.
+    let page = std::fs::read_to_string(&md).unwrap();
+    assert!(
+        page.contains("## Video: HDR10 AV1")
+            && page.lines().any(|l| l.starts_with("av1(svt-av1):crf25") && l.contains(" pan:")),
+        "{page}"
+    );
+    let tools = page.lines().find(|l| l.starts_with("| ffmpeg |")).unwrap();
+    assert!(tools.ends_with("| `av1:q100`, `av1(svt-av1):crf25` |"), "{tools}");
+    let table = ok(&hdrcodec(&[&"bench", &"--video", &"--quick", &"--filter", &"av1:q180"]));
+    assert!(table.starts_with("video config") && table.contains("av1:q180") && !table.contains("DIFFERS"), "{table}");
+}
+
+#[test]
+fn bench_video_rows_without_ffmpeg_say_not_installed() {
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--video", "--quick", "--filter", "av1:q180,av1(svt-av1):crf45", "--json"])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    let v = json(&out);
+    for r in v["video"].as_array().unwrap() {
+        if r["config"] == "av1(svt-av1):crf45" {
+            assert_eq!(r["error"], "not installed: ffmpeg (Debian ffmpeg) is not on PATH", "{r}");
+        } else {
+            // Ours still runs; only its peer decode is missing, and the row says so.
+            assert!(r["error"].is_null() && r["bytes"].as_u64().unwrap() > 0 && r["peer"].is_null(), "{r}");
+            assert!(r["notes"][0].as_str().unwrap().contains("no peer decode"), "{r}");
+        }
+    }
+    // Without --video, a filter that only names video rows matches nothing.
+    let dir = common::temp_dir("cli-bench-video");
+    must_fail(&[&"bench", &"--quick", &"--filter", &"av1:q180"], &dir, "no bench configuration matches");
+}
+
+#[test]
 fn missing_and_unknown_files_fail_cleanly() {
     let dir = common::temp_dir("cli-missing");
     let good = corpus().join("tiny-1x1.exr");

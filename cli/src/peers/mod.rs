@@ -1,6 +1,7 @@
 //! The bench's outside peers beyond jxrlib and libultrahdr: JPEG XL through libjxl's `cjxl` /
 //! `djxl` ([`jxl`]), AVIF 10- and 12-bit PQ through libavif's `avifenc` / `avifdec` ([`avif`]),
-//! and OpenEXR through OpenImageIO's `oiiotool` ([`oiio`]). All are reached as programs on
+//! OpenEXR through OpenImageIO's `oiiotool` ([`oiio`]), and AV1 HDR10 through FFmpeg's SVT-AV1
+//! for the video rows ([`svtav1`]). All are reached as programs on
 //! PATH (nothing is linked), in a temporary directory that is removed on return, also on
 //! failure; without a program the rows say "not installed".
 //!
@@ -14,6 +15,7 @@
 pub mod avif;
 pub mod jxl;
 pub mod oiio;
+pub mod svtav1;
 
 use crate::bench::{self, Config, Encoder, Input, PeerDecode, Row};
 use crate::jxrlib::{self, TempDir};
