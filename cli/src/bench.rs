@@ -856,14 +856,16 @@ fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 
 
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
-    let mut s = format!("{:<24} {:<24} {}\n", "config", "image", headers(report));
+    // The image column is as wide as the longest name (cropped corpus files: `NAME@cWxH`).
+    let w = report.rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
+    let mut s = format!("{:<24} {:<w$} {}\n", "config", "image", headers(report));
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
         let psnr = if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) };
         let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
         let line = figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer);
         let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {:<24} {line}{mark}\n", r.config, r.image));
+        s.push_str(&format!("{:<24} {:<w$} {line}{mark}\n", r.config, r.image));
     }
     s.push('\n');
     s

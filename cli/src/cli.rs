@@ -5,7 +5,7 @@ use hdrcodec::core::{
     metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
 };
 use hdrcodec_cli::conversion::ConversionSettings;
-use hdrcodec_cli::{batch, bench, video_bench};
+use hdrcodec_cli::{batch, bench, real_corpus, video_bench};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -370,6 +370,10 @@ pub struct BenchOptions {
     pub quick: bool,
     /// Also the HDR10 AV1 video rows.
     pub video: bool,
+    /// `--corpus`: "shared" or "generated".
+    pub corpus: Option<String>,
+    /// `--crop WxH`.
+    pub crop: Option<String>,
 }
 
 /// Images at most this large are used by `bench --quick`.
@@ -394,12 +398,27 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
     }
-    let (mut inputs, skipped, source) = if o.paths.is_empty() {
-        (bench::generated_inputs(), Vec::new(), "generated corpus".to_string())
-    } else {
-        let (i, s) = bench::path_inputs(&o.paths, &reg, &Limits::default())?;
-        (i, s, o.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" "))
+    let crop = o.crop.as_deref().map(real_corpus::parse_size).transpose()?;
+    let (mut inputs, skipped, source) = match o.corpus.as_deref() {
+        Some("shared") => {
+            let dir = real_corpus::dir()?;
+            let (i, s) = bench::path_inputs(&real_corpus::still_files(&dir)?, &reg, &Limits::default())?;
+            (i, s, format!("the shared corpus's original EXR and Radiance stills ({})", dir.display()))
+        }
+        Some(other) if other != "generated" => {
+            return Err(Error::invalid(format!("--corpus is 'shared' or 'generated', not '{other}'")))
+        }
+        _ if o.paths.is_empty() => (bench::generated_inputs(), Vec::new(), "generated corpus".to_string()),
+        _ => {
+            let (i, s) = bench::path_inputs(&o.paths, &reg, &Limits::default())?;
+            (i, s, o.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" "))
+        }
     };
+    let mut source = source;
+    if let Some(size) = crop {
+        real_corpus::crop_inputs(&mut inputs, size)?;
+        source.push_str(&format!(", centre {}x{} crops of larger images", size.0, size.1));
+    }
     if o.quick {
         inputs.retain(|i| i.image.pixel_count() <= QUICK_MAX_PIXELS);
     }

@@ -170,6 +170,17 @@ struct BatchArgs {
 struct BenchArgs {
     /// Image files and directories of images (default: the generated corpus).
     paths: Vec<PathBuf>,
+    /// `shared`: the shared corpus of real HDR images (`$HDRCODEC_CORPUS`, else
+    /// `../shared/corpus`): the original OpenEXR and Radiance files its MANIFEST.tsv lists (13
+    /// photographs, environment maps and test charts, 0.24-1.09 MP each, 8.4 MP in all: pair it
+    /// with `--crop` or `--filter` on a small machine). `generated` (the default without PATHS):
+    /// the project's own generated corpus.
+    #[arg(long, value_name = "shared|generated", conflicts_with = "paths")]
+    corpus: Option<String>,
+    /// Bench the centre WIDTHxHEIGHT window of every larger image (its rows are named
+    /// `NAME@cWxH`).
+    #[arg(long, value_name = "WxH")]
+    crop: Option<String>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -354,6 +365,8 @@ fn run() -> ExitCode {
             runs: if a.quick { 1 } else { a.runs.max(1) },
             quick: a.quick,
             video: a.video,
+            corpus: a.corpus,
+            crop: a.crop,
         }),
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),

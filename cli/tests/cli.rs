@@ -629,6 +629,33 @@ fn bench_video_rows_without_ffmpeg_say_not_installed() {
 }
 
 #[test]
+fn bench_on_the_shared_corpus_takes_its_stills_cropped() {
+    let Some(dir) = common::require(common::corpus_dir(), "the shared HDR corpus (../shared/corpus)") else { return };
+    let args: [&dyn AsRef<std::ffi::OsStr>; 9] =
+        [&"bench", &"--corpus", &"shared", &"--crop", &"64x48", &"--filter", &"exr:zip-half", &"--quick", &"--json"];
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args).env("HDRCODEC_CORPUS", &dir).output().unwrap();
+    let v = json(&out);
+    assert!(v["source"].as_str().unwrap().starts_with("the shared corpus's original EXR and Radiance stills"), "{v}");
+    let images: Vec<&str> = v["rows"].as_array().unwrap().iter().map(|r| r["image"].as_str().unwrap()).collect();
+    // The MANIFEST's original exr/ and hdr/ files, each cropped (all are larger than 64x48);
+    // not the corpus's own re-encodes.
+    assert!(images.contains(&"Desk.exr@c64x48") && images.contains(&"mpi_atrium_3.hdr@c64x48"), "{images:?}");
+    assert!(images.iter().all(|i| i.ends_with("@c64x48") && !i.contains("dwaa")), "{images:?}");
+    assert!(v["rows"].as_array().unwrap().iter().all(|r| r["pixels"] == 64 * 48 && r["error"].is_null()), "{v}");
+    // A missing corpus and a bad crop are one-line errors.
+    let empty = common::temp_dir("cli-bench-no-corpus");
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--corpus", "shared", "--quick"])
+        .env("HDRCODEC_CORPUS", &empty)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.starts_with("hdrcodec: ") && err.contains("HDRCODEC_CORPUS"), "{err}");
+    must_fail(&[&"bench", &"--crop", &"0x5", &"--quick"], &empty, "--crop wants WIDTHxHEIGHT");
+    must_fail(&[&"bench", &"--corpus", &"elsewhere", &"--quick"], &empty, "--corpus is 'shared' or 'generated'");
+}
+
+#[test]
 fn missing_and_unknown_files_fail_cleanly() {
     let dir = common::temp_dir("cli-missing");
     let good = corpus().join("tiny-1x1.exr");
