@@ -480,6 +480,10 @@ pub struct Report {
     /// The HDR10 AV1 rows (`bench --video`; [`crate::video_bench`]), empty otherwise.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub video: Vec<crate::video_bench::VideoRow>,
+    /// Peak memory of decoding the largest image, per codec (`bench --memory`, `--report`;
+    /// [`crate::memory`]), empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub memory: Vec<crate::memory::MemoryRow>,
 }
 
 /// Once the runs of one measurement have taken this long, no further run is started: slow
@@ -802,8 +806,18 @@ pub fn run(
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
         .collect();
     let equal_quality = equal_quality::comparisons(&rows);
-    let video = Vec::new();
-    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped, equal_quality, video }
+    let (video, memory) = (Vec::new(), Vec::new());
+    Report {
+        source: source.to_string(),
+        runs,
+        threads: pool.threads(),
+        rows,
+        summary,
+        skipped,
+        equal_quality,
+        video,
+        memory,
+    }
 }
 
 fn fmt_db(v: f64) -> String {

@@ -5,7 +5,7 @@ use hdrcodec::core::{
     metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
 };
 use hdrcodec_cli::conversion::ConversionSettings;
-use hdrcodec_cli::{batch, bench, real_corpus, video_bench};
+use hdrcodec_cli::{batch, bench, memory, real_corpus, video_bench};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -374,6 +374,8 @@ pub struct BenchOptions {
     pub corpus: Option<String>,
     /// `--crop WxH`.
     pub crop: Option<String>,
+    /// Also the peak memory of decoding (always with `report`).
+    pub memory: bool,
 }
 
 /// Images at most this large are used by `bench --quick`.
@@ -437,6 +439,10 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         pb.inc(1);
         pb.set_message(label.to_string());
     });
+    if o.memory || o.report.is_some() {
+        pb.set_message("peak memory of decoding");
+        report.memory = memory::measure(&configs, &inputs, &std::env::current_exe()?);
+    }
     pb.finish_and_clear();
     if let Some(p) = &o.plot {
         hdrcodec_cli::plot::write(&report, p)?;
@@ -457,7 +463,17 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     if !report.video.is_empty() {
         print!("{}", video_bench::table(&report.video));
     }
+    if !report.memory.is_empty() {
+        print!("{}", memory::table(&report.memory));
+    }
     Ok(())
+}
+
+/// `hdrcodec memory-peak FILE` (hidden; `bench --memory`'s child): one JSON object.
+pub fn memory_peak(file: &Path) -> Result<()> {
+    let peak = memory::decode_peak(file)?;
+    let v = serde_json::to_value(&peak).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
+    print_json(&v)
 }
 
 /// The batch's progress bar on stderr (with an ETA), when [`progress_visible`]; per-file failures as `hdrcodec: FILE: reason` lines above it.

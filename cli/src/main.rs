@@ -85,6 +85,13 @@ enum Command {
     /// HDR video: frames to HDR10 (PQ), HLG or L_p u'v' AV1 in IVF or MP4 (rav1e), and back (libdav1d).
     #[command(subcommand)]
     Video(VideoCommand),
+    /// Decode FILE into a whole image and print this process's peak resident memory as JSON
+    /// (what `bench --memory` runs in a child process).
+    #[command(hide = true)]
+    MemoryPeak {
+        /// The image file.
+        file: PathBuf,
+    },
     /// List the codecs of this build: name, file extensions, container id.
     Codecs {
         /// Print one JSON object instead of text.
@@ -217,6 +224,10 @@ struct BenchArgs {
     /// the peer. `--filter` applies to their labels too (`av1:q100`, `av1(svt-av1):crf25`).
     #[arg(long)]
     video: bool,
+    /// Also measure, per codec, the peak resident memory of decoding the largest image (in a
+    /// child process) against the decoded image's size; every --report does.
+    #[arg(long)]
+    memory: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -367,7 +378,9 @@ fn run() -> ExitCode {
             video: a.video,
             corpus: a.corpus,
             crop: a.crop,
+            memory: a.memory,
         }),
+        Command::MemoryPeak { file } => cli::memory_peak(&file),
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),

@@ -334,6 +334,13 @@ pub fn markdown(report: &Report, context: &Context, path: &Path) -> String {
         );
         s.push_str(&code_block(&crate::video_bench::table(&report.video)));
     }
+    if !report.memory.is_empty() {
+        s.push_str(
+            "\n## Peak memory of decoding\n\nPer codec, its first configuration's file of the largest image, decoded into a whole \
+             image by a child `hdrcodec memory-peak` process that reads its own peak resident set.\n\n",
+        );
+        s.push_str(&code_block(&crate::memory::table(&report.memory)));
+    }
     s.push_str("\n## Per image\n\n<details><summary>Every configuration on every image</summary>\n\n");
     s.push_str(&code_block(&bench::per_image_table(report)));
     s.push_str("\n</details>\n");

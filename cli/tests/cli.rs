@@ -656,6 +656,43 @@ fn bench_on_the_shared_corpus_takes_its_stills_cropped() {
 }
 
 #[test]
+fn bench_memory_rows_measure_a_child_decode_per_codec() {
+    let v = json(&hdrcodec(&[
+        &"bench",
+        &"--memory",
+        &"--quick",
+        &"--filter",
+        &"exr:zip-half,exr:piz-half,bc6h:effort0",
+        &"--json",
+    ]));
+    let memory = v["memory"].as_array().unwrap();
+    // One row per codec (its first configuration), on the largest image of the run.
+    let configs: Vec<&str> = memory.iter().map(|r| r["config"].as_str().unwrap()).collect();
+    assert_eq!(configs, ["exr:zip-half", "bc6h:effort0"], "{v}");
+    let largest = v["rows"].as_array().unwrap().iter().max_by_key(|r| r["pixels"].as_u64().unwrap()).unwrap();
+    for r in memory {
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!(r["image"], largest["image"], "{r}");
+        let (w, h) = (r["width"].as_u64().unwrap(), r["height"].as_u64().unwrap());
+        assert_eq!(w * h, largest["pixels"].as_u64().unwrap(), "{r}");
+        let decoded = r["decoded_bytes"].as_u64().unwrap();
+        assert!(decoded == w * h * 12 || decoded == w * h * 16, "{r}");
+        // The decoded image was resident at the peak: the peak is above the start by at least
+        // most of it, and the growth ratio is what the figures say.
+        let (start, peak) = (r["start_rss_bytes"].as_u64().unwrap(), r["peak_rss_bytes"].as_u64().unwrap());
+        assert!(start > 0 && peak as f64 >= start as f64 + 0.9 * decoded as f64, "{r}");
+        let growth = r["growth_ratio"].as_f64().unwrap();
+        assert!((growth - (peak - start) as f64 / decoded as f64).abs() < 1e-9, "{r}");
+    }
+    // The child on its own, and on a file that is not an image: one-line errors.
+    let dir = common::temp_dir("cli-memory-peak");
+    std::fs::write(dir.join("bad.exr"), b"not an exr").unwrap();
+    must_fail(&[&"memory-peak", &dir.join("bad.exr")], &dir, "not an OpenEXR file");
+    let one = json(&hdrcodec(&[&"memory-peak", &corpus().join("odd-3x5.exr")]));
+    assert_eq!((one["codec"].as_str(), one["width"].as_u64(), one["height"].as_u64()), (Some("exr"), Some(3), Some(5)));
+}
+
+#[test]
 fn missing_and_unknown_files_fail_cleanly() {
     let dir = common::temp_dir("cli-missing");
     let good = corpus().join("tiny-1x1.exr");
