@@ -82,6 +82,11 @@ pub enum Encoder {
         /// `--min` and `--max` quantizer.
         quantizer: u8,
     },
+    /// Intel ISPC's BC6H compressor (`intel_tex_2`, in process, behind the `ispc` cargo feature)
+    /// at this profile ([`peers::ispc`]): the encode speed is its, with the padding and half
+    /// conversion it needs (one thread; no pool figure); the configuration's codec (BC6H)
+    /// decodes its DDS file.
+    Ispc(&'static str),
     /// OpenImageIO's `oiiotool` re-writing the input (our uncompressed float EXR) with this
     /// OpenEXR compression and pixel type ([`peers::oiio`]): the encode speed is that process's
     /// wall time; the configuration's codec decodes the file; oiiotool decoding it is the peer.
@@ -100,6 +105,7 @@ impl Encoder {
             Encoder::Hdrcodec => None,
             Encoder::Jxrlib(_) => Some(format!("jxrlib {} (outside program)", jxrlib::ENCODER)),
             Encoder::Libultrahdr(_) => Some("libultrahdr 1.4 ultrahdr_encode (imagecodecs, outside program)".into()),
+            Encoder::Ispc(profile) => Some(peers::ispc::describe(profile)),
             e => peers::describe(e).0,
         }
     }
@@ -160,6 +166,19 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     add("jpeg-hdr", "jpeg-hdr:q85-post".into(), opts(&[("correction", "post")]).with_quality(85));
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
+    // Intel ISPC's BC6H encoder as the peer of the `bc6h:` rows (see `Encoder::Ispc`).
+    if let Ok(codec) = registry.by_name("bc6h") {
+        for profile in peers::ispc::PROFILES {
+            let (label, settings) = (format!("bc6h(ispc):{profile}"), EncodeSettings::default());
+            out.push(Config {
+                label,
+                codec: codec.clone(),
+                settings,
+                encoder: Encoder::Ispc(profile),
+                lossless: false,
+            });
+        }
+    }
     // libultrahdr's gain-map JPEG encoder as the peer of the `ultrahdr:` rows (see `Encoder::Libultrahdr`).
     if let Ok(codec) = registry.by_name("ultrahdr") {
         for q in [95, 85, 70, 50] {
@@ -539,6 +558,17 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
         }
         return row;
     }
+    if let Encoder::Ispc(profile) = config.encoder {
+        if !peers::ispc::available() {
+            row.error = Some(format!(
+                "{NOT_INSTALLED}: this build has no Intel ISPC (cargo feature `{}`: intel_tex_2)",
+                peers::ispc::FEATURE
+            ));
+        } else {
+            measure_ispc(config, profile, input, runs, pool, &mut row);
+        }
+        return row;
+    }
     if let Encoder::Libultrahdr(quality) = config.encoder {
         match libultrahdr::python() {
             None => row.error = Some(format!("{NOT_INSTALLED}: {}", libultrahdr::PACKAGE)),
@@ -727,6 +757,26 @@ fn measure_libultrahdr(
     decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
     row.notes = notes;
     Ok(())
+}
+
+/// A BC6H row written by ISPC ([`Encoder::Ispc`]): the input, its colour prepared as for our
+/// encoder, compressed at `profile`; our decoder reads the DDS file. A failure is the row's error.
+fn measure_ispc(config: &Config, profile: &str, input: &Input, runs: usize, pool: &ThreadPool, row: &mut Row) {
+    let ispc = |row: &mut Row| -> hdrcodec::core::Result<()> {
+        let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
+        let (enc_t, (bytes, clipped)) = timed(runs, || peers::ispc::encode_dds(&prepared.image, profile))?;
+        decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
+        row.notes = prepared.notes.clone();
+        if clipped > 0 {
+            let (label, image) = (&config.label, &input.name);
+            row.notes
+                .push(format!("{label} on {image}: {clipped} samples beyond half's 65504 clamped in ISPC's input"));
+        }
+        Ok(())
+    };
+    if let Err(e) = ispc(row) {
+        row.error = Some(e.to_string());
+    }
 }
 
 fn summarize(label: &str, rows: &[&Row]) -> Summary {

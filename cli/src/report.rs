@@ -202,6 +202,13 @@ const TOOLS: &[Tool] = &[
     Tool { name: "avifenc", version: || program_version("avifenc", "--version") },
     Tool { name: "oiiotool", version: || program_version("oiiotool", "--version") },
     Tool { name: "ffmpeg", version: || program_version("ffmpeg", "-version") },
+    Tool {
+        name: "ISPC",
+        version: || {
+            crate::peers::ispc::available()
+                .then(|| "Intel ISPC texcomp through intel_tex_2 0.5 (in process; cargo feature `ispc`)".into())
+        },
+    },
 ];
 
 /// The configurations whose rows name `tool` as their encoder or peer decoder.

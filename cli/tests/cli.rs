@@ -693,6 +693,28 @@ fn bench_memory_rows_measure_a_child_decode_per_codec() {
 }
 
 #[test]
+fn bench_has_ispc_rows_or_says_they_are_not_installed() {
+    // Without the `ispc` feature (the default) the rows say so; with it they are measured.
+    let v = json(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"bc6h(ispc)", &"--json"]));
+    assert_eq!(labels(&v["rows"]), ["bc6h(ispc):veryfast", "bc6h(ispc):fast", "bc6h(ispc):basic"], "{v}");
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["encoder"].as_str().unwrap().starts_with("Intel ISPC texcomp (intel_tex_2 0.5, "), "{r}");
+        if cfg!(feature = "ispc") {
+            assert!(r["error"].is_null() && r["bytes"].as_u64().unwrap() > 0, "{r}");
+            // (odd-3x5 holds what BC6H cannot: ~7 dB from ours as from ISPC.)
+            let floor = if r["image"] == "odd-3x5" { 0.0 } else { 40.0 };
+            assert!(r["pu21_psnr"].as_f64().unwrap() > floor && r["encode_mps_all"].is_null(), "{r}");
+        } else {
+            let e = r["error"].as_str().unwrap();
+            assert_eq!(e, "not installed: this build has no Intel ISPC (cargo feature `ispc`: intel_tex_2)", "{r}");
+        }
+    }
+    let table = ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"bc6h(ispc)"]));
+    let line = table.lines().find(|l| l.starts_with("bc6h(ispc):fast")).unwrap_or_else(|| panic!("{table}"));
+    assert_eq!(line.contains("not installed: "), !cfg!(feature = "ispc"), "{table}");
+}
+
+#[test]
 fn missing_and_unknown_files_fail_cleanly() {
     let dir = common::temp_dir("cli-missing");
     let good = corpus().join("tiny-1x1.exr");
