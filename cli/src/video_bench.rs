@@ -11,6 +11,7 @@
 //! peer decode, whose 10-bit planes must equal ours.
 
 use crate::bench::{self, Input};
+use crate::equal_quality;
 use crate::jxrlib::{self, TempDir};
 use crate::peers::svtav1;
 use hdrcodec::core::{metrics, ColorPrimaries, Error, HdrImage, Result, ThreadPool};
@@ -357,6 +358,22 @@ fn peer_decode(ffmpeg: &Path, bytes: &[u8], dir: &TempDir, sequence: &Sequence, 
     })
 }
 
+/// Bytes of our rows against SVT-AV1's at equal PU21-PSNR, per sequence ([`equal_quality`]: each
+/// of our points placed on SVT-AV1's curve of the same sequence); `None` without both sides.
+pub fn equal_quality(rows: &[VideoRow]) -> Option<equal_quality::Comparison> {
+    let as_rows: Vec<bench::Row> = rows
+        .iter()
+        .filter(|r| r.error.is_none())
+        .map(|r| {
+            let pixels = r.width as usize * r.height as usize * r.frames;
+            let mut row = bench::Row::blank(r.config.clone(), r.sequence.clone(), pixels, false);
+            (row.bytes, row.bpp, row.pu21_psnr) = (r.bytes, r.bpp, r.pu21_psnr);
+            row
+        })
+        .collect();
+    equal_quality::compare(&as_rows, "av1:", "av1(svt-av1):")
+}
+
 /// The rows as a plain-text table, then what each side did.
 pub fn table(rows: &[VideoRow]) -> String {
     let mut s = format!(
@@ -410,6 +427,9 @@ pub fn table(rows: &[VideoRow]) -> String {
              libdav1d on the same stream (process wall time),\n  whose planes must equal ours\n",
         );
     }
+    if let Some(c) = equal_quality(rows) {
+        s.push_str(&equal_quality::table(&[c]));
+    }
     s
 }
 
@@ -424,6 +444,43 @@ mod tests {
             p.contains("name = \"rav1e\"\n").then(|| p.lines().find_map(|l| l.strip_prefix("version = \"")))?
         });
         assert_eq!(RAV1E, format!("rav1e {}", version.unwrap().trim_end_matches('"')));
+    }
+
+    #[test]
+    fn our_points_are_placed_on_svt_av1s_curve() {
+        let row = |config: &str, bytes: usize, pu21_psnr: f64| VideoRow {
+            config: config.into(),
+            sequence: "s".into(),
+            frames: 1,
+            width: 10,
+            height: 10,
+            bytes,
+            bpp: bytes as f64 * 8.0 / 100.0,
+            pu21_psnr,
+            de_itp_mean: 1.0,
+            de_itp_p99: 1.0,
+            encode_fps: 1.0,
+            decode_fps: 1.0,
+            encoder: String::new(),
+            decoder: String::new(),
+            signalled: String::new(),
+            peer: None,
+            notes: Vec::new(),
+            error: None,
+        };
+        let rows = [
+            row("av1:q60", 2000, 44.0),
+            row("av1:q100", 1000, 40.0),
+            row("av1(svt-av1):crf15", 3000, 45.0),
+            row("av1(svt-av1):crf25", 1500, 41.0),
+        ];
+        let c = equal_quality(&rows).unwrap();
+        // 44 dB on SVT's curve: log bytes 3/4 of the way from 1500 to 3000, 1500·2^0.75; 40 dB
+        // is below its range.
+        assert_eq!((c.points.len(), c.out_of_range), (1, 1));
+        assert!((c.geometric_mean - 2000.0 / (1500.0 * 2f64.powf(0.75))).abs() < 1e-9, "{}", c.geometric_mean);
+        assert!(table(&rows).contains("bytes of av1: / bytes of av1(svt-av1): at equal PU21-PSNR"));
+        assert!(equal_quality(&rows[..2]).is_none());
     }
 
     #[test]
