@@ -135,15 +135,16 @@ fn measure_one(config: &Config, input: &Input, exe: &Path, row: &mut MemoryRow) 
 
 /// The rows as a plain-text table.
 pub fn table(rows: &[MemoryRow]) -> String {
+    let w = rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
     let mut s = format!(
-        "{:<24} {:<24} {:>10} {:>11} {:>9} {:>9} {:>8} {:>5}\n",
+        "{:<24} {:<w$} {:>10} {:>11} {:>9} {:>9} {:>8} {:>5}\n",
         "memory: config", "image", "file MB", "decoded MB", "start MB", "peak MB", "growth", "met"
     );
     let mb = |b: u64| b as f64 / 1e6;
     for r in rows {
         match (&r.peak, &r.error) {
             (Some(p), _) => s.push_str(&format!(
-                "{:<24} {:<24} {:>10.2} {:>11.2} {:>9.2} {:>9.2} {:>7.2}x {:>5}\n",
+                "{:<24} {:<w$} {:>10.2} {:>11.2} {:>9.2} {:>9.2} {:>7.2}x {:>5}\n",
                 r.config,
                 r.image,
                 mb(r.file_bytes),
@@ -153,7 +154,7 @@ pub fn table(rows: &[MemoryRow]) -> String {
                 r.growth_ratio,
                 if r.growth_ratio <= TARGET { "yes" } else { "no" }
             )),
-            (None, e) => s.push_str(&format!("{:<24} {:<24} {}\n", r.config, r.image, e.as_deref().unwrap_or(""))),
+            (None, e) => s.push_str(&format!("{:<24} {:<w$} {}\n", r.config, r.image, e.as_deref().unwrap_or(""))),
         }
     }
     s.push_str(&format!(

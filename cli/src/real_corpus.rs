@@ -25,7 +25,9 @@ pub fn dir() -> Result<PathBuf> {
             vec![PathBuf::from("../shared/corpus"), Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus")]
         }
     };
-    candidates.iter().find(|d| d.join("MANIFEST.tsv").is_file()).cloned().ok_or_else(|| {
+    let found = candidates.iter().find(|d| d.join("MANIFEST.tsv").is_file());
+    // Shown in the report: `../../` steps resolved where the path exists.
+    found.map(|d| d.canonicalize().unwrap_or_else(|_| d.clone())).ok_or_else(|| {
         let tried: Vec<String> = candidates.iter().map(|d| d.display().to_string()).collect();
         Error::invalid(format!(
             "no shared corpus (a directory with MANIFEST.tsv) at {}; set HDRCODEC_CORPUS",
