@@ -82,6 +82,11 @@ pub enum Encoder {
         /// `--min` and `--max` quantizer.
         quantizer: u8,
     },
+    /// Intel ISPC's BC6H compressor (`intel_tex_2`, in process, behind the `ispc` cargo feature)
+    /// at this profile ([`peers::ispc`]): the encode speed is its, with the padding and half
+    /// conversion it needs (one thread; no pool figure); the configuration's codec (BC6H)
+    /// decodes its DDS file.
+    Ispc(&'static str),
     /// OpenImageIO's `oiiotool` re-writing the input (our uncompressed float EXR) with this
     /// OpenEXR compression and pixel type ([`peers::oiio`]): the encode speed is that process's
     /// wall time; the configuration's codec decodes the file; oiiotool decoding it is the peer.
@@ -100,6 +105,7 @@ impl Encoder {
             Encoder::Hdrcodec => None,
             Encoder::Jxrlib(_) => Some(format!("jxrlib {} (outside program)", jxrlib::ENCODER)),
             Encoder::Libultrahdr(_) => Some("libultrahdr 1.4 ultrahdr_encode (imagecodecs, outside program)".into()),
+            Encoder::Ispc(profile) => Some(peers::ispc::describe(profile)),
             e => peers::describe(e).0,
         }
     }
@@ -160,6 +166,19 @@ pub fn configurations(registry: &Registry) -> Vec<Config> {
     add("jpeg-hdr", "jpeg-hdr:q85-post".into(), opts(&[("correction", "post")]).with_quality(85));
     // Uncompressed half floats in the container: the size every lossy codec should beat.
     add("hdrc", "hdrc:raw-f16".into(), opts(&[("payload", "raw-f16")]));
+    // Intel ISPC's BC6H encoder as the peer of the `bc6h:` rows (see `Encoder::Ispc`).
+    if let Ok(codec) = registry.by_name("bc6h") {
+        for profile in peers::ispc::PROFILES {
+            let (label, settings) = (format!("bc6h(ispc):{profile}"), EncodeSettings::default());
+            out.push(Config {
+                label,
+                codec: codec.clone(),
+                settings,
+                encoder: Encoder::Ispc(profile),
+                lossless: false,
+            });
+        }
+    }
     // libultrahdr's gain-map JPEG encoder as the peer of the `ultrahdr:` rows (see `Encoder::Libultrahdr`).
     if let Ok(codec) = registry.by_name("ultrahdr") {
         for q in [95, 85, 70, 50] {
@@ -477,6 +496,13 @@ pub struct Report {
     /// Bytes at equal PU21-PSNR between families of configurations
     /// ([`equal_quality::COMPARISONS`] whose two sides ran).
     pub equal_quality: Vec<equal_quality::Comparison>,
+    /// The HDR10 AV1 rows (`bench --video`; [`crate::video_bench`]), empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub video: Vec<crate::video_bench::VideoRow>,
+    /// Peak memory of decoding the largest image, per codec (`bench --memory`, `--report`;
+    /// [`crate::memory`]), empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub memory: Vec<crate::memory::MemoryRow>,
 }
 
 /// Once the runs of one measurement have taken this long, no further run is started: slow
@@ -529,6 +555,17 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
                     row.error = Some(e.to_string());
                 }
             }
+        }
+        return row;
+    }
+    if let Encoder::Ispc(profile) = config.encoder {
+        if !peers::ispc::available() {
+            row.error = Some(format!(
+                "{NOT_INSTALLED}: this build has no Intel ISPC (cargo feature `{}`: intel_tex_2)",
+                peers::ispc::FEATURE
+            ));
+        } else {
+            measure_ispc(config, profile, input, runs, pool, &mut row);
         }
         return row;
     }
@@ -722,6 +759,26 @@ fn measure_libultrahdr(
     Ok(())
 }
 
+/// A BC6H row written by ISPC ([`Encoder::Ispc`]): the input, its colour prepared as for our
+/// encoder, compressed at `profile`; our decoder reads the DDS file. A failure is the row's error.
+fn measure_ispc(config: &Config, profile: &str, input: &Input, runs: usize, pool: &ThreadPool, row: &mut Row) {
+    let ispc = |row: &mut Row| -> hdrcodec::core::Result<()> {
+        let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
+        let (enc_t, (bytes, clipped)) = timed(runs, || peers::ispc::encode_dds(&prepared.image, profile))?;
+        decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
+        row.notes = prepared.notes.clone();
+        if clipped > 0 {
+            let (label, image) = (&config.label, &input.name);
+            row.notes
+                .push(format!("{label} on {image}: {clipped} samples beyond half's 65504 clamped in ISPC's input"));
+        }
+        Ok(())
+    };
+    if let Err(e) = ispc(row) {
+        row.error = Some(e.to_string());
+    }
+}
+
 fn summarize(label: &str, rows: &[&Row]) -> Summary {
     let ok: Vec<&&Row> = rows.iter().filter(|r| r.error.is_none()).collect();
     let pixels: usize = ok.iter().map(|r| r.pixels).sum();
@@ -799,7 +856,18 @@ pub fn run(
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
         .collect();
     let equal_quality = equal_quality::comparisons(&rows);
-    Report { source: source.to_string(), runs, threads: pool.threads(), rows, summary, skipped, equal_quality }
+    let (video, memory) = (Vec::new(), Vec::new());
+    Report {
+        source: source.to_string(),
+        runs,
+        threads: pool.threads(),
+        rows,
+        summary,
+        skipped,
+        equal_quality,
+        video,
+        memory,
+    }
 }
 
 fn fmt_db(v: f64) -> String {
@@ -852,14 +920,16 @@ fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 
 
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
-    let mut s = format!("{:<24} {:<24} {}\n", "config", "image", headers(report));
+    // The image column is as wide as the longest name (cropped corpus files: `NAME@cWxH`).
+    let w = report.rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
+    let mut s = format!("{:<24} {:<w$} {}\n", "config", "image", headers(report));
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
         let psnr = if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) };
         let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
         let line = figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer);
         let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {:<24} {line}{mark}\n", r.config, r.image));
+        s.push_str(&format!("{:<24} {:<w$} {line}{mark}\n", r.config, r.image));
     }
     s.push('\n');
     s

@@ -5,7 +5,7 @@ use hdrcodec::core::{
     metrics, DecodeOptions, EncodeSettings, Error, Hdr10Metadata, Limits, Result, ThreadPool, VideoCodec,
 };
 use hdrcodec_cli::conversion::ConversionSettings;
-use hdrcodec_cli::{batch, bench};
+use hdrcodec_cli::{batch, bench, memory, real_corpus, video_bench};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Map, Value};
 use std::io::IsTerminal;
@@ -368,6 +368,14 @@ pub struct BenchOptions {
     pub per_image: bool,
     pub runs: usize,
     pub quick: bool,
+    /// Also the HDR10 AV1 video rows.
+    pub video: bool,
+    /// `--corpus`: "shared" or "generated".
+    pub corpus: Option<String>,
+    /// `--crop WxH`.
+    pub crop: Option<String>,
+    /// Also the peak memory of decoding (always with `report`).
+    pub memory: bool,
 }
 
 /// Images at most this large are used by `bench --quick`.
@@ -383,18 +391,36 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     }
     let reg = hdrcodec::registry();
     let mut configs = bench::configurations(&reg);
+    let mut video_configs = if o.video { video_bench::configurations() } else { Vec::new() };
     if let Some(f) = &o.filter {
-        configs.retain(|c| f.split(',').any(|part| c.label.contains(part)));
-        if configs.is_empty() {
+        let wanted = |label: &str| f.split(',').any(|part| label.contains(part));
+        configs.retain(|c| wanted(&c.label));
+        video_configs.retain(|c| wanted(&c.label));
+        if configs.is_empty() && video_configs.is_empty() {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
     }
-    let (mut inputs, skipped, source) = if o.paths.is_empty() {
-        (bench::generated_inputs(), Vec::new(), "generated corpus".to_string())
-    } else {
-        let (i, s) = bench::path_inputs(&o.paths, &reg, &Limits::default())?;
-        (i, s, o.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" "))
+    let crop = o.crop.as_deref().map(real_corpus::parse_size).transpose()?;
+    let (mut inputs, skipped, source) = match o.corpus.as_deref() {
+        Some("shared") => {
+            let dir = real_corpus::dir()?;
+            let (i, s) = bench::path_inputs(&real_corpus::still_files(&dir)?, &reg, &Limits::default())?;
+            (i, s, format!("the shared corpus's original EXR and Radiance stills ({})", dir.display()))
+        }
+        Some(other) if other != "generated" => {
+            return Err(Error::invalid(format!("--corpus is 'shared' or 'generated', not '{other}'")))
+        }
+        _ if o.paths.is_empty() => (bench::generated_inputs(), Vec::new(), "generated corpus".to_string()),
+        _ => {
+            let (i, s) = bench::path_inputs(&o.paths, &reg, &Limits::default())?;
+            (i, s, o.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" "))
+        }
     };
+    let mut source = source;
+    if let Some(size) = crop {
+        real_corpus::crop_inputs(&mut inputs, size)?;
+        source.push_str(&format!(", centre {}x{} crops of larger images", size.0, size.1));
+    }
     if o.quick {
         inputs.retain(|i| i.image.pixel_count() <= QUICK_MAX_PIXELS);
     }
@@ -402,12 +428,21 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
     }
     let context = hdrcodec_cli::report::Context::now(&inputs);
-    let pb = progress_bar(configs.len() * inputs.len(), o.json);
+    let sequences = if video_configs.is_empty() { Vec::new() } else { video_bench::sequences(&inputs, o.quick)? };
+    let pb = progress_bar(configs.len() * inputs.len() + video_configs.len() * sequences.len(), o.json);
     let pool = ThreadPool::new(o.threads)?;
-    let report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
+    let mut report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {
         pb.set_position(done as u64);
         pb.set_message(label.to_string());
     });
+    report.video = video_bench::run(&video_configs, &sequences, o.runs, |label| {
+        pb.inc(1);
+        pb.set_message(label.to_string());
+    });
+    if o.memory || o.report.is_some() {
+        pb.set_message("peak memory of decoding");
+        report.memory = memory::measure(&configs, &inputs, &std::env::current_exe()?);
+    }
     pb.finish_and_clear();
     if let Some(p) = &o.plot {
         hdrcodec_cli::plot::write(&report, p)?;
@@ -422,8 +457,23 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
     if o.per_image {
         print!("{}", bench::per_image_table(&report));
     }
-    print!("{}", bench::table(&report));
+    if !configs.is_empty() {
+        print!("{}", bench::table(&report));
+    }
+    if !report.video.is_empty() {
+        print!("{}", video_bench::table(&report.video));
+    }
+    if !report.memory.is_empty() {
+        print!("{}", memory::table(&report.memory));
+    }
     Ok(())
+}
+
+/// `hdrcodec memory-peak FILE` (hidden; `bench --memory`'s child): one JSON object.
+pub fn memory_peak(file: &Path) -> Result<()> {
+    let peak = memory::decode_peak(file)?;
+    let v = serde_json::to_value(&peak).map_err(|e| Error::invalid(format!("cannot format JSON: {e}")))?;
+    print_json(&v)
 }
 
 /// The batch's progress bar on stderr (with an ETA), when [`progress_visible`]; per-file failures as `hdrcodec: FILE: reason` lines above it.

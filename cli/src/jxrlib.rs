@@ -189,6 +189,12 @@ pub const MESSAGE_CHARS: usize = 400;
 /// program printed (stderr, then stdout; its lines joined, at most [`MESSAGE_CHARS`] characters:
 /// cjxl prints a banner line before its error).
 pub fn run(program: &Path, args: &[&std::ffi::OsStr], output: &Path) -> Result<Duration> {
+    run_with_stderr(program, args, output).map(|(took, _)| took)
+}
+
+/// [`run`], also returning what the program printed on stderr (FFmpeg names its encoder
+/// library's version there).
+pub fn run_with_stderr(program: &Path, args: &[&std::ffi::OsStr], output: &Path) -> Result<(Duration, String)> {
     let name = program.file_name().map_or_else(|| program.display().to_string(), |n| n.to_string_lossy().into());
     let _ = std::fs::remove_file(output);
     let start = Instant::now();
@@ -209,7 +215,7 @@ pub fn run(program: &Path, args: &[&std::ffi::OsStr], output: &Path) -> Result<D
         let what = if out.status.success() { "wrote no file".to_string() } else { format!("failed ({})", out.status) };
         return Err(Error::Io(std::io::Error::other(format!("{name} {what}: {message}"))));
     }
-    Ok(took)
+    Ok((took, String::from_utf8_lossy(&out.stderr).into_owned()))
 }
 
 /// The sample bytes of an uncompressed TIFF (its strips, in order), as JxrDecApp writes them.

@@ -85,6 +85,13 @@ enum Command {
     /// HDR video: frames to HDR10 (PQ), HLG or L_p u'v' AV1 in IVF or MP4 (rav1e), and back (libdav1d).
     #[command(subcommand)]
     Video(VideoCommand),
+    /// Decode FILE into a whole image and print this process's peak resident memory as JSON
+    /// (what `bench --memory` runs in a child process).
+    #[command(hide = true)]
+    MemoryPeak {
+        /// The image file.
+        file: PathBuf,
+    },
     /// List the codecs of this build: name, file extensions, container id.
     Codecs {
         /// Print one JSON object instead of text.
@@ -170,6 +177,17 @@ struct BatchArgs {
 struct BenchArgs {
     /// Image files and directories of images (default: the generated corpus).
     paths: Vec<PathBuf>,
+    /// `shared`: the shared corpus of real HDR images (`$HDRCODEC_CORPUS`, else
+    /// `../shared/corpus`): the original OpenEXR and Radiance files its MANIFEST.tsv lists (13
+    /// photographs, environment maps and test charts, 0.24-1.09 MP each, 8.4 MP in all: pair it
+    /// with `--crop` or `--filter` on a small machine). `generated` (the default without PATHS):
+    /// the project's own generated corpus.
+    #[arg(long, value_name = "shared|generated", conflicts_with = "paths")]
+    corpus: Option<String>,
+    /// Bench the centre WIDTHxHEIGHT window of every larger image (its rows are named
+    /// `NAME@cWxH`).
+    #[arg(long, value_name = "WxH")]
+    crop: Option<String>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -200,6 +218,16 @@ struct BenchArgs {
     /// One run per measurement and only the smaller images: for tests.
     #[arg(long, hide = true)]
     quick: bool,
+    /// Also run the HDR10 AV1 video rows: ours (rav1e) and FFmpeg's SVT-AV1 at a sweep of
+    /// quantizers, on a generated moving light (256x144, 12 frames) and a pan across a crop of
+    /// the largest image (320x176 at most), decoded by libdav1d; FFmpeg's libdav1d decode is
+    /// the peer. `--filter` applies to their labels too (`av1:q100`, `av1(svt-av1):crf25`).
+    #[arg(long)]
+    video: bool,
+    /// Also measure, per codec, the peak resident memory of decoding the largest image (in a
+    /// child process) against the decoded image's size; every --report does.
+    #[arg(long)]
+    memory: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -347,7 +375,12 @@ fn run() -> ExitCode {
             per_image: a.per_image,
             runs: if a.quick { 1 } else { a.runs.max(1) },
             quick: a.quick,
+            video: a.video,
+            corpus: a.corpus,
+            crop: a.crop,
+            memory: a.memory,
         }),
+        Command::MemoryPeak { file } => cli::memory_peak(&file),
         Command::Batch(a) => batch_options(a).and_then(|(options, json)| cli::batch(&options, json)),
         Command::Corpus(CorpusCommand::Write { dir }) => cli::corpus_write(&dir),
         Command::Corpus(CorpusCommand::Large { file, width, height }) => cli::corpus_large(&file, width, height),

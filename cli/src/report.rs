@@ -202,6 +202,13 @@ const TOOLS: &[Tool] = &[
     Tool { name: "avifenc", version: || program_version("avifenc", "--version") },
     Tool { name: "oiiotool", version: || program_version("oiiotool", "--version") },
     Tool { name: "ffmpeg", version: || program_version("ffmpeg", "-version") },
+    Tool {
+        name: "ISPC",
+        version: || {
+            crate::peers::ispc::available()
+                .then(|| "Intel ISPC texcomp through intel_tex_2 0.5 (in process; cargo feature `ispc`)".into())
+        },
+    },
 ];
 
 /// The configurations whose rows name `tool` as their encoder or peer decoder.
@@ -213,6 +220,15 @@ fn rows_using(report: &Report, tool: &str) -> Vec<String> {
         let peer = r.peer.as_ref().map(|p| p.decoder.clone());
         let why = report.summary.iter().find(|s| s.config == r.config).and_then(|s| s.unavailable.clone());
         if (named(&r.encoder) || named(&peer) || named(&why)) && !out.contains(&r.config) {
+            out.push(r.config.clone());
+        }
+    }
+    for r in &report.video {
+        let named = [Some(&r.encoder), r.peer.as_ref().map(|p| &p.decoder), r.error.as_ref()]
+            .into_iter()
+            .flatten()
+            .any(|s| s.to_ascii_lowercase().contains(&tool));
+        if named && !out.contains(&r.config) {
             out.push(r.config.clone());
         }
     }
@@ -317,6 +333,20 @@ pub fn markdown(report: &Report, context: &Context, path: &Path) -> String {
         s.push_str("No comparison of `cli/src/equal_quality.rs` had both of its sides in this run.\n");
     } else {
         s.push_str(&code_block(&eq));
+    }
+    if !report.video.is_empty() {
+        s.push_str(
+            "\n## Video: HDR10 AV1\n\nOurs (`av1:`, hdrcodec-video on rav1e) and FFmpeg's SVT-AV1 (`av1(svt-av1):`) on the same \
+             10-bit Y'CbCr frames, as `hdrcodec bench --video` prints them.\n\n",
+        );
+        s.push_str(&code_block(&crate::video_bench::table(&report.video)));
+    }
+    if !report.memory.is_empty() {
+        s.push_str(
+            "\n## Peak memory of decoding\n\nPer codec, its first configuration's file of the largest image, decoded into a whole \
+             image by a child `hdrcodec memory-peak` process that reads its own peak resident set.\n\n",
+        );
+        s.push_str(&code_block(&crate::memory::table(&report.memory)));
     }
     s.push_str("\n## Per image\n\n<details><summary>Every configuration on every image</summary>\n\n");
     s.push_str(&code_block(&bench::per_image_table(report)));

@@ -553,6 +553,168 @@ fn bench_on_a_directory_and_as_a_table() {
 }
 
 #[test]
+fn bench_video_rows_compare_ours_with_svt_av1() {
+    if common::require(common::tool("ffmpeg"), "ffmpeg (Debian ffmpeg, with libsvtav1 and libdav1d)").is_none() {
+        return;
+    }
+    let dir = common::temp_dir("cli-bench-video-report");
+    let md = dir.join("V.md");
+    let filter = "av1:q100,av1(svt-av1):crf25";
+    let v = json(&hdrcodec(&[&"bench", &"--video", &"--quick", &"--filter", &filter, &"--json", &"--report", &md]));
+    assert_eq!(v["rows"].as_array().map(Vec::len), Some(0), "only video rows: {v}");
+    let rows = v["video"].as_array().unwrap();
+    let labels: Vec<(&str, &str)> =
+        rows.iter().map(|r| (r["config"].as_str().unwrap(), r["sequence"].as_str().unwrap())).collect();
+    // The moving light, then a pan across the largest of the --quick images.
+    assert_eq!(labels.len(), 4, "{v}");
+    assert_eq!(labels[0], ("av1:q100", "moving-light"));
+    assert!(labels[1].1.starts_with("pan:") && labels[3].0 == "av1(svt-av1):crf25", "{v}");
+    for r in rows {
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!((r["width"].as_u64(), r["height"].as_u64(), r["frames"].as_u64()), (Some(128), Some(72), Some(4)));
+        let (bytes, bpp) = (r["bytes"].as_u64().unwrap(), r["bpp"].as_f64().unwrap());
+        assert!(bytes > 100 && (bpp - bytes as f64 * 8.0 / (128.0 * 72.0 * 4.0)).abs() < 1e-9, "{r}");
+        // Lossy but close: a coarse quantizer on small frames still gives the scene back.
+        let psnr = r["pu21_psnr"].as_f64().unwrap();
+        assert!(psnr.is_finite() && psnr > 25.0, "{r}");
+        assert!(r["de_itp_mean"].as_f64().unwrap() > 0.0 && r["encode_fps"].as_f64().unwrap() > 0.0, "{r}");
+        // Both streams say HDR10, with the same mastering display and content light level.
+        let signalled = r["signalled"].as_str().unwrap();
+        assert!(
+            signalled.starts_with("cicp 9/16/9 limited, 10-bit, chroma colocated, MDCV 1000/0.0001 cd/m², CLL "),
+            "{r}"
+        );
+        // FFmpeg's libdav1d decodes the same planes as ours.
+        assert_eq!(r["peer"]["matches"], true, "{r}");
+        let encoder = r["encoder"].as_str().unwrap();
+        if r["config"].as_str().unwrap().starts_with("av1(svt-av1)") {
+            assert!(encoder.starts_with("ffmpeg ") && encoder.contains("SVT-AV1 v"), "{encoder}");
+        } else {
+            assert!(encoder.starts_with("hdrcodec-video (rav1e 0."), "{encoder}");
+        }
+    }
+    // The page has the video table, and its peer-tool table names the rows that used FFmpeg.
+    let page = std::fs::read_to_string(&md).unwrap();
+    assert!(
+        page.contains("## Video: HDR10 AV1")
+            && page.lines().any(|l| l.starts_with("av1(svt-av1):crf25") && l.contains(" pan:")),
+        "{page}"
+    );
+    let tools = page.lines().find(|l| l.starts_with("| ffmpeg |")).unwrap();
+    assert!(tools.ends_with("| `av1:q100`, `av1(svt-av1):crf25` |"), "{tools}");
+    let table = ok(&hdrcodec(&[&"bench", &"--video", &"--quick", &"--filter", &"av1:q180"]));
+    assert!(table.starts_with("video config") && table.contains("av1:q180") && !table.contains("DIFFERS"), "{table}");
+}
+
+#[test]
+fn bench_video_rows_without_ffmpeg_say_not_installed() {
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--video", "--quick", "--filter", "av1:q180,av1(svt-av1):crf45", "--json"])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    let v = json(&out);
+    for r in v["video"].as_array().unwrap() {
+        if r["config"] == "av1(svt-av1):crf45" {
+            assert_eq!(r["error"], "not installed: ffmpeg (Debian ffmpeg) is not on PATH", "{r}");
+        } else {
+            // Ours still runs; only its peer decode is missing, and the row says so.
+            assert!(r["error"].is_null() && r["bytes"].as_u64().unwrap() > 0 && r["peer"].is_null(), "{r}");
+            assert!(r["notes"][0].as_str().unwrap().contains("no peer decode"), "{r}");
+        }
+    }
+    // Without --video, a filter that only names video rows matches nothing.
+    let dir = common::temp_dir("cli-bench-video");
+    must_fail(&[&"bench", &"--quick", &"--filter", &"av1:q180"], &dir, "no bench configuration matches");
+}
+
+#[test]
+fn bench_on_the_shared_corpus_takes_its_stills_cropped() {
+    let Some(dir) = common::require(common::corpus_dir(), "the shared HDR corpus (../shared/corpus)") else { return };
+    let args: [&dyn AsRef<std::ffi::OsStr>; 9] =
+        [&"bench", &"--corpus", &"shared", &"--crop", &"64x48", &"--filter", &"exr:zip-half", &"--quick", &"--json"];
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec")).args(args).env("HDRCODEC_CORPUS", &dir).output().unwrap();
+    let v = json(&out);
+    assert!(v["source"].as_str().unwrap().starts_with("the shared corpus's original EXR and Radiance stills"), "{v}");
+    let images: Vec<&str> = v["rows"].as_array().unwrap().iter().map(|r| r["image"].as_str().unwrap()).collect();
+    // The MANIFEST's original exr/ and hdr/ files, each cropped (all are larger than 64x48);
+    // not the corpus's own re-encodes.
+    assert!(images.contains(&"Desk.exr@c64x48") && images.contains(&"mpi_atrium_3.hdr@c64x48"), "{images:?}");
+    assert!(images.iter().all(|i| i.ends_with("@c64x48") && !i.contains("dwaa")), "{images:?}");
+    assert!(v["rows"].as_array().unwrap().iter().all(|r| r["pixels"] == 64 * 48 && r["error"].is_null()), "{v}");
+    // A missing corpus and a bad crop are one-line errors.
+    let empty = common::temp_dir("cli-bench-no-corpus");
+    let out = Command::new(env!("CARGO_BIN_EXE_hdrcodec"))
+        .args(["bench", "--corpus", "shared", "--quick"])
+        .env("HDRCODEC_CORPUS", &empty)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.starts_with("hdrcodec: ") && err.contains("HDRCODEC_CORPUS"), "{err}");
+    must_fail(&[&"bench", &"--crop", &"0x5", &"--quick"], &empty, "--crop wants WIDTHxHEIGHT");
+    must_fail(&[&"bench", &"--corpus", &"elsewhere", &"--quick"], &empty, "--corpus is 'shared' or 'generated'");
+}
+
+#[test]
+fn bench_memory_rows_measure_a_child_decode_per_codec() {
+    let v = json(&hdrcodec(&[
+        &"bench",
+        &"--memory",
+        &"--quick",
+        &"--filter",
+        &"exr:zip-half,exr:piz-half,bc6h:effort0",
+        &"--json",
+    ]));
+    let memory = v["memory"].as_array().unwrap();
+    // One row per codec (its first configuration), on the largest image of the run.
+    let configs: Vec<&str> = memory.iter().map(|r| r["config"].as_str().unwrap()).collect();
+    assert_eq!(configs, ["exr:zip-half", "bc6h:effort0"], "{v}");
+    let largest = v["rows"].as_array().unwrap().iter().max_by_key(|r| r["pixels"].as_u64().unwrap()).unwrap();
+    for r in memory {
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!(r["image"], largest["image"], "{r}");
+        let (w, h) = (r["width"].as_u64().unwrap(), r["height"].as_u64().unwrap());
+        assert_eq!(w * h, largest["pixels"].as_u64().unwrap(), "{r}");
+        let decoded = r["decoded_bytes"].as_u64().unwrap();
+        assert!(decoded == w * h * 12 || decoded == w * h * 16, "{r}");
+        // The decoded image was resident at the peak: the peak is above the start by at least
+        // most of it, and the growth ratio is what the figures say.
+        let (start, peak) = (r["start_rss_bytes"].as_u64().unwrap(), r["peak_rss_bytes"].as_u64().unwrap());
+        assert!(start > 0 && peak as f64 >= start as f64 + 0.9 * decoded as f64, "{r}");
+        let growth = r["growth_ratio"].as_f64().unwrap();
+        assert!((growth - (peak - start) as f64 / decoded as f64).abs() < 1e-9, "{r}");
+    }
+    // The child on its own, and on a file that is not an image: one-line errors.
+    let dir = common::temp_dir("cli-memory-peak");
+    std::fs::write(dir.join("bad.exr"), b"not an exr").unwrap();
+    must_fail(&[&"memory-peak", &dir.join("bad.exr")], &dir, "not an OpenEXR file");
+    let one = json(&hdrcodec(&[&"memory-peak", &corpus().join("odd-3x5.exr")]));
+    assert_eq!((one["codec"].as_str(), one["width"].as_u64(), one["height"].as_u64()), (Some("exr"), Some(3), Some(5)));
+}
+
+#[test]
+fn bench_has_ispc_rows_or_says_they_are_not_installed() {
+    // Without the `ispc` feature (the default) the rows say so; with it they are measured.
+    let v = json(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"bc6h(ispc)", &"--json"]));
+    assert_eq!(labels(&v["rows"]), ["bc6h(ispc):veryfast", "bc6h(ispc):fast", "bc6h(ispc):basic"], "{v}");
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["encoder"].as_str().unwrap().starts_with("Intel ISPC texcomp (intel_tex_2 0.5, "), "{r}");
+        if cfg!(feature = "ispc") {
+            assert!(r["error"].is_null() && r["bytes"].as_u64().unwrap() > 0, "{r}");
+            // (odd-3x5 holds what BC6H cannot: ~7 dB from ours as from ISPC.)
+            let floor = if r["image"] == "odd-3x5" { 0.0 } else { 40.0 };
+            assert!(r["pu21_psnr"].as_f64().unwrap() > floor && r["encode_mps_all"].is_null(), "{r}");
+        } else {
+            let e = r["error"].as_str().unwrap();
+            assert_eq!(e, "not installed: this build has no Intel ISPC (cargo feature `ispc`: intel_tex_2)", "{r}");
+        }
+    }
+    let table = ok(&hdrcodec(&[&"bench", &"--quick", &"--filter", &"bc6h(ispc)"]));
+    let line = table.lines().find(|l| l.starts_with("bc6h(ispc):fast")).unwrap_or_else(|| panic!("{table}"));
+    assert_eq!(line.contains("not installed: "), !cfg!(feature = "ispc"), "{table}");
+}
+
+#[test]
 fn missing_and_unknown_files_fail_cleanly() {
     let dir = common::temp_dir("cli-missing");
     let good = corpus().join("tiny-1x1.exr");

@@ -1,6 +1,7 @@
 //! The bench's outside peers beyond jxrlib and libultrahdr: JPEG XL through libjxl's `cjxl` /
 //! `djxl` ([`jxl`]), AVIF 10- and 12-bit PQ through libavif's `avifenc` / `avifdec` ([`avif`]),
-//! and OpenEXR through OpenImageIO's `oiiotool` ([`oiio`]). All are reached as programs on
+//! OpenEXR through OpenImageIO's `oiiotool` ([`oiio`]), AV1 HDR10 through FFmpeg's SVT-AV1
+//! for the video rows ([`svtav1`]), and BC6H through Intel ISPC in process ([`ispc`], a cargo feature). All are reached as programs on
 //! PATH (nothing is linked), in a temporary directory that is removed on return, also on
 //! failure; without a program the rows say "not installed".
 //!
@@ -12,8 +13,10 @@
 //! peer decode whose samples must equal ours.
 
 pub mod avif;
+pub mod ispc;
 pub mod jxl;
 pub mod oiio;
+pub mod svtav1;
 
 use crate::bench::{self, Config, Encoder, Input, PeerDecode, Row};
 use crate::jxrlib::{self, TempDir};
@@ -283,6 +286,13 @@ pub fn table_notes(report: &bench::Report) -> String {
             avif::encoder_version(),
             avif::decoder_version()
         ));
+    }
+    if has("bc6h(ispc)") && ispc::available() {
+        s.push_str(
+            "bc6h(ispc) rows: Intel ISPC texcomp (intel_tex_2 0.5, in process) compresses the input as padded RGBA half floats \
+             (NaN and negatives\n  to 0) at the labelled profile; enc 1T includes that conversion, enc all '-'; bytes, quality \
+             and dec are our decoder on its DDS file\n",
+        );
     }
     if has("exr(oiiotool)") {
         s.push_str(&format!(
