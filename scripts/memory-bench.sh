@@ -33,7 +33,7 @@ trap 'rm -rf "$dir"' EXIT
 "$bin" convert "$dir/big.exr" "$dir/big.dds" --effort 0 2>/dev/null
 "$bin" convert "$dir/big.exr" "$dir/big.ktx2" --effort 0 2>/dev/null
 "$bin" convert "$dir/big.exr" "$dir/big.hdrc" --opt payload=raw-f16 --opt tile=512 2>/dev/null
-# JPEG XR (decoding only until its encoder lands): the image as half floats through jxrlib's
+# JPEG XR, a file for the decode rows: the image as half floats through jxrlib's
 # encoder (imagecodecs, quality 0.9), when the reference venv is there.
 jxr=false
 if [ -x .venv/bin/python ] && .venv/bin/python - "$dir/big.pfm" "$dir/big.jxr" <<'PY' 2>/dev/null; then jxr=true; fi
