@@ -374,6 +374,8 @@ pub struct BenchOptions {
     pub corpus: Option<String>,
     /// `--crop WxH`.
     pub crop: Option<String>,
+    /// `--video-size WxH`: the video rows' frame size.
+    pub video_size: Option<String>,
     /// Also the peak memory of decoding (always with `report`).
     pub memory: bool,
 }
@@ -400,7 +402,7 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
             return Err(Error::invalid(format!("no bench configuration matches '{f}'")));
         }
     }
-    let crop = o.crop.as_deref().map(real_corpus::parse_size).transpose()?;
+    let crop = o.crop.as_deref().map(|t| real_corpus::parse_size("--crop", t)).transpose()?;
     let (mut inputs, skipped, source) = match o.corpus.as_deref() {
         Some("shared") => {
             let dir = real_corpus::dir()?;
@@ -428,7 +430,9 @@ pub fn bench(o: &BenchOptions) -> Result<()> {
         return Err(Error::invalid(format!("no image that hdrcodec can decode in {source}")));
     }
     let context = hdrcodec_cli::report::Context::now(&inputs);
-    let sequences = if video_configs.is_empty() { Vec::new() } else { video_bench::sequences(&inputs, o.quick)? };
+    let video_size = o.video_size.as_deref().map(|t| real_corpus::parse_size("--video-size", t)).transpose()?;
+    let sequences =
+        if video_configs.is_empty() { Vec::new() } else { video_bench::sequences(&inputs, o.quick, video_size)? };
     let pb = progress_bar(configs.len() * inputs.len() + video_configs.len() * sequences.len(), o.json);
     let pool = ThreadPool::new(o.threads)?;
     let mut report = bench::run(&configs, &inputs, o.runs, &pool, &source, skipped, |done, _, label| {

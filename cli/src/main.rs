@@ -224,6 +224,10 @@ struct BenchArgs {
     /// the peer. `--filter` applies to their labels too (`av1:q100`, `av1(svt-av1):crf25`).
     #[arg(long)]
     video: bool,
+    /// The video rows' frame size (default 256x144; e.g. 1920x1080 for speeds at 1080p): the
+    /// moving light at that size, the pan's window at most that and half the largest image.
+    #[arg(long, value_name = "WxH", requires = "video")]
+    video_size: Option<String>,
     /// Also measure, per codec, the peak resident memory of decoding the largest image (in a
     /// child process) against the decoded image's size; every --report does.
     #[arg(long)]
@@ -378,6 +382,7 @@ fn run() -> ExitCode {
             video: a.video,
             corpus: a.corpus,
             crop: a.crop,
+            video_size: a.video_size,
             memory: a.memory,
         }),
         Command::MemoryPeak { file } => cli::memory_peak(&file),

@@ -68,9 +68,9 @@ pub fn still_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Parses `--crop`'s `WxH` (both at least 1).
-pub fn parse_size(text: &str) -> Result<(u32, u32)> {
-    let bad = || Error::invalid(format!("--crop wants WIDTHxHEIGHT (e.g. 512x512), not '{text}'"));
+/// Parses a `WxH` size given to the option `flag` (`--crop`, `--video-size`; both at least 1).
+pub fn parse_size(flag: &str, text: &str) -> Result<(u32, u32)> {
+    let bad = || Error::invalid(format!("{flag} wants WIDTHxHEIGHT (e.g. 512x512), not '{text}'"));
     let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
     let (w, h) = (w.trim().parse::<u32>().map_err(|_| bad())?, h.trim().parse::<u32>().map_err(|_| bad())?);
     if w == 0 || h == 0 {
@@ -145,9 +145,9 @@ mod tests {
         let mut inputs = vec![Input { name: "a.exr".into(), image: img }];
         crop_inputs(&mut inputs, (3, 9)).unwrap();
         assert_eq!(inputs[0].name, "a.exr@c3x4");
-        assert_eq!(parse_size("512x256").unwrap(), (512, 256));
+        assert_eq!(parse_size("--crop", "512x256").unwrap(), (512, 256));
         for bad in ["512", "0x5", "ax5", "5x"] {
-            assert!(parse_size(bad).is_err(), "{bad}");
+            assert!(parse_size("--crop", bad).is_err(), "{bad}");
         }
     }
 }

@@ -40,14 +40,16 @@ pub struct Sequence {
 }
 
 /// The sequences of a run: the moving light (128x72, 4 frames with `quick`; 256x144, 12
-/// frames otherwise) and a pan across the largest of `inputs` (a window of at most half its
-/// size, 128x72 or 320x176 at most, widths and heights in multiples of 8; none when that is
-/// smaller than 64x64). A pan source that records no primaries is taken as BT.709.
-pub fn sequences(inputs: &[Input], quick: bool) -> Result<Vec<Sequence>> {
+/// frames otherwise; `size` when given) and a pan across the largest of `inputs` (a window of
+/// at most half its size, and at most 128x72, 320x176 or `size`, widths and heights in
+/// multiples of 8; none when that is smaller than 64x64). A pan source that records no
+/// primaries is taken as BT.709.
+pub fn sequences(inputs: &[Input], quick: bool, size: Option<(u32, u32)>) -> Result<Vec<Sequence>> {
     let (w, h, frames) = if quick { (128, 72, 4) } else { (256, 144, 12) };
+    let (w, h) = size.unwrap_or((w, h));
     let light = (0..frames).map(|t| moving_light_frame(w, h, 4000.0, h as f32 / 6.0, t, frames)).collect();
     let mut out = vec![Sequence { name: "moving-light".into(), frames: light }];
-    let (max_w, max_h) = if quick { (128, 72) } else { (320, 176) };
+    let (max_w, max_h) = size.unwrap_or(if quick { (128, 72) } else { (320, 176) });
     if let Some(largest) = inputs.iter().max_by_key(|i| i.image.pixel_count()) {
         let (pw, ph) =
             ((largest.image.width() / 2).min(max_w) / 8 * 8, (largest.image.height() / 2).min(max_h) / 8 * 8);
@@ -491,12 +493,16 @@ mod tests {
             HdrImage::new(100, 100, hdrcodec::core::Channels::Rgb, vec![0.5; 100 * 100 * 3], image.color.clone())
                 .unwrap();
         let inputs = [Input { name: "small".into(), image: small }, Input { name: "big".into(), image }];
-        let seqs = sequences(&inputs, true).unwrap();
+        let seqs = sequences(&inputs, true, None).unwrap();
         let sizes: Vec<(String, u32, u32, usize)> =
             seqs.iter().map(|s| (s.name.clone(), s.frames[0].width(), s.frames[0].height(), s.frames.len())).collect();
         assert_eq!(sizes, [("moving-light".into(), 128, 72, 4), ("pan:big".into(), 128, 72, 4)]);
         // Half of 100x100 is below 64x64 once rounded to multiples of 8: no pan.
-        assert_eq!(sequences(&inputs[..1], false).unwrap().len(), 1);
+        assert_eq!(sequences(&inputs[..1], false, None).unwrap().len(), 1);
+        // A size given: the light at that size, the pan's window within half the image.
+        let seqs = sequences(&inputs, true, Some((192, 96))).unwrap();
+        let sizes: Vec<(u32, u32)> = seqs.iter().map(|s| (s.frames[0].width(), s.frames[0].height())).collect();
+        assert_eq!(sizes, [(192, 96), (144, 72)]);
         let labels: Vec<String> = configurations().into_iter().map(|c| c.label).collect();
         assert_eq!(labels[0], "av1:q60");
         assert_eq!(labels[7], "av1(svt-av1):crf45");
