@@ -31,7 +31,7 @@ pub enum MapRaise {
     /// The map pixels whose weight in a base pixel's mix is above zero, to its need
     /// (`contributing`, the default; Desk 0.894).
     Contributing,
-    /// Those map pixels by what the mix lacks of the need, plus [`RAISE_MARGIN`]
+    /// Those map pixels by what the mix lacks of the need, plus a margin of 0.1 stops
     /// (`deficit`; Desk 0.916): where a neighbouring map pixel already carries a brighter
     /// light's gain, the edge pixels between them need little or no raise. Not the default: the
     /// sharper map decodes less alike in libultrahdr, whose map upsampling differs from ours

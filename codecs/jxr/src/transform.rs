@@ -1710,7 +1710,7 @@ pub fn forward_plane_in_place(
 /// caller fills those not yet given ([`ForwardRows::rows_to_fill`]). Its stage 2
 /// ([`ForwardRows::stage2`]) needs the stage 1 of row `my + 1` (the second overlap stage
 /// reaches two block-DC rows into it), so an encoder runs stage 1 one row ahead. Operations
-/// are split between rows by the keys of [`pot4_region`], which give the whole plane's result
+/// are split between rows by the keys of `pot4_region`, which give the whole plane's result
 /// for any split.
 #[derive(Debug)]
 pub struct ForwardRows {

@@ -207,7 +207,7 @@ impl LpuvStreamInfo {
     }
 
     /// The T.35 payload (after the country code and extension byte).
-    /// Version 1 (35 bytes) for [`LpuvPlaneMapping::Codes`], else version 2 (36 bytes).
+    /// Version 1 (35 bytes) for [`LpuvPlaneMapping::codes`], else version 2 (39 bytes).
     pub fn to_t35_payload(&self) -> Vec<u8> {
         let version = if self.mapping.is_codes(self.bits) { 1 } else { T35_VERSION };
         let mut out = Vec::with_capacity(T35_PAYLOAD_LEN);
