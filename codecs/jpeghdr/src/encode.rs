@@ -341,11 +341,12 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
         }
         block
     });
-    let mut file = primary_image(&base, w, h, options, profile.as_deref(), exif_block.as_deref(), &map_jpeg)?;
+    // The base is JPEG-coded once; its headers follow the map's length (`attach_map`).
+    let primary = primary_image(&base, w, h, options, profile.as_deref(), exif_block.as_deref(), map_jpeg.len())?;
+    let mut file = attach_map(&primary, &map_jpeg)?;
     if options.fit_black_level {
-        // The base as decoders will decode it (the primary image is the file less the map).
-        let primary = &file[..file.len() - map_jpeg.len()];
-        let decoded_base = crate::gainmap::decode_jpeg(primary, &hdrcodec_core::Limits::none(), "base image")?;
+        // The base as decoders will decode it.
+        let decoded_base = crate::gainmap::decode_jpeg(&primary, &hdrcodec_core::Limits::none(), "base image")?;
         let shift = fit_black_level(
             &hdr,
             &decoded_base.samples,
@@ -360,7 +361,7 @@ pub fn encode(image: &HdrImage, options: &GainMapEncodeOptions) -> Result<(Vec<u
             // base stay as measured.
             meta.alternate_offset = std::array::from_fn(|c| OFFSET + shift[c]);
             map_jpeg = gain_map_image(&map_codes, mw, mh, map_channels, options.map_quality, &meta)?;
-            file = primary_image(&base, w, h, options, profile.as_deref(), exif_block.as_deref(), &map_jpeg)?;
+            file = attach_map(&primary, &map_jpeg)?;
         }
     }
     Ok((file, report))
@@ -879,8 +880,9 @@ fn gain_map_image(
     Ok(out)
 }
 
-/// The primary image with the gain map appended: XMP (hdrgm version and GContainer with the
-/// map's length), the ISO version record and an MPF index, patched once the sizes are known.
+/// The primary image, JPEG-coded: XMP (hdrgm version and GContainer announcing a gain map of
+/// `map_len` bytes), the ISO version record and an MPF index whose offsets are left 0 for
+/// [`attach_map`].
 fn primary_image(
     base: &[u8],
     w: usize,
@@ -888,7 +890,7 @@ fn primary_image(
     options: &GainMapEncodeOptions,
     profile: Option<&[u8]>,
     exif_block: Option<&[u8]>,
-    map: &[u8],
+    map_len: usize,
 ) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     let mut encoder = jpeg_encoder::Encoder::new(&mut out, options.base_quality);
@@ -906,16 +908,35 @@ fn primary_image(
     if let Some(block) = exif_block {
         app(&mut encoder, 1, exif::SIGNATURE, block)?;
     }
-    app(&mut encoder, 1, xmp::SIGNATURE, container_xmp(map.len()).as_bytes())?;
+    app(&mut encoder, 1, xmp::SIGNATURE, container_xmp(map_len).as_bytes())?;
     app(&mut encoder, 2, ISO_SIGNATURE, &GainMapMetadata::iso_version_record())?;
-    // A placeholder of the final size; the offsets are patched below.
+    // A placeholder of the final size; `attach_map` patches the offsets.
     encoder.add_app_segment(2, &mpf::write(0, 0, 0)).map_err(|e| jpeg_error("base image", e))?;
     encoder.encode(base, w as u16, h as u16, jpeg_encoder::ColorType::Rgb).map_err(|e| jpeg_error("base image", e))?;
-    let primary = markers::parse_image(&out, 0)?;
-    let (mpf_at, _) = primary
+    Ok(out)
+}
+
+/// The file: `primary` (from [`primary_image`]) with its GContainer XMP rewritten for `map`'s
+/// length, its MPF offsets patched, and `map` appended. The base's scan is reused, not coded
+/// again: the bytes are those of a primary image coded for this map's length.
+fn attach_map(primary: &[u8], map: &[u8]) -> Result<Vec<u8>> {
+    let xmp_segment = markers::parse_image(primary, 0)?
+        .segments
+        .into_iter()
+        .find(|s| s.marker == APP1 && s.payload.starts_with(xmp::SIGNATURE))
+        .map(|s| (s.offset, s.payload_offset() + s.payload.len()))
+        .ok_or_else(|| Error::invalid("base image: the JPEG encoder dropped the XMP segment"))?;
+    let body = [xmp::SIGNATURE, container_xmp(map.len()).as_bytes()].concat();
+    let length = u16::try_from(body.len() + 2).map_err(|_| Error::invalid("base image: XMP over 64 KB"))?;
+    let mut out = Vec::with_capacity(primary.len() + map.len() + 8);
+    out.extend_from_slice(&primary[..xmp_segment.0]);
+    out.extend_from_slice(&[0xFF, APP1]);
+    out.extend_from_slice(&length.to_be_bytes());
+    out.extend_from_slice(&body);
+    out.extend_from_slice(&primary[xmp_segment.1..]);
+    let (mpf_at, _) = markers::parse_image(&out, 0)?
         .app_payload(APP2, mpf::SIGNATURE)
         .ok_or_else(|| Error::invalid("base image: the JPEG encoder dropped the MPF segment"))?;
-    debug_assert!(primary.app_payload(APP1, xmp::SIGNATURE).is_some());
     let too_big = || Error::limit("a gain-map JPEG over 4 GiB");
     let primary_len = u32::try_from(out.len()).map_err(|_| too_big())?;
     let map_len = u32::try_from(map.len()).map_err(|_| too_big())?;
@@ -1067,6 +1088,32 @@ mod tests {
         let (median, p99) = (errors[errors.len() / 2], errors[errors.len() * 99 / 100]);
         // Corrected for the map as coded instead: median 0.041, p99 0.41 stops.
         assert!(median < 0.025 && p99 < 0.3, "{median} {p99}");
+    }
+
+    #[test]
+    fn attaching_a_map_gives_the_bytes_of_a_primary_coded_for_it() {
+        // The base is coded once for a first map's length; attached to a map of another length
+        // (here 999 and 1000 bytes: the XMP's length field grows by a digit), the file is byte
+        // for byte what coding the primary for that length gives.
+        let options = GainMapEncodeOptions::default();
+        let base: Vec<u8> = (0..32 * 16 * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let exif = [b'M', b'M', 0, 42, 0, 0, 0, 8, 0, 0];
+        for (first, second) in [(999, 1000), (1000, 999), (1000, 1000), (5, 123_456)] {
+            let map = vec![0xA5u8; second];
+            let coded_once = primary_image(&base, 32, 16, &options, None, Some(&exif), first).unwrap();
+            let coded_for_it = primary_image(&base, 32, 16, &options, None, Some(&exif), second).unwrap();
+            let file = attach_map(&coded_once, &map).unwrap();
+            assert_eq!(file, attach_map(&coded_for_it, &map).unwrap(), "{first} then {second}");
+            // The MPF index and the GContainer XMP both find the map.
+            let parsed = markers::parse_image(&file, 0).unwrap();
+            assert_eq!(parsed.end, file.len() - second);
+            let (_, xmp_payload) = parsed.app_payload(APP1, xmp::SIGNATURE).unwrap();
+            let text = std::str::from_utf8(xmp_payload).unwrap();
+            assert!(text.contains(&format!("Item:Length=\"{second}\"")), "{text}");
+            let (mpf_at, mpf_payload) = parsed.app_payload(APP2, mpf::SIGNATURE).unwrap();
+            let entries = mpf::parse(mpf_payload, mpf_at, 0).unwrap();
+            assert_eq!((entries[1].file_offset, entries[1].size as usize), (file.len() - second, second));
+        }
     }
 
     #[test]
