@@ -277,6 +277,10 @@ enum VideoCommand {
         /// Transfer function: pq (HDR10), hlg, or mantiuk (L_p u'v', 12-bit AV1 profile 2).
         #[arg(long, default_value = "pq")]
         transfer: String,
+        /// Bits of the planes for --transfer mantiuk: 12 (default; 11-bit luma, AV1 profile 2) or
+        /// 10 (10-bit luma; with --chroma 420 AV1's Main profile, which hardware decoders play).
+        #[arg(long)]
+        bits: Option<u8>,
         /// The transfer a .y4m input's Y'CbCr is on (Y4M cannot say): pq or hlg (BT.2020).
         #[arg(long, default_value = "pq")]
         input_transfer: String,
@@ -392,6 +396,7 @@ fn run() -> ExitCode {
         Command::Video(VideoCommand::Encode {
             paths,
             transfer,
+            bits,
             input_transfer,
             chroma,
             quality,
@@ -406,6 +411,7 @@ fn run() -> ExitCode {
                     frames,
                     output,
                     transfer: &transfer,
+                    bits,
                     input_transfer: &input_transfer,
                     chroma: chroma.as_deref(),
                     quality,

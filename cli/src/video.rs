@@ -30,6 +30,8 @@ pub struct VideoEncodeArgs<'a> {
     pub output: &'a Path,
     /// `pq`, `hlg` or `mantiuk`.
     pub transfer: &'a str,
+    /// Plane bits for `mantiuk`: 10 or 12 (`None`: the codec's default, 12).
+    pub bits: Option<u8>,
     /// The transfer of a Y4M input's Y'CbCr: `pq` or `hlg`.
     pub input_transfer: &'a str,
     /// `420` or `444`; `None`: 4:2:0 for PQ and HLG, 4:4:4 for Mantiuk.
@@ -254,6 +256,9 @@ pub fn encode(a: &VideoEncodeArgs) -> Result<Vec<String>> {
         .with_option("speed", a.speed.to_string());
     if let Some(chroma) = a.chroma {
         settings = settings.with_option("chroma", chroma);
+    }
+    if let Some(bits) = a.bits {
+        settings = settings.with_option("bits", bits.to_string());
     }
     // The first frame's size and colour (its mastering display is kept, if it has one).
     let mut head = None;

@@ -1236,6 +1236,30 @@ fn video_mantiuk_encode_info_decode_round_trip() {
     eprintln!("257x129 corpus frame, mantiuk, quality 96, speed 10: PU21-PSNR {psnr:.2} dB");
     assert!(psnr > 35.0, "{c}");
     must_fail(&[&"video", &"encode", &frame, &dir.join("z.ivf"), &"--chroma", &"422"], &dir, "420 or 444");
+    // --bits 10 --chroma 420: a Main-profile stream of 10-bit ψ codes, decoded alike.
+    let main = dir.join("main10.ivf");
+    ok(&hdrcodec(&[
+        &"video",
+        &"encode",
+        &frame,
+        &main,
+        &"--transfer",
+        &"mantiuk",
+        &"--bits",
+        &"10",
+        &"--chroma",
+        &"420",
+        &"--speed",
+        &"10",
+    ]));
+    let v = json(&hdrcodec(&[&"info", &main, &"--json"]));
+    assert_eq!((v["profile"].as_u64(), v["bit_depth"].as_u64()), (Some(0), Some(10)), "{v}");
+    assert_eq!((v["lpuv"]["bits"].as_u64(), v["subsampling"].as_str()), (Some(10), Some("4:2:0")), "{v}");
+    let frames = dir.join("frames10");
+    ok(&hdrcodec(&[&"video", &"decode", &main, &frames]));
+    let c = json(&hdrcodec(&[&"compare", &frame, &frames.join("frame_00000.exr"), &"--json"]));
+    assert!(c["pu21_psnr"].as_f64().unwrap() > 30.0, "{c}");
+    must_fail(&[&"video", &"encode", &frame, &dir.join("b.ivf"), &"--bits", &"10"], &dir, "bits=");
 }
 
 /// Writes `frames` of the generated moving light (64x48, 4000 cd/m²) as float EXR files

@@ -1,11 +1,12 @@
-//! Mantiuk (L_p u'v' in 12-bit AV1) against HDR10 (PQ, 10-bit 4:2:0) at equal bitrate, issue 14:
+//! Mantiuk (L_p u'v' in 12- and 10-bit AV1) against HDR10 (PQ, 10-bit 4:2:0) at equal bitrate, issue 14:
 //! rav1e quantizer sweeps of both on the same frames, PU21-PSNR and ΔE ITP per frame, and each
 //! HDR10 point compared with the L_p u'v' curve interpolated (in log bytes) at the same size.
 //!
 //! `cargo run -j1 -p hdrcodec-tests --example mantiuk_vs_hdr10 [CORPUS_DIR]` (default
 //! `../shared/corpus`). Sequences: the generated moving light, a fade and a pan over a crop of a
 //! corpus photograph (`sequences`), 8 frames of 160x96 each, rav1e speed 6, one thread.
-//! With `MAPPINGS=1` it also sweeps other u'v' plane mappings (the luma:chroma step ratio).
+//! With `MAPPINGS=1` it also sweeps other u'v' plane mappings (the luma:chroma step ratio) and
+//! version 1 planes (codes as they are).
 
 use hdrcodec_core::metrics::{delta_e_itp, pu21_psnr};
 use hdrcodec_core::{Channels, ColorInfo, HdrImage, ImageCodec, Limits};
@@ -73,12 +74,15 @@ fn main() {
         ("pan over MtTamWest crop", (0..FRAMES).map(|t| pan_frame(&photo, W, H, t, FRAMES).unwrap()).collect()),
     ];
     let hdr10 = |q: u8| Av1Options { speed: 6, quantizer: q, ..Av1Options::default() };
-    let lpuv = move |q: u8, mapping: LpuvPlaneMapping, subsampling| Av1Options {
+    let bt2020 = hdrcodec_core::ColorPrimaries::Bt2020;
+    let lpuv_info =
+        move |mapping: LpuvPlaneMapping| LpuvStreamInfo { mapping, ..LpuvStreamInfo::for_primaries(bt2020) };
+    let lpuv = move |q: u8, info: LpuvStreamInfo, subsampling| Av1Options {
         speed: 6,
         quantizer: q,
         low_latency: true,
         subsampling,
-        lpuv: Some(LpuvStreamInfo { mapping, ..LpuvStreamInfo::for_primaries(hdrcodec_core::ColorPrimaries::Bt2020) }),
+        lpuv: Some(info),
         ..Av1Options::default()
     };
     for (name, frames) in &sequences {
@@ -88,32 +92,51 @@ fn main() {
         let mut curves: Vec<(&str, Vec<Point>)> = Vec::new();
         type Make = Box<dyn Fn(u8) -> Av1Options>;
         let qs: &[u8] = &[10, 20, 40, 60, 90, 120];
-        let ratio = |uv_top| LpuvPlaneMapping { luma_top: 4095, uv_top };
+        let ratio = |uv_top| LpuvPlaneMapping { plane_bits: 12, luma_top: 4095, uv_top };
         let mut variants: Vec<(String, &[u8], Make)> = vec![
             ("HDR10 PQ 4:2:0".into(), &[10u8, 30, 50, 70, 90, 110, 140][..], Box::new(hdr10) as Make),
             (
-                "L_p u'v' 4:4:4, default planes (Y ×2, u'v' ×4)".into(),
+                "L_p u'v' 12-bit 4:4:4 (Y ×2, u'v' ×4)".into(),
                 qs,
-                Box::new(move |q| lpuv(q, LpuvPlaneMapping::default(), Subsampling::Yuv444)) as Make,
+                Box::new(move |q| lpuv(q, lpuv_info(LpuvPlaneMapping::default()), Subsampling::Yuv444)) as Make,
             ),
             (
-                "L_p u'v' 4:2:0, default planes (Y ×2, u'v' ×4)".into(),
+                "L_p u'v' 12-bit 4:2:0 (Y ×2, u'v' ×4)".into(),
                 qs,
-                Box::new(move |q| lpuv(q, LpuvPlaneMapping::default(), Subsampling::Yuv420)) as Make,
+                Box::new(move |q| lpuv(q, lpuv_info(LpuvPlaneMapping::default()), Subsampling::Yuv420)) as Make,
             ),
             (
-                "L_p u'v' 4:4:4, codes as they are (version 1)".into(),
-                &[0, 5, 10, 20, 40, 60][..],
-                Box::new(move |q| lpuv(q, LpuvPlaneMapping::codes(11), Subsampling::Yuv444)) as Make,
+                "L_p u'v' 10-bit 4:2:0, Main (10-bit ψ, u'v' ×1)".into(),
+                qs,
+                Box::new(move |q| lpuv(q, LpuvStreamInfo::main10(bt2020), Subsampling::Yuv420)) as Make,
+            ),
+            (
+                "L_p u'v' 10-bit 4:4:4, High (10-bit ψ, u'v' ×1)".into(),
+                qs,
+                Box::new(move |q| lpuv(q, LpuvStreamInfo::main10(bt2020), Subsampling::Yuv444)) as Make,
             ),
         ];
         // The luma:chroma step ratio, the one thing a plane mapping changes at equal bytes.
         if std::env::var_os("MAPPINGS").is_some() {
+            variants.push((
+                "L_p u'v' 4:4:4, codes as they are (version 1)".into(),
+                &[0, 5, 10, 20, 40, 60][..],
+                Box::new(move |q| lpuv(q, lpuv_info(LpuvPlaneMapping::codes(11)), Subsampling::Yuv444)) as Make,
+            ));
+            for uv_top in [510u16, 1020] {
+                let mapping = LpuvPlaneMapping { uv_top, ..LpuvPlaneMapping::main10() };
+                let info = LpuvStreamInfo { mapping, ..LpuvStreamInfo::main10(bt2020) };
+                let make: Make = Box::new(move |q| lpuv(q, info, Subsampling::Yuv420));
+                variants.push((format!("L_p u'v' 10-bit 4:2:0, Main, u'v' top {uv_top}"), qs, make));
+            }
             for uv_top in [255u16, 510, 2040, 4095] {
-                let make: Make = Box::new(move |q| lpuv(q, ratio(uv_top), Subsampling::Yuv444));
+                let make: Make = Box::new(move |q| lpuv(q, lpuv_info(ratio(uv_top)), Subsampling::Yuv444));
                 variants.push((format!("L_p u'v' 4:4:4, Y top 4095, u'v' top {uv_top}"), qs, make));
             }
         }
+        // `ONLY=text`: HDR10 and the variants whose label contains the text.
+        let only = std::env::var("ONLY").ok();
+        variants.retain(|(label, _, _)| label.starts_with("HDR10") || only.as_ref().is_none_or(|o| label.contains(o)));
         for (label, qs, make) in &variants {
             let label = label.as_str();
             let mut points: Vec<Point> = qs.iter().map(|&q| run(frames, &make(q))).collect();

@@ -14,7 +14,8 @@ use std::sync::Arc;
 /// - [`begin_encode`](VideoCodec::begin_encode) writes the container of option `container`:
 ///   `ivf` (default) as it goes; `mp4`, `mkv` and `webm` into memory first, copied to the
 ///   writer when the stream finishes (their sizes are patched in place, which the trait's plain
-///   `Write` cannot do). [`begin_encode_seekable`](VideoCodec::begin_encode_seekable) writes
+///   `Write` cannot do), the memory bounded by option `max_memory` (a `LimitExceeded` error
+///   past it, with nothing written). [`begin_encode_seekable`](VideoCodec::begin_encode_seekable) writes
 ///   every container straight to a writer that seeks (the CLI's atomic file). The stream's
 ///   frame count (`info.frames`, 0 when unknown) goes into the IVF header; its mastering
 ///   display and MaxCLL/MaxFALL are `info.color.hdr10`'s (an encoder that streams cannot
@@ -32,8 +33,20 @@ pub struct Av1Codec;
 
 impl Av1Codec {
     /// The `key=value` options of [`begin_encode`](VideoCodec::begin_encode).
-    pub const ENCODE_OPTIONS: &'static [&'static str] =
-        &["transfer", "chroma", "range", "speed", "quantizer", "fps", "keyint", "tiles", "sdr_peak", "container"];
+    pub const ENCODE_OPTIONS: &'static [&'static str] = &[
+        "transfer",
+        "chroma",
+        "bits",
+        "range",
+        "speed",
+        "quantizer",
+        "fps",
+        "keyint",
+        "tiles",
+        "sdr_peak",
+        "container",
+        "max_memory",
+    ];
     /// The `key=value` options of [`begin_decode`](VideoCodec::begin_decode): `nits_per_unit`
     /// (cd/m² of a decoded 1.0, default 100) and `hlg_peak` (the display an HLG stream is
     /// rendered for, cd/m², default 1000).
@@ -45,12 +58,17 @@ impl Av1Codec {
     /// - `effort` 0-9 → rav1e speed 10 − effort, unless `speed=S` (0-10) is given;
     /// - `transfer=pq|hlg|mantiuk` (default pq; mantiuk codes L_p u'v' in the primaries of
     ///   `info.color`, every frame with its T.35 message), `chroma=420|444` (default 420, 444
-    ///   for mantiuk), `range=limited|full`, `fps=N` (default 25), `keyint=N` (frames between
+    ///   for mantiuk), `bits=10|12` (mantiuk only: 10-bit ψ codes in 10-bit planes, with 4:2:0
+    ///   AV1's Main profile, or 11-bit codes in 12-bit Professional-profile planes; default
+    ///   12), `range=limited|full`, `fps=N` (default 25), `keyint=N` (frames between
     ///   key frames, default 240), `tiles=N`;
     /// - `sdr_peak=NITS`: code the SDR rendition of the frames for a display of that peak
     ///   instead ([`crate::sdr`]; 8-bit BT.709, sRGB transfer);
     /// - `container=ivf|mp4|mkv|webm` (default ivf): read by `begin_encode`, not here
     ///   ([`container`](Av1Codec::container));
+    /// - `max_memory=BYTES`: the most an MP4 or Matroska file built in memory by `begin_encode`
+    ///   may hold (default 4 GiB, [`Limits::default`](hdrcodec_core::Limits)'s); read by
+    ///   `begin_encode` ([`memory_limits`](Av1Codec::memory_limits)), not here;
     /// - threads from `settings.pool`; mastering display and content light from
     ///   `info.color.hdr10` (PQ only).
     ///
@@ -105,9 +123,17 @@ impl Av1Codec {
         if let Some(peak) = settings.parse_option::<f64>("sdr_peak")? {
             o.sdr = Some(crate::sdr::SdrRendition::new(peak)?);
         }
+        let main10 = match settings.parse_option::<u8>("bits")? {
+            None | Some(12) => false,
+            Some(10) if mantiuk => true,
+            Some(b) if mantiuk => return Err(Error::invalid(format!("bits={b}: expected 10 or 12"))),
+            Some(_) => return Err(Error::invalid("bits= is for transfer=mantiuk (HDR10 and HLG are 10-bit)")),
+        };
         if mantiuk {
             // The decoder returns the stream's primaries; every T.35 must reach its frame.
-            o.lpuv = Some(LpuvStreamInfo::for_primaries(info.color.primaries));
+            let primaries = info.color.primaries;
+            o.lpuv =
+                Some(if main10 { LpuvStreamInfo::main10(primaries) } else { LpuvStreamInfo::for_primaries(primaries) });
             o.low_latency = true;
         } else if let Some(h) = &info.color.hdr10 {
             if let Some(md) = h.mastering_display {
@@ -116,6 +142,16 @@ impl Av1Codec {
             o.content_light = h.content_light_level;
         }
         Ok(o)
+    }
+
+    /// The budget of an MP4 or Matroska file that `begin_encode` builds in memory: option
+    /// `max_memory=BYTES`, else [`Limits::default`](hdrcodec_core::Limits).
+    pub fn memory_limits(settings: &EncodeSettings) -> Result<hdrcodec_core::Limits> {
+        let limits = hdrcodec_core::Limits::default();
+        Ok(match settings.parse_option::<u64>("max_memory")? {
+            Some(bytes) => limits.with_max_alloc_bytes(bytes),
+            None => limits,
+        })
     }
 
     /// The container option `container` names: `ivf` (default), `mp4`, `mkv` or `webm`.
@@ -132,7 +168,11 @@ impl Av1Codec {
     /// The decoder options `options` ask for (see [`DECODE_OPTIONS`](Self::DECODE_OPTIONS)).
     #[cfg(feature = "decode")]
     pub fn av1_decode_options(options: &DecodeOptions) -> Result<crate::decode::Av1DecodeOptions> {
-        let mut o = crate::decode::Av1DecodeOptions { limits: options.limits.clone(), ..Default::default() };
+        let mut o = crate::decode::Av1DecodeOptions {
+            limits: options.limits.clone(),
+            pool: options.pool.clone(),
+            ..Default::default()
+        };
         if let Some(n) = options.parse_option::<f32>("nits_per_unit")? {
             if !(n.is_finite() && n > 0.0) {
                 return Err(Error::invalid(format!("nits_per_unit={n}: expected a positive number")));
@@ -184,16 +224,18 @@ impl VideoCodec for Av1Codec {
             use crate::mp4::Mp4Writer;
             use std::io::Cursor;
             let options = Self::av1_options(info, settings)?;
+            let limits = Self::memory_limits(settings)?;
             let (w, h, fps) = (info.width, info.height, options.fps.max(1));
             let memory = || Cursor::new(Vec::new());
             Ok(match Self::container(settings)? {
                 Av1Container::Ivf => Box::new(Av1Encoder::begin(w, h, info.frames, &options, out)?),
                 Av1Container::Mp4 => {
-                    let sink = InMemory::new(Mp4Writer::new(memory(), fps)?, out);
+                    let sink = InMemory::with_limits(Mp4Writer::new(memory(), fps)?, out, &limits);
                     Box::new(Av1Encoder::with_sink(w, h, &options, sink)?)
                 }
                 c @ (Av1Container::Matroska | Av1Container::WebM) => {
-                    let sink = InMemory::new(MkvWriter::new(memory(), fps, c == Av1Container::WebM)?, out);
+                    let sink =
+                        InMemory::with_limits(MkvWriter::new(memory(), fps, c == Av1Container::WebM)?, out, &limits);
                     Box::new(Av1Encoder::with_sink(w, h, &options, sink)?)
                 }
             })

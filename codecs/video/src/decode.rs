@@ -4,6 +4,7 @@
 
 use crate::hdr10::{yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame, BIT_DEPTH};
 use crate::ivf::IvfReader;
+use crate::light::YuvToLight;
 use crate::lpuv_av1::{lpuv_yuv_to_frame, LpuvStreamInfo, LPUV_BIT_DEPTH};
 use crate::mantiuk::Psi04;
 use crate::mkv::{is_mkv, MkvBlocks, MkvColour, MkvTrack};
@@ -13,6 +14,7 @@ use crate::sdr::{sdr_yuv_to_frame, SDR_BIT_DEPTH};
 use dav1d::{PixelLayout, PlanarImageComponent};
 use hdrcodec_core::{
     Allocation, Channels, ColorInfo, ColorPrimaries, ContentLightLevel, Error, HdrImage, ImageInfo, Limits, Result,
+    ThreadPool,
 };
 use std::sync::Arc;
 
@@ -25,11 +27,20 @@ pub struct Av1DecodeOptions {
     pub nits_per_unit: f32,
     /// The display peak an HLG stream is rendered for, cd/m² (BT.2100 reference: 1000).
     pub hlg_peak_nits: f64,
+    /// Worker threads for turning HDR10 and HLG planes into light, bands of rows at a time
+    /// (libdav1d itself runs on one thread, so that each temporal unit gives its picture at
+    /// once).
+    pub pool: ThreadPool,
 }
 
 impl Default for Av1DecodeOptions {
     fn default() -> Self {
-        Av1DecodeOptions { limits: Limits::default(), nits_per_unit: 100.0, hlg_peak_nits: 1000.0 }
+        Av1DecodeOptions {
+            limits: Limits::default(),
+            nits_per_unit: 100.0,
+            hlg_peak_nits: 1000.0,
+            pool: ThreadPool::single(),
+        }
     }
 }
 
@@ -183,7 +194,7 @@ pub fn probe_ivf(data: &[u8], limits: &Limits) -> Result<(crate::ivf::IvfHeader,
     Ok((header, summary))
 }
 
-/// The L_p u'v' description of a 12-bit stream, from the first of its T.35 messages that is ours (our own parser
+/// The L_p u'v' description of a stream, from the first of its T.35 messages that is ours (our own parser
 /// reads it from the temporal units: dav1d 1.0.0 keeps only the last T.35 of a picture).
 fn lpuv_info(summary: &StreamSummary) -> Result<LpuvStreamInfo> {
     let refuse = || {
@@ -212,7 +223,7 @@ fn stream_format(seq: &SequenceHeader, hlg_peak_nits: f64) -> Result<(Transfer, 
     let c = &seq.color;
     if u32::from(c.bit_depth) != BIT_DEPTH {
         return Err(Error::unsupported(format!(
-            "{}-bit AV1 (this decoder returns HDR10/HLG 10-bit and hdrcodec-lpuv 12-bit)",
+            "{}-bit AV1 (this decoder returns HDR10/HLG 10-bit, hdrcodec-lpuv 10- and 12-bit and SDR 8-bit)",
             c.bit_depth
         )));
     }
@@ -279,10 +290,12 @@ fn stream_info(
         .with_format(format))
 }
 
-/// Copies a 16-bit-per-sample plane of `w` × `h` out of dav1d's strided buffer.
-fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize, bit_depth: u32) -> Result<Vec<u16>> {
+/// Copies a plane of `w` × `h` out of dav1d's strided buffer (one byte per sample at 8 bits,
+/// two little-endian bytes above) into `out`, whose allocation is reused.
+fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize, bit_depth: u32, out: &mut Vec<u16>) -> Result<()> {
     let size = if bit_depth > 8 { 2 } else { 1 };
-    let mut out = Vec::with_capacity(w * h);
+    out.clear();
+    out.reserve(w * h);
     for y in 0..h {
         let row = bytes
             .get(y * stride..y * stride + size * w)
@@ -293,7 +306,7 @@ fn copy_plane(bytes: &[u8], stride: usize, w: usize, h: usize, bit_depth: u32) -
             out.extend(row.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])));
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Where an [`Av1Decoder`] takes its temporal units from.
@@ -339,6 +352,10 @@ pub struct Av1Decoder<'a> {
     lpuv: Option<(LpuvStreamInfo, Psi04)>,
     /// An 8-bit SDR stream (BT.709, sRGB).
     sdr: bool,
+    /// HDR10 and HLG planes to light (built once for the stream).
+    light: Option<YuvToLight>,
+    /// The last picture's planes, whose buffers the next picture reuses.
+    planes: Option<YuvFrame>,
     bit_depth: u32,
     options: Av1DecodeOptions,
     width: u32,
@@ -396,8 +413,19 @@ impl<'a> Av1Decoder<'a> {
             return Err(Error::unsupported("an AV1 stream whose sequence header changes"));
         }
         let sdr = u32::from(seq.color.bit_depth) == SDR_BIT_DEPTH;
-        let (transfer, range, subsampling, lpuv) = if u32::from(seq.color.bit_depth) == LPUV_BIT_DEPTH {
+        // 12 bits are always L_p u'v' (refused without our T.35); 10 bits when the stream has
+        // no colour description and carries our T.35 (else HDR10 or HLG).
+        let lpuv_10 = u32::from(seq.color.bit_depth) != LPUV_BIT_DEPTH
+            && seq.color.color_description.is_none()
+            && LpuvStreamInfo::from_summary(&summary)?.is_some();
+        let (transfer, range, subsampling, lpuv) = if u32::from(seq.color.bit_depth) == LPUV_BIT_DEPTH || lpuv_10 {
             let info = lpuv_info(&summary)?;
+            if u32::from(info.mapping.plane_bits) != u32::from(seq.color.bit_depth) {
+                return Err(Error::invalid(format!(
+                    "an L_p u'v' description of {}-bit planes in a {}-bit AV1 stream",
+                    info.mapping.plane_bits, seq.color.bit_depth
+                )));
+            }
             // Transfer and range are unused for L_p u'v' planes.
             (Transfer::Pq, Range::Full, stream_subsampling(&seq)?, Some((info, info.psi()?)))
         } else if sdr {
@@ -419,6 +447,19 @@ impl<'a> Av1Decoder<'a> {
         let (width, height) = (seq.max_frame_width, seq.max_frame_height);
         options.limits.check_dimensions(width.into(), height.into())?;
         let info = stream_info(&seq, &summary, transfer, subsampling, lpuv.as_ref().map(|l| &l.0), sdr, options)?;
+        // Our streams say colocated; VERTICAL and an unsignalled position (0, what SVT-AV1 and
+        // libaom write) are taken as "left", H.273's default.
+        let siting = if seq.color.chroma_sample_position == chroma_sample_position::COLOCATED {
+            ChromaSiting::Colocated
+        } else {
+            ChromaSiting::Left
+        };
+        let light = match (&lpuv, sdr) {
+            (None, false) => {
+                Some(YuvToLight::new(seq.color.bit_depth.into(), transfer, range, siting, options.nits_per_unit)?)
+            }
+            _ => None,
+        };
         let mut settings = dav1d::Settings::new();
         // One picture out per temporal unit in: frame threading would delay output.
         settings.set_n_threads(1);
@@ -435,15 +476,11 @@ impl<'a> Av1Decoder<'a> {
             transfer,
             range,
             subsampling,
-            // Our streams say colocated; VERTICAL and an unsignalled position (0, what SVT-AV1
-            // and libaom write) are taken as "left", H.273's default.
-            siting: if seq.color.chroma_sample_position == chroma_sample_position::COLOCATED {
-                ChromaSiting::Colocated
-            } else {
-                ChromaSiting::Left
-            },
+            siting,
             lpuv,
             sdr,
+            light,
+            planes: None,
             bit_depth: seq.color.bit_depth.into(),
             options: options.clone(),
             width,
@@ -470,13 +507,23 @@ impl<'a> Av1Decoder<'a> {
         self.lpuv.as_ref().map(|(info, _)| info)
     }
 
-    /// The next frame's planes as coded (10-bit; 12-bit for L_p u'v', 8-bit for SDR), or `None` after the last.
+    /// The next frame's planes as coded (10-bit; 10- or 12-bit for L_p u'v', 8-bit for SDR), or `None` after the last.
     pub fn next_planes(&mut self) -> Result<Option<YuvFrame>> {
+        Ok(if self.decode_planes()? { self.planes.take() } else { None })
+    }
+
+    /// Decodes the next picture into `self.planes`; false after the last.
+    fn decode_planes(&mut self) -> Result<bool> {
         // Each round either returns, takes input, or notices that neither side moves.
         let mut stalled = 0;
         loop {
             match self.decoder.get_picture() {
-                Ok(picture) => return self.planes_of(&picture).map(Some),
+                Ok(picture) => {
+                    let mut planes = self.planes.take();
+                    self.planes_of(&picture, &mut planes)?;
+                    self.planes = planes;
+                    return Ok(true);
+                }
                 Err(e) if e.is_again() => {}
                 Err(e) => return Err(Error::invalid(format!("dav1d: {e}"))),
             }
@@ -492,7 +539,7 @@ impl<'a> Av1Decoder<'a> {
                 continue;
             }
             if self.flushed {
-                return Ok(None);
+                return Ok(false);
             }
             if let Some(obus) = self.prefix.take() {
                 let result = self.decoder.send_data(obus, None, None, None);
@@ -541,7 +588,10 @@ impl<'a> Av1Decoder<'a> {
 
     /// [`next_frame`](Self::next_frame) without charging the limits.
     fn next_frame_uncharged(&mut self) -> Result<Option<HdrImage>> {
-        let Some(yuv) = self.next_planes()? else { return Ok(None) };
+        if !self.decode_planes()? {
+            return Ok(None);
+        }
+        let Some(yuv) = self.planes.as_ref() else { return Ok(None) };
         self.returned += 1;
         if let Some((info, psi)) = &self.lpuv {
             let color = ColorInfo {
@@ -549,18 +599,22 @@ impl<'a> Av1Decoder<'a> {
                 nits_per_unit: self.options.nits_per_unit,
                 ..ColorInfo::default()
             };
-            return lpuv_yuv_to_frame(psi, &yuv, color, info.mapping).map(Some);
+            return lpuv_yuv_to_frame(psi, yuv, color, info.mapping).map(Some);
         }
         if self.sdr {
-            return sdr_yuv_to_frame(&yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);
+            return sdr_yuv_to_frame(yuv, self.range, self.siting, self.options.nits_per_unit).map(Some);
         }
-        let mut image = yuv_to_frame(&yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?;
+        let mut image = match &self.light {
+            Some(light) => light.convert(yuv, &self.options.pool)?,
+            None => yuv_to_frame(yuv, self.transfer, self.range, self.siting, self.options.nits_per_unit)?,
+        };
         image.color.primaries = ColorPrimaries::Bt2020;
         image.color.hdr10 = self.summary.hdr10();
         Ok(Some(image))
     }
 
-    fn planes_of(&self, picture: &dav1d::Picture) -> Result<YuvFrame> {
+    /// The planes of `picture` in `planes` (reusing its buffers when there are some).
+    fn planes_of(&self, picture: &dav1d::Picture, planes: &mut Option<YuvFrame>) -> Result<()> {
         let (w, h) = (picture.width() as usize, picture.height() as usize);
         if (w as u32, h as u32) != (self.width, self.height) {
             return Err(Error::unsupported(format!(
@@ -577,17 +631,22 @@ impl<'a> Av1Decoder<'a> {
             return Err(Error::invalid("a decoded picture does not match the sequence header"));
         }
         let (cw, ch) = YuvFrame::chroma_size(w, h, layout);
-        let plane = |c: PlanarImageComponent, pw: usize, ph: usize| {
-            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph, self.bit_depth)
-        };
-        Ok(YuvFrame {
+        let out = planes.get_or_insert_with(|| YuvFrame {
             width: w,
             height: h,
             subsampling: layout,
-            y: plane(PlanarImageComponent::Y, w, h)?,
-            cb: plane(PlanarImageComponent::U, cw, ch)?,
-            cr: plane(PlanarImageComponent::V, cw, ch)?,
-        })
+            y: Vec::new(),
+            cb: Vec::new(),
+            cr: Vec::new(),
+        });
+        let plane = |c: PlanarImageComponent, pw: usize, ph: usize, out: &mut Vec<u16>| {
+            copy_plane(&picture.plane(c), picture.stride(c) as usize, pw, ph, self.bit_depth, out)
+        };
+        plane(PlanarImageComponent::Y, w, h, &mut out.y)?;
+        plane(PlanarImageComponent::U, cw, ch, &mut out.cb)?;
+        plane(PlanarImageComponent::V, cw, ch, &mut out.cr)?;
+        (out.width, out.height, out.subsampling) = (w, h, layout);
+        Ok(())
     }
 }
 

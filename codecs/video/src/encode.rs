@@ -10,15 +10,14 @@
 
 use crate::hdr10::{content_light_level, frame_to_yuv, ClipReport, Range, Subsampling, Transfer, BIT_DEPTH};
 use crate::ivf::{IvfHeader, IvfWriter};
-use crate::lpuv_av1::{
-    frame_to_lpuv_yuv, LpuvStreamInfo, LPUV_BIT_DEPTH, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION,
-};
+use crate::lpuv_av1::{frame_to_lpuv_yuv, LpuvStreamInfo, T35_COUNTRY_CODE, T35_COUNTRY_CODE_EXTENSION};
 use crate::mantiuk::Psi04;
 use crate::mkv::MkvWriter;
 use crate::mp4::Mp4Writer;
 use crate::sdr::{SdrRendition, SDR_BIT_DEPTH};
 use hdrcodec_core::{
-    ContentLightLevel, Error, HdrImage, MasteringDisplay, Result, StreamReport, ThreadPool, VideoEncoder,
+    Allocation, ContentLightLevel, Error, HdrImage, Limits, MasteringDisplay, Result, StreamReport, ThreadPool,
+    VideoEncoder,
 };
 use rav1e::color::{
     ChromaSamplePosition, ChromaSampling, ChromaticityPoint, ColorDescription, ColorPrimaries, ContentLight,
@@ -75,8 +74,9 @@ pub struct Av1Options {
     pub content_light: Option<ContentLightLevel>,
     /// A T.35 message for every frame (e.g. identifying the stream).
     pub t35: Option<T35Message>,
-    /// Code L_p u'v' (Mantiuk et al. 2004) instead of Y'CbCr: 12-bit planes of the curve and
-    /// primaries given, no colour description, our T.35 on every frame ([`crate::lpuv_av1`]).
+    /// Code L_p u'v' (Mantiuk et al. 2004) instead of Y'CbCr: planes of the curve, primaries
+    /// and plane mapping given (12 bits, or 10 for [`LpuvStreamInfo::main10`]), no colour
+    /// description, our T.35 on every frame ([`crate::lpuv_av1`]).
     /// `transfer`, `range`, the mastering display and the content light are then unused; set
     /// `low_latency` so that every frame keeps its T.35.
     pub lpuv: Option<LpuvStreamInfo>,
@@ -261,23 +261,70 @@ impl<W: Write + Seek> TemporalUnitSink for MkvWriter<W> {
 /// A container that seeks (MP4, Matroska) built in memory, copied to a writer that need not
 /// seek when the stream is complete: how [`Av1Codec`](crate::codec::Av1Codec)'s
 /// `begin_encode` writes MP4 and Matroska to the trait's plain `Write`. The whole file is held
-/// in memory until then (the coded stream, not the frames); `begin_encode_seekable` writes
-/// straight to a file instead.
+/// in memory until then (the coded stream, not the frames), charged to [`Limits`]: each
+/// temporal unit's bytes and [`INDEX_BYTES_PER_UNIT`] for its entries in the container's index,
+/// before it is stored. A stream that would exceed the budget fails with
+/// [`Error::LimitExceeded`] and nothing reaches the output writer (it is written only at
+/// `finish`); `begin_encode_seekable` writes straight to a file instead, with no such bound.
 pub struct InMemory<S, W> {
     inner: S,
     out: W,
+    limits: Limits,
+    /// Bytes of the file held (an estimate from above: units and their index entries).
+    held: u64,
+    /// Bytes charged to `limits`, in steps.
+    charged: u64,
+    charges: Vec<Allocation>,
 }
 
+/// The bytes [`InMemory`] charges for a temporal unit's entries in the container's index,
+/// above its own bytes (MP4: `stsz`, `stts`, `stss`, `stco`/`co64` entries, at most 28 bytes;
+/// Matroska: a SimpleBlock's element header, track number and timecode, at most 16, and a
+/// Cluster's header now and then).
+pub const INDEX_BYTES_PER_UNIT: u64 = 32;
+
+/// The bytes [`InMemory`] charges for a file's own boxes or elements (MP4 `ftyp`, `moov`
+/// without its tables; Matroska's header, `Info` and `Tracks`), before any temporal unit.
+const FILE_BYTES: u64 = 1024;
+
+/// The smallest step in which [`InMemory`] charges its limits (so that a long stream holds a
+/// few hundred charges, not one per frame).
+const CHARGE_STEP: u64 = 1 << 20;
+
 impl<S, W> InMemory<S, W> {
-    /// `inner` writing into memory, then to `out`.
+    /// `inner` writing into memory, then to `out`, within [`Limits::default`] (4 GiB).
     pub fn new(inner: S, out: W) -> Self {
-        InMemory { inner, out }
+        Self::with_limits(inner, out, &Limits::default())
+    }
+
+    /// `inner` writing into memory, then to `out`, the memory charged to `limits`.
+    pub fn with_limits(inner: S, out: W, limits: &Limits) -> Self {
+        InMemory { inner, out, limits: limits.clone(), held: FILE_BYTES, charged: 0, charges: Vec::new() }
+    }
+
+    /// Charges the limits for `bytes` more held in memory.
+    fn hold(&mut self, bytes: u64) -> Result<()> {
+        let need = self.held.saturating_add(bytes);
+        if need > self.charged {
+            let exact = need - self.charged;
+            let what = "an MP4 or Matroska file built in memory (begin_encode to a writer that cannot seek; \
+                        begin_encode_seekable has no such bound)";
+            let charge = match self.limits.charge(exact.max(CHARGE_STEP), what) {
+                Ok(c) => c,
+                Err(_) => self.limits.charge(exact, what)?,
+            };
+            self.charged += charge.bytes();
+            self.charges.push(charge);
+        }
+        self.held = need;
+        Ok(())
     }
 }
 
 impl<S: TemporalUnitSink<Output = Cursor<Vec<u8>>>, W: Write> TemporalUnitSink for InMemory<S, W> {
     type Output = W;
     fn write_temporal_unit(&mut self, pts: u64, data: &[u8], keyframe: bool) -> Result<()> {
+        self.hold(data.len() as u64 + INDEX_BYTES_PER_UNIT)?;
         self.inner.write_temporal_unit(pts, data, keyframe)
     }
     fn finish(self) -> Result<(W, u64)> {
@@ -305,7 +352,11 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
             return Err(Error::invalid(format!("frames of {width}x{height} pixels")));
         }
         let sdr = options.sdr.is_some();
-        let lpuv = options.lpuv.is_some() && !sdr;
+        let lpuv_info = options.lpuv.as_ref().filter(|_| !sdr);
+        if let Some(info) = lpuv_info {
+            info.check()?;
+        }
+        let lpuv = lpuv_info.is_some();
         let pq = options.transfer == Transfer::Pq && !lpuv && !sdr;
         let fps = options.fps.max(1);
         let mut enc = EncoderConfig::with_speed_preset(options.speed.min(10));
@@ -314,8 +365,8 @@ impl<S: TemporalUnitSink> Av1Encoder<S> {
         enc.time_base = Rational::new(1, u64::from(fps));
         enc.bit_depth = if sdr {
             SDR_BIT_DEPTH
-        } else if lpuv {
-            LPUV_BIT_DEPTH
+        } else if let Some(info) = lpuv_info {
+            u32::from(info.mapping.plane_bits)
         } else {
             BIT_DEPTH
         } as usize;

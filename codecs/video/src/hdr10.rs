@@ -179,7 +179,7 @@ fn dequantize(d: u16, chroma: bool, range: Range) -> f64 {
 /// The inverse of BT.2100 Table 9's quantization at `bits` (8 to 16): limited range
 /// E' = (D/2^(n−8) − 16)/219 for luma and (D/2^(n−8) − 128)/224 for chroma; full range
 /// D/(2^n − 1) and (D − 2^(n−1))/(2^n − 1).
-fn dequantize_bits(d: u16, bits: u32, chroma: bool, range: Range) -> f64 {
+pub(crate) fn dequantize_bits(d: u16, bits: u32, chroma: bool, range: Range) -> f64 {
     let d = f64::from(d);
     let step = f64::from(1u32 << (bits - 8));
     let max = f64::from((1u32 << bits) - 1);

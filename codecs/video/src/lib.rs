@@ -13,7 +13,8 @@
 //! The AV1 path: HDR10 frames ([`hdr10`]: BT.2020 NCL Y'CbCr on PQ or HLG), encoded with rav1e
 //! (`encode`, feature `encode`), stored as IVF ([`ivf`]), read back by our OBU parser ([`obu`]:
 //! sequence header, HDR10 and T.35 metadata) and decoded with libdav1d (`decode`, feature
-//! `decode`). The Mantiuk transfer in AV1 ([`lpuv_av1`]): L_p u'v' codes in 12-bit planes,
+//! `decode`), the planes turned into light by [`light`]. The Mantiuk transfer in AV1
+//! ([`lpuv_av1`]): L_p u'v' codes in 12-bit (or 10-bit, Main-profile) planes,
 //! named by our own T.35 message on every frame. [`codec::Av1Codec`] is all of it as core's
 //! `VideoCodec`.
 
@@ -32,6 +33,7 @@ pub mod gsdf;
 pub mod hdr10;
 pub mod hevc;
 pub mod ivf;
+pub mod light;
 pub mod lpuv_av1;
 pub mod lpuv_image;
 pub mod luv;

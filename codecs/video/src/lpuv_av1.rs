@@ -1,11 +1,12 @@
 //! L_p u'v' (Mantiuk et al. 2004) in AV1 planes, and the ITU-T T.35 message that says so.
 //!
-//! The planes hold the codes of [`crate::luv`] in a 12-bit stream (AV1 profile 2): the ψ luma
-//! code (0..2047 at 11 bits) and u'v' codes round(410·u'), round(410·v') (0..255). How the codes
-//! sit in the planes is the [`LpuvPlaneMapping`]: by default (version 2 of the message) each
-//! plane's codes are stretched linearly onto the whole 12-bit range, P = round(c·4095/c_max),
-//! and the decoder takes c = round(P·c_max/4095), which gives every code back exactly; version 1
-//! streams (before November 2026) hold the codes as they are and still decode.
+//! The planes hold the codes of [`crate::luv`]: the ψ luma code (0..2047 at 11 bits, 0..1023 at
+//! 10) and u'v' codes round(410·u'), round(410·v') (0..255), either in a 12-bit stream (AV1
+//! profile 2, Professional) or in a 10-bit one (4:2:0: profile 0, Main, which hardware decoders
+//! have; [`LpuvStreamInfo::main10`]). How the codes sit in the planes is the
+//! [`LpuvPlaneMapping`]: each plane's codes are stretched linearly, P = round(c·P_max/c_max),
+//! and the decoder takes c = round(P·c_max/P_max), which gives every code back exactly; version 1
+//! streams (before November 2026) hold the codes as they are in 12-bit planes and still decode.
 //! They are not a CICP colour space, so the sequence header carries no colour description; the
 //! stream is identified by a T.35 metadata OBU on every frame instead (see [`LpuvStreamInfo`]).
 //! For 4:2:0 the u'v' codes of each 2x2 block are averaged (chromaticity codes, not light:
@@ -18,8 +19,12 @@ use crate::mantiuk::{Psi04, PsiIntegration, PsiOptions};
 use crate::obu::StreamSummary;
 use hdrcodec_core::{ColorInfo, ColorPrimaries, Error, HdrImage, Result};
 
-/// Bit depth of the AV1 planes that carry L_p u'v'.
+/// Bit depth of the 12-bit (Professional profile) AV1 planes that carry L_p u'v', and of every
+/// stream described by a version 1 or 2 message.
 pub const LPUV_BIT_DEPTH: u32 = 12;
+/// Bit depth of the 10-bit (Main profile at 4:2:0) AV1 planes that carry L_p u'v' (version 3
+/// of the message).
+pub const LPUV_MAIN_BIT_DEPTH: u32 = 10;
 
 /// `itu_t_t35_country_code` of our message: 0xFF, "the country code is in the next byte".
 pub const T35_COUNTRY_CODE: u8 = 0xFF;
@@ -29,21 +34,24 @@ pub const T35_COUNTRY_CODE: u8 = 0xFF;
 pub const T35_COUNTRY_CODE_EXTENSION: u8 = 0xFF;
 /// The first bytes of the payload (after the country code and its extension).
 pub const T35_MAGIC: &[u8; 13] = b"hdrcodec-lpuv";
-/// Payload format version written when codes are mapped onto the planes (the newest); version 1
-/// (no mapping: codes as they are) is written for [`LpuvPlaneMapping::codes`].
-pub const T35_VERSION: u8 = 2;
+/// Payload format version written for 10-bit planes (the newest); version 2 is written for
+/// mapped 12-bit planes and version 1 (no mapping: codes as they are in 12-bit planes) for
+/// [`LpuvPlaneMapping::codes`], so that 12-bit streams stay readable by older decoders.
+pub const T35_VERSION: u8 = 3;
 /// Payload length of version 1: magic, version, curve, bits, primaries, u'v' scale (u16),
 /// L_min, L_max (f64).
 pub const T35_PAYLOAD_LEN_V1: usize = 13 + 4 + 2 + 8 + 8;
 /// Payload length of version 2: version 1's fields and the plane mapping (two u16).
-pub const T35_PAYLOAD_LEN: usize = T35_PAYLOAD_LEN_V1 + 4;
+pub const T35_PAYLOAD_LEN_V2: usize = T35_PAYLOAD_LEN_V1 + 4;
+/// Payload length of version 3: version 2's fields and the planes' bit depth (one byte).
+pub const T35_PAYLOAD_LEN: usize = T35_PAYLOAD_LEN_V2 + 1;
 /// The largest sample of the 12-bit planes.
 const PLANE_MAX: u32 = (1 << LPUV_BIT_DEPTH) - 1;
 /// The largest u'v' code (8 bits).
 const UV_CODE_MAX: u32 = 255;
 
-/// How L_p u'v' codes are placed in the 12-bit planes (version 2 of the payload): the plane
-/// sample of the top code of each plane, luma and u'v'.
+/// How L_p u'v' codes are placed in the planes: the planes' bit depth (10 or 12) and the plane
+/// sample of the top code of each plane, luma and u'v' (versions 2 and 3 of the payload).
 ///
 /// rav1e's quantizer steps are steps of plane samples; codes that use a sixteenth of the range
 /// (u'v', 0..255) or half of it (11-bit ψ, 0..2047) are quantized 16 and 2 times more coarsely
@@ -53,9 +61,11 @@ const UV_CODE_MAX: u32 = 255;
 /// The mapping changes only where codes sit, not the codes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LpuvPlaneMapping {
-    /// The Y sample of the top luma code (2^bits − 1 ..= 4095).
+    /// Bits per plane sample: 12 (Professional profile) or 10 (Main profile at 4:2:0).
+    pub plane_bits: u8,
+    /// The Y sample of the top luma code (2^bits − 1 ..= 2^`plane_bits` − 1).
     pub luma_top: u16,
-    /// The U and V sample of u'v' code 255 (255 ..= 4095).
+    /// The U and V sample of u'v' code 255 (255 ..= 2^`plane_bits` − 1).
     pub uv_top: u16,
 }
 
@@ -63,14 +73,36 @@ impl Default for LpuvPlaneMapping {
     /// Luma stretched onto the whole 12-bit range, u'v' codes ×4 (P_max 1020); chosen by the
     /// measurements in the crate README ("L_p u'v' (Mantiuk 2004) in AV1").
     fn default() -> Self {
-        LpuvPlaneMapping { luma_top: PLANE_MAX as u16, uv_top: 4 * UV_CODE_MAX as u16 }
+        LpuvPlaneMapping {
+            plane_bits: LPUV_BIT_DEPTH as u8,
+            luma_top: PLANE_MAX as u16,
+            uv_top: 4 * UV_CODE_MAX as u16,
+        }
     }
 }
 
 impl LpuvPlaneMapping {
     /// The codes as they are (version 1 streams): top samples 2^`luma_bits` − 1 and 255.
     pub fn codes(luma_bits: u8) -> Self {
-        LpuvPlaneMapping { luma_top: ((1u32 << luma_bits.min(12)) - 1) as u16, uv_top: UV_CODE_MAX as u16 }
+        LpuvPlaneMapping {
+            plane_bits: LPUV_BIT_DEPTH as u8,
+            luma_top: ((1u32 << luma_bits.min(12)) - 1) as u16,
+            uv_top: UV_CODE_MAX as u16,
+        }
+    }
+
+    /// 10-bit planes (AV1 Main profile at 4:2:0) for 10-bit luma codes, both planes' codes as
+    /// they are: luma over the whole range (top 1023), u'v' over a quarter of it (top 255).
+    /// That is the 12-bit default's luma:chroma ratio (rav1e's quantizer steps scale with the
+    /// bit depth, so only the share of the range matters); u'v' over the whole 10-bit range
+    /// (top 1020) measured 0.4–2.6 dB PU21-PSNR worse at equal bytes (crate README).
+    pub fn main10() -> Self {
+        LpuvPlaneMapping { plane_bits: LPUV_MAIN_BIT_DEPTH as u8, luma_top: 1023, uv_top: UV_CODE_MAX as u16 }
+    }
+
+    /// The largest sample of the planes.
+    pub fn plane_max(&self) -> u32 {
+        (1u32 << self.plane_bits.min(16)) - 1
     }
 
     /// Whether this is [`codes`](Self::codes) for `luma_bits` (written as a version 1 payload).
@@ -121,13 +153,16 @@ impl LpuvCurve {
 
 /// What an L_p u'v' stream's T.35 message says: how to turn its codes back into light.
 ///
-/// Payload bytes (after country code 0xFF and extension 0xFF), big-endian, 39 bytes:
+/// Payload bytes (after country code 0xFF and extension 0xFF), big-endian, 40 bytes:
 /// `"hdrcodec-lpuv"` (13 ASCII bytes), version (2), curve id (1 = ψ 2004 continuous,
 /// 2 = ψ by LumaHDRv's recurrence), luma bits (11), H.273 colour primaries of the decoded RGB
 /// (1 BT.709, 9 BT.2020, 12 P3-D65), u'v' scale as u16 (410), L_min and L_max in cd/m² as f64,
 /// the plane mapping ([`LpuvPlaneMapping`]): the Y sample of the top luma code and the U/V
-/// sample of u'v' code 255, two u16. Version 1 is the same without the mapping (35 bytes, codes
-/// as they are); it is still read, and written for [`LpuvPlaneMapping::codes`].
+/// sample of u'v' code 255, two u16; the planes' bit depth (10 or 12), one byte. Version 2 is
+/// the same without the bit depth (39 bytes, 12-bit planes), version 1 also without the mapping
+/// (35 bytes, codes as they are in 12-bit planes); both are still read, and written for 12-bit
+/// planes (version 1 for [`LpuvPlaneMapping::codes`]), so that 12-bit streams stay readable by
+/// decoders older than version 3.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LpuvStreamInfo {
     /// The luma curve.
@@ -192,6 +227,17 @@ impl LpuvStreamInfo {
         }
     }
 
+    /// The default curve at 10 bits (ψ over 10⁻⁴ … 10⁸ cd/m², steps of 0.30 tvi: under the
+    /// threshold, see the crate README's bits table) in 10-bit planes
+    /// ([`LpuvPlaneMapping::main10`]): with 4:2:0 an AV1 Main-profile stream.
+    pub fn main10(primaries: ColorPrimaries) -> Self {
+        LpuvStreamInfo {
+            bits: LPUV_MAIN_BIT_DEPTH as u8,
+            mapping: LpuvPlaneMapping::main10(),
+            ..LpuvStreamInfo::for_primaries(primaries)
+        }
+    }
+
     /// The luma curve as a table.
     pub fn psi(&self) -> Result<Psi04> {
         let integration = match self.curve {
@@ -206,10 +252,17 @@ impl LpuvStreamInfo {
         })
     }
 
-    /// The T.35 payload (after the country code and extension byte).
-    /// Version 1 (35 bytes) for [`LpuvPlaneMapping::codes`], else version 2 (39 bytes).
+    /// The T.35 payload (after the country code and extension byte): version 3 (40 bytes) for
+    /// planes other than 12-bit, else version 1 (35 bytes) for [`LpuvPlaneMapping::codes`] and
+    /// version 2 (39 bytes) for other mappings.
     pub fn to_t35_payload(&self) -> Vec<u8> {
-        let version = if self.mapping.is_codes(self.bits) { 1 } else { T35_VERSION };
+        let version = if u32::from(self.mapping.plane_bits) != LPUV_BIT_DEPTH {
+            T35_VERSION
+        } else if self.mapping.is_codes(self.bits) {
+            1
+        } else {
+            2
+        };
         let mut out = Vec::with_capacity(T35_PAYLOAD_LEN);
         out.extend_from_slice(T35_MAGIC);
         out.extend_from_slice(&[version, self.curve.id(), self.bits, self.primaries_h273]);
@@ -219,6 +272,9 @@ impl LpuvStreamInfo {
         if version >= 2 {
             out.extend_from_slice(&self.mapping.luma_top.to_be_bytes());
             out.extend_from_slice(&self.mapping.uv_top.to_be_bytes());
+        }
+        if version >= 3 {
+            out.push(self.mapping.plane_bits);
         }
         out
     }
@@ -233,13 +289,15 @@ impl LpuvStreamInfo {
         let version = *payload.get(13).ok_or_else(truncated)?;
         let (len, mapping) = match version {
             1 => (T35_PAYLOAD_LEN_V1, None),
-            2 => {
-                let b = payload.get(..T35_PAYLOAD_LEN).ok_or_else(truncated)?;
+            2 | 3 => {
+                let len = if version == 2 { T35_PAYLOAD_LEN_V2 } else { T35_PAYLOAD_LEN };
+                let b = payload.get(..len).ok_or_else(truncated)?;
                 let mapping = LpuvPlaneMapping {
+                    plane_bits: if version == 2 { LPUV_BIT_DEPTH as u8 } else { b[39] },
                     luma_top: u16::from_be_bytes([b[35], b[36]]),
                     uv_top: u16::from_be_bytes([b[37], b[38]]),
                 };
-                (T35_PAYLOAD_LEN, Some(mapping))
+                (len, Some(mapping))
             }
             other => return Err(Error::unsupported(format!("hdrcodec-lpuv T.35 message version {other}"))),
         };
@@ -261,27 +319,42 @@ impl LpuvStreamInfo {
         if f64::from(scale) != UV_SCALE {
             return Err(Error::unsupported(format!("L_p u'v' stream with u'v' scale {scale}")));
         }
-        if u32::from(info.bits) > LPUV_BIT_DEPTH || info.bits < 8 {
-            return Err(Error::unsupported(format!("L_p u'v' luma of {} bits in 12-bit planes", info.bits)));
+        info.check()?;
+        Ok(Some(info))
+    }
+
+    /// Checks that a decoder can invert what this describes: plane depth 10 or 12, luma bits
+    /// from 8 to the plane depth, a luminance range, top samples from each plane's top code to
+    /// the planes' largest sample, primaries H.273 names (what [`from_t35`](Self::from_t35)
+    /// checks, and the encoder before its first frame).
+    pub fn check(&self) -> Result<()> {
+        let info = self;
+        let plane_bits = info.mapping.plane_bits;
+        if u32::from(plane_bits) != LPUV_BIT_DEPTH && u32::from(plane_bits) != LPUV_MAIN_BIT_DEPTH {
+            return Err(Error::unsupported(format!("L_p u'v' in {plane_bits}-bit planes (10 or 12 are read)")));
+        }
+        if info.bits > plane_bits || info.bits < 8 {
+            return Err(Error::unsupported(format!("L_p u'v' luma of {} bits in {plane_bits}-bit planes", info.bits)));
         }
         if !(info.min_nits > 0.0 && info.max_nits > info.min_nits && info.max_nits.is_finite()) {
             return Err(Error::invalid(format!("L_p u'v' range {} … {} cd/m²", info.min_nits, info.max_nits)));
         }
         let luma_max = (1u32 << info.bits) - 1;
         let (luma_top, uv_top) = (u32::from(info.mapping.luma_top), u32::from(info.mapping.uv_top));
-        if !(luma_max..=PLANE_MAX).contains(&luma_top) || !(UV_CODE_MAX..=PLANE_MAX).contains(&uv_top) {
+        let plane_max = info.mapping.plane_max();
+        if !(luma_max..=plane_max).contains(&luma_top) || !(UV_CODE_MAX..=plane_max).contains(&uv_top) {
             return Err(Error::invalid(format!(
-                "L_p u'v' planes with top samples {luma_top} (luma, {} bits) and {uv_top} (u'v'): each must be from its top code to 4095",
+                "L_p u'v' planes with top samples {luma_top} (luma, {} bits) and {uv_top} (u'v'): each must be from its top code to {plane_max}",
                 info.bits
             )));
         }
         info.primaries()?;
-        Ok(Some(info))
+        Ok(())
     }
 }
 
-/// A frame (any primaries, `nits_per_unit`) → 12-bit AV1 planes of L_p u'v' codes placed by
-/// `mapping`.
+/// A frame (any primaries, `nits_per_unit`) → AV1 planes (10- or 12-bit) of L_p u'v' codes
+/// placed by `mapping`.
 pub fn frame_to_lpuv_yuv(
     psi: &Psi04,
     frame: &HdrImage,
@@ -325,7 +398,7 @@ pub fn frame_to_lpuv_yuv(
     })
 }
 
-/// 12-bit planes of L_p u'v' codes placed by `mapping` → a frame in `color` (primaries,
+/// Planes of L_p u'v' codes placed by `mapping` → a frame in `color` (primaries,
 /// `nits_per_unit`). Codes beyond the curve's top or 255 (a lossy encoder may overshoot) are
 /// clamped to them.
 pub fn lpuv_yuv_to_frame(psi: &Psi04, yuv: &YuvFrame, color: ColorInfo, mapping: LpuvPlaneMapping) -> Result<HdrImage> {
@@ -376,9 +449,9 @@ mod tests {
     #[test]
     fn t35_payload_round_trips_byte_by_byte() {
         let info = LpuvStreamInfo::for_primaries(ColorPrimaries::Bt2020);
-        assert_eq!(info.mapping, LpuvPlaneMapping { luma_top: 4095, uv_top: 1020 });
+        assert_eq!(info.mapping, LpuvPlaneMapping { plane_bits: 12, luma_top: 4095, uv_top: 1020 });
         let payload = info.to_t35_payload();
-        assert_eq!(payload.len(), T35_PAYLOAD_LEN);
+        assert_eq!(payload.len(), T35_PAYLOAD_LEN_V2);
         assert_eq!(&payload[..13], b"hdrcodec-lpuv");
         assert_eq!(&payload[13..19], &[2, 1, 11, 9, 0x01, 0x9a]);
         assert_eq!(&payload[19..27], &1e-4f64.to_be_bytes());
@@ -404,6 +477,32 @@ mod tests {
     }
 
     #[test]
+    fn main_profile_payloads_are_version_3_with_the_plane_depth() {
+        let info = LpuvStreamInfo::main10(ColorPrimaries::Bt709);
+        assert_eq!((info.bits, info.mapping), (10, LpuvPlaneMapping { plane_bits: 10, luma_top: 1023, uv_top: 255 }));
+        let payload = info.to_t35_payload();
+        assert_eq!(payload.len(), T35_PAYLOAD_LEN);
+        assert_eq!(&payload[13..19], &[3, 1, 10, 1, 0x01, 0x9a]);
+        assert_eq!(&payload[35..], &[0x03, 0xff, 0x00, 0xff, 10]);
+        assert_eq!(LpuvStreamInfo::from_t35(0xff, &payload).unwrap(), Some(info));
+        assert!(LpuvStreamInfo::from_t35(0xff, &payload[..39]).is_err());
+        // Plane depth other than 10 or 12; luma bits above it; tops above 1023 in 10-bit planes.
+        for (i, v) in [(39, 8u8), (39, 11), (39, 16), (15, 11), (35, 0x04), (37, 0x04), (38, 0xfe)] {
+            let mut bad = payload.clone();
+            bad[i] = v;
+            assert!(LpuvStreamInfo::from_t35(0xff, &bad).is_err(), "byte {i} = {v}");
+        }
+        // 11-bit codes fit 12-bit planes only.
+        let eleven = LpuvStreamInfo { mapping: LpuvPlaneMapping::main10(), ..LpuvStreamInfo::default() };
+        assert!(eleven.check().is_err());
+        // 12-bit planes described by version 3 read as version 2 does.
+        let mut twelve = LpuvStreamInfo::default().to_t35_payload();
+        twelve[13] = 3;
+        twelve.push(12);
+        assert_eq!(LpuvStreamInfo::from_t35(0xff, &twelve).unwrap(), Some(LpuvStreamInfo::default()));
+    }
+
+    #[test]
     fn version_1_payloads_still_read_as_codes_in_the_planes() {
         // The bytes a version 1 writer produced (before the mapping existed).
         let mut v1 = b"hdrcodec-lpuv".to_vec();
@@ -411,7 +510,7 @@ mod tests {
         v1.extend_from_slice(&1e-4f64.to_be_bytes());
         v1.extend_from_slice(&1e8f64.to_be_bytes());
         let info = LpuvStreamInfo::from_t35(0xff, &v1).unwrap().unwrap();
-        assert_eq!(info.mapping, LpuvPlaneMapping { luma_top: 2047, uv_top: 255 });
+        assert_eq!(info.mapping, LpuvPlaneMapping { plane_bits: 12, luma_top: 2047, uv_top: 255 });
         let codes = LpuvPlaneMapping::codes(11);
         assert_eq!(info, LpuvStreamInfo { mapping: codes, ..LpuvStreamInfo::for_primaries(ColorPrimaries::Bt2020) });
         // And a stream of codes as they are is written as version 1, byte for byte.
@@ -421,7 +520,9 @@ mod tests {
 
     #[test]
     fn mapped_planes_invert_every_code() {
-        for (code_max, top) in [(255u32, 255u16), (255, 1020), (255, 4095), (2047, 2047), (2047, 4095), (1023, 3000)] {
+        for (code_max, top) in
+            [(255u32, 255u16), (255, 1020), (255, 4095), (2047, 2047), (2047, 4095), (1023, 3000), (1023, 1023)]
+        {
             let (to_plane, to_code) = (LpuvPlaneMapping::to_plane, LpuvPlaneMapping::to_code);
             assert_eq!((to_plane(0, code_max, top), to_plane(code_max as u16, code_max, top)), (0, top));
             let mut last = None;
@@ -444,8 +545,12 @@ mod tests {
 
     #[test]
     fn planes_round_trip_without_loss_at_444() {
-        for mapping in [LpuvPlaneMapping::codes(11), LpuvPlaneMapping::default()] {
-            let info = LpuvStreamInfo { mapping, ..LpuvStreamInfo::default() };
+        for info in [
+            LpuvStreamInfo { mapping: LpuvPlaneMapping::codes(11), ..LpuvStreamInfo::default() },
+            LpuvStreamInfo::default(),
+            LpuvStreamInfo::main10(ColorPrimaries::Bt709),
+        ] {
+            let mapping = info.mapping;
             let psi = info.psi().unwrap();
             let samples: Vec<f32> = (0..4 * 3 * 3).map(|i| (i as f32 * 0.37).sin().abs() * 50.0).collect();
             let frame = HdrImage::new(4, 3, hdrcodec_core::Channels::Rgb, samples, ColorInfo::default()).unwrap();
@@ -456,10 +561,13 @@ mod tests {
             assert_eq!((yuv420.cb.len(), &yuv420.y), (4, &yuv.y));
             assert!(lpuv_yuv_to_frame(&psi, &yuv420, frame.color.clone(), mapping).is_ok());
             // Both mappings place the same codes.
-            let codes = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv444, LpuvPlaneMapping::codes(11)).unwrap();
+            let bits = info.bits;
+            let codes = frame_to_lpuv_yuv(&psi, &frame, Subsampling::Yuv444, LpuvPlaneMapping::codes(bits)).unwrap();
+            let top = (1u32 << bits) - 1;
             let placed: Vec<u16> =
-                codes.y.iter().map(|&c| LpuvPlaneMapping::to_plane(c, 2047, mapping.luma_top)).collect();
+                codes.y.iter().map(|&c| LpuvPlaneMapping::to_plane(c, top, mapping.luma_top)).collect();
             assert_eq!(yuv.y, placed);
+            assert!(yuv.y.iter().chain(&yuv.cb).all(|&p| u32::from(p) <= mapping.plane_max()));
         }
     }
 }

@@ -344,3 +344,63 @@ fn a_pan_round_trips_through_the_trait() {
         assert!(own > 40.0 && own > other + 20.0, "frame {t}: {own:.1} / {other:.1} dB");
     }
 }
+
+/// A writer whose bytes the test can still read after the encoder took it.
+#[derive(Clone, Default)]
+struct SharedWriter(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for SharedWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// `begin_encode` to MP4 or Matroska holds the file in memory: within `max_memory`, else
+/// `LimitExceeded` and nothing reaches the writer.
+#[test]
+fn mp4_and_matroska_built_in_memory_are_bounded_by_max_memory() {
+    let frames = frames(4, 4000.0);
+    let info = ImageInfo::of(&frames[0]).with_frames(4);
+    for container in ["mp4", "mkv"] {
+        let full = encode(&frames, &info, &fast().with_option("container", container));
+        // Room for the whole file: the same bytes as without the option.
+        let roomy =
+            fast().with_option("container", container).with_option("max_memory", (full.len() + 4096).to_string());
+        assert_eq!(encode(&frames, &info, &roomy), full, "{container}");
+        // Room for less than the stream: an error naming the limit, and an untouched writer.
+        let tight = fast().with_option("container", container).with_option("max_memory", (full.len() / 2).to_string());
+        let out = SharedWriter::default();
+        let mut enc = Av1Codec.begin_encode(&info, &tight, Box::new(out.clone())).unwrap();
+        let result = frames.iter().try_for_each(|f| enc.push_frame(f)).and_then(|()| enc.finish().map(|_| ()));
+        match result {
+            Err(Error::LimitExceeded { what }) => assert!(what.contains("in memory"), "{what}"),
+            other => panic!("{container}: {other:?}"),
+        }
+        assert!(out.0.lock().unwrap().is_empty(), "{container}: bytes written before the error");
+    }
+    let bad = fast().with_option("container", "mp4").with_option("max_memory", "lots");
+    assert!(Av1Codec.begin_encode(&info, &bad, Box::new(std::io::sink())).is_err());
+}
+
+/// `transfer=mantiuk bits=10` through the trait: a 10-bit Main-profile stream of L_p u'v'.
+#[test]
+fn mantiuk_in_10_bit_planes_through_the_trait() {
+    let frames = frames(2, 2000.0);
+    let info = ImageInfo::of(&frames[0]).with_frames(2);
+    let settings = fast().with_option("transfer", "mantiuk").with_option("chroma", "420").with_option("bits", "10");
+    let ivf = encode(&frames, &info, &settings);
+    let (_, summary) = hdrcodec_video::decode::probe_ivf(&ivf, &Limits::default()).unwrap();
+    let seq = summary.sequence_header.unwrap();
+    assert_eq!((seq.profile, seq.color.bit_depth), (0, 10));
+    let mut dec = Av1Codec.begin_decode(ivf.into(), &DecodeOptions::new(Limits::default())).unwrap();
+    assert!(dec.info().format.contains("10-bit 4:2:0 L_p u'v'"), "{}", dec.info().format);
+    assert!(dec.next_frame().unwrap().is_some());
+    // 11 bits is no plane depth; HDR10 (the default transfer) takes no `bits`.
+    for bad in [fast().with_option("transfer", "mantiuk").with_option("bits", "11"), fast().with_option("bits", "10")] {
+        assert!(Av1Codec.begin_encode(&info, &bad, Box::new(std::io::sink())).is_err(), "{bad:?}");
+    }
+}

@@ -1,4 +1,5 @@
-//! L_p u'v' (Mantiuk et al. 2004, ψ at 11 bits) in 12-bit AV1 through rav1e and libdav1d, on
+//! L_p u'v' (Mantiuk et al. 2004, ψ at 11 bits in 12-bit AV1, or at 10 bits in 10-bit Main-profile
+//! AV1) through rav1e and libdav1d, on
 //! small synthetic frames (96x64, speed 10): quality by PU21-PSNR and ΔE ITP, the stream's
 //! signalling (profile 2, 12 bits, no colour description, our T.35 on every temporal unit) read
 //! back by our own OBU parser, and refusal of what is not ours. FFmpeg's md5 of the planes is
@@ -44,6 +45,11 @@ fn mantiuk(subsampling: Subsampling, quantizer: u8) -> Av1Options {
     }
 }
 
+/// [`mantiuk`] at 10 bits: ψ with 10-bit codes in 10-bit planes (Main profile at 4:2:0).
+fn mantiuk_main10(subsampling: Subsampling, quantizer: u8) -> Av1Options {
+    Av1Options { lpuv: Some(LpuvStreamInfo::main10(ColorPrimaries::Bt2020)), ..mantiuk(subsampling, quantizer) }
+}
+
 /// `options` with the codes as they are in the planes: a version 1 stream, as written before
 /// the plane mapping existed.
 fn version_1(mut options: Av1Options) -> Av1Options {
@@ -70,6 +76,7 @@ fn round_trip(frames: &[HdrImage], options: &Av1Options) -> (Vec<u8>, f64, f64) 
 /// | L_p u'v' 4:4:4, default planes (Y ×2, u'v' ×4) | 10 | 3504 | 50.6 | 1.31 |
 /// | L_p u'v' 4:2:0, default planes | 10 | 2822 | 50.6 | 2.06 |
 /// | L_p u'v' 4:4:4, codes as they are (version 1) | 10 | 2220 | 44.9 | 2.38 |
+/// | L_p u'v' 10-bit 4:2:0, Main profile (10-bit ψ, u'v' ×1) | 10 | 2479 | 47.0 | 2.32 |
 /// | HDR10 PQ 4:2:0 | 40 | 1312 | 41.8 | 3.28 |
 ///
 /// The bounds sit a little below these figures. The version 1 row is the same stream (2220
@@ -81,6 +88,7 @@ fn mantiuk_round_trip_444_and_420_against_hdr10() {
         ("L_p u'v' 4:4:4", mantiuk(Subsampling::Yuv444, 10), 49.5, 1.5),
         ("L_p u'v' 4:2:0", mantiuk(Subsampling::Yuv420, 10), 49.5, 2.3),
         ("L_p u'v' 4:4:4, version 1 planes", version_1(mantiuk(Subsampling::Yuv444, 10)), 44.0, 2.6),
+        ("L_p u'v' 10-bit 4:2:0 (Main)", mantiuk_main10(Subsampling::Yuv420, 10), 46.0, 2.6),
         ("HDR10 PQ 4:2:0", Av1Options { speed: 10, quantizer: 40, ..Av1Options::default() }, 41.0, 3.6),
     ] {
         let (ivf, pu21, de) = round_trip(&frames, &options);
@@ -111,6 +119,50 @@ fn the_stream_is_12_bit_profile_2_without_colour_description_with_our_t35_on_eve
         let decoded = decode_ivf(&ivf, &Av1DecodeOptions::default()).unwrap();
         assert_eq!(decoded[0].color.primaries, ColorPrimaries::Bt2020);
     }
+}
+
+#[test]
+fn the_10_bit_stream_is_main_profile_at_420_with_our_t35_and_its_depth_checked() {
+    let frames: Vec<_> = (0..3).map(frame).collect();
+    for (subsampling, profile) in [(Subsampling::Yuv420, 0), (Subsampling::Yuv444, 1)] {
+        let options = mantiuk_main10(subsampling, 60);
+        let (_, ivf) = encode_sequence(&frames, &options, Vec::new()).unwrap();
+        let (_, s) = probe_ivf(&ivf, &Default::default()).unwrap();
+        let seq = s.sequence_header.as_ref().unwrap();
+        assert_eq!((seq.profile, seq.color.bit_depth, seq.color.full_range), (profile, 10, true));
+        assert_eq!(seq.color.color_description, None);
+        assert_eq!(s.t35_per_temporal_unit, vec![1; 3]);
+        let (country_code, payload) = s.first_t35.clone().unwrap();
+        assert_eq!(payload.len(), 40);
+        assert_eq!(LpuvStreamInfo::from_t35(country_code, &payload).unwrap(), options.lpuv);
+        let decoded = decode_ivf(&ivf, &Av1DecodeOptions::default()).unwrap();
+        assert_eq!((decoded.len(), decoded[0].color.primaries), (3, ColorPrimaries::Bt2020));
+        // The description's plane depth must be the stream's: 12 named in a 10-bit stream is
+        // an error (every copy of the message patched).
+        let mut wrong = ivf.clone();
+        let mut at = 0;
+        while let Some(i) = wrong[at..].windows(13).position(|w| w == b"hdrcodec-lpuv") {
+            wrong[at + i + 39] = 12;
+            at += i + 1;
+        }
+        match decode_ivf(&wrong, &Av1DecodeOptions::default()) {
+            Err(Error::Invalid { .. }) => {}
+            other => panic!("a 10-bit stream described as 12-bit decoded as {:?}", other.map(|f| f.len())),
+        }
+    }
+    // Without our T.35 a 10-bit stream with no colour description is not ours: refused.
+    let mut options = mantiuk_main10(Subsampling::Yuv420, 60);
+    let (_, ivf) = encode_sequence(&frames, &options, Vec::new()).unwrap();
+    let mut unknown = ivf.clone();
+    let mut at = 0;
+    while let Some(i) = unknown[at..].windows(13).position(|w| w == b"hdrcodec-lpuv") {
+        unknown[at + i] = b'H';
+        at += i + 1;
+    }
+    assert!(matches!(decode_ivf(&unknown, &Av1DecodeOptions::default()), Err(Error::Unsupported { .. })));
+    // 11-bit codes do not fit 10-bit planes: the encoder refuses before coding.
+    options.lpuv.as_mut().unwrap().bits = 11;
+    assert!(encode_sequence(&frames, &options, Vec::new()).is_err());
 }
 
 #[test]
