@@ -42,12 +42,17 @@ impl<'a> BitReader<'a> {
             // avail + 8 * ((63 - avail) / 8) for avail <= 56.
             self.avail |= 56;
         } else {
-            self.refill_tail();
+            *self = self.clone().refilled_tail();
         }
     }
 
+    /// [`refill`](Self::refill) near the end of the data. It takes the reader by value and
+    /// returns it: a `&mut self` would hand the address of the caller's reader to a call that
+    /// is not inlined, and the hot loops that keep the reader in registers (the entropy
+    /// decoder's local copies) would have to keep it in memory instead.
     #[cold]
-    fn refill_tail(&mut self) {
+    #[inline(never)]
+    fn refilled_tail(mut self) -> Self {
         while self.avail <= 56 {
             let byte = match self.data.get(self.pos) {
                 Some(&b) => {
@@ -62,6 +67,7 @@ impl<'a> BitReader<'a> {
             self.buf |= u64::from(byte) << (56 - self.avail);
             self.avail += 8;
         }
+        self
     }
 
     /// The next `n` bits (`n` ≤ 32) without consuming them.

@@ -572,13 +572,18 @@ fn abs_level_in(table: &[u16; 256], disc: &mut i32, r: &mut BitReader) -> u32 {
     if index < 6 {
         return u32::from(e >> 8);
     }
-    escaped_level(r)
+    let level;
+    (level, *r) = escaped_level(r.clone());
+    level
 }
 
-/// The level after the escape symbol of ABSLEVEL_INDEX (`r_DECODE_ABS_LEVEL`); the bit
-/// buffer is topped up again after it.
+/// The level after the escape symbol of ABSLEVEL_INDEX (`r_DECODE_ABS_LEVEL`) and the reader
+/// after it, its bit buffer topped up again. The reader goes in and out by value, so that the
+/// address of the caller's (kept in registers through a block) is not taken.
 #[cold]
-fn escaped_level(r: &mut BitReader) -> u32 {
+#[inline(never)]
+fn escaped_level(mut reader: BitReader) -> (u32, BitReader) {
+    let r = &mut reader;
     let mut fixed = 4 + r.read(4);
     if fixed == 19 {
         fixed += r.read(2);
@@ -588,7 +593,7 @@ fn escaped_level(r: &mut BitReader) -> u32 {
     }
     let level = 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed));
     r.fill();
-    level
+    (level, reader)
 }
 
 /// INDEX of the last two positions of a block (`r_DECODE_BLOCK`), with at least 8 bits

@@ -341,16 +341,16 @@ pub fn float_to_int(f: f32, exp_bias: i8, len_mantissa: u32) -> i32 {
     }
 }
 
-/// One channel of RGBE (jxrlib `inverseConvert`): (mantissa, exponent).
+/// One channel of RGBE (jxrlib `inverseConvert`): (mantissa, exponent), each 0..=255: 0 and 0
+/// for `v` ≤ 0, `v` and 1 below 256, else the 7 bits below the leading ones and `v >> 7` cast
+/// to 8 bits. Selects, not branches, so that runs of pixels vectorise.
 #[inline(always)]
-fn rgbe_channel(v: i32) -> (u8, u8) {
-    if v <= 0 {
-        (0, 0)
-    } else if (v >> 7) > 1 {
-        (((v & 0x7f) | 0x80) as u8, (v >> 7) as u8)
-    } else {
-        (v as u8, 1)
-    }
+fn rgbe_channel(v: i32) -> (i32, i32) {
+    let big = v >= 256;
+    let m = if big { (v & 0x7f) | 0x80 } else { v & 0xff };
+    let e = if big { (v >> 7) & 0xff } else { 1 };
+    let positive = -i32::from(v > 0);
+    (m & positive, e & positive)
 }
 
 /// R, G, B integer samples to RGBE bytes (jxrlib `inverseConvertRGBE`): the largest exponent
@@ -362,19 +362,24 @@ fn rgbe_channel(v: i32) -> (u8, u8) {
 /// We do the same, which is what jxrlib's files decode to (a zero channel under E = 31, 63, ...
 /// 255 comes out as mantissa 1; a small one under a large E as a larger mantissa). Found with
 /// lossy RGBE files of our encoder, whose ringing leaves such channels.
+///
+/// Without branches on the samples (a run of pixels vectorises, the shifts per lane in AVX2).
 #[inline(always)]
 pub fn int_to_rgbe(r: i32, g: i32, b: i32) -> [u8; 4] {
+    u32::to_le_bytes(int_to_rgbe_word(r, g, b))
+}
+
+/// [`int_to_rgbe`]'s bytes as one little-endian word.
+#[inline(always)]
+fn int_to_rgbe_word(r: i32, g: i32, b: i32) -> u32 {
     let ch = [rgbe_channel(r), rgbe_channel(g), rgbe_channel(b)];
     let e = ch[0].1.max(ch[1].1).max(ch[2].1);
-    let mant = |(m, ce): (u8, u8)| -> u8 {
-        if e > ce {
-            let shift = (u32::from(e - ce) + 1) & 31;
-            ((i32::from(m) * 2 + 1) >> shift) as u8
-        } else {
-            m
-        }
+    let mant = |(m, ce): (i32, i32)| -> u32 {
+        // e − ce + 1 is at least 2 where it is used; as a C int shift, modulo 32.
+        let shifted = ((m * 2 + 1) as u32) >> ((e - ce + 1) & 31) as u32;
+        (if e > ce { shifted } else { m as u32 }) & 0xff
     };
-    [mant(ch[0]), mant(ch[1]), mant(ch[2]), e]
+    mant(ch[0]) | mant(ch[1]) << 8 | mant(ch[2]) << 16 | (e as u32) << 24
 }
 
 /// One full-resolution row of a subsampled chroma plane, interpolated as jxrlib's
@@ -754,12 +759,7 @@ impl OutputParams {
                     px.copy_from_slice(&v.to_le_bytes()[..bytes]);
                 }
             }
-            (C::Rgbe, _) => {
-                for (x, px) in out.chunks_exact_mut(4).enumerate() {
-                    let [r, g, b] = convert(x);
-                    px.copy_from_slice(&int_to_rgbe(r >> s, g >> s, b >> s));
-                }
-            }
+            (C::Rgbe, _) => write_rgbe_runs(out, yuv, bias, gray_to_rgb, s),
             (C::YOnly, Bd1White1 | Bd1Black1) => {
                 let threshold = if self.scaled { 1 << (s - 1) } else { 1 };
                 let invert = u8::from(self.bit_depth == Bd1Black1);
@@ -906,25 +906,11 @@ fn write_rgb_runs<T: Copy + Default, const B: usize>(
     f: impl Fn(i32) -> T,
     bytes: impl Fn(T) -> [u8; B],
 ) {
-    const RUN: usize = 64;
     let RgbLayout { spp, padded, red, blue } = layout;
     let mut ints = [[0i32; RUN]; 3];
     let mut converted = [[T::default(); RUN]; 3];
     for (run, chunk) in out.chunks_mut(B * spp * RUN).enumerate() {
-        let n = chunk.len() / (B * spp);
-        let [ys, us, vs] = yuv.map(|plane| plane.get(run * RUN..).map_or(&[][..], |p| &p[..n.min(p.len())]));
-        let [r_run, g_run, b_run] = &mut ints;
-        let rgb = r_run.iter_mut().zip(g_run.iter_mut()).zip(b_run.iter_mut());
-        if grey {
-            for (((r, g), b), &y) in rgb.zip(ys) {
-                let v = y.wrapping_add(bias);
-                [*r, *g, *b] = [v, v, v];
-            }
-        } else {
-            for ((((r, g), b), &y), (&u, &v)) in rgb.zip(ys).zip(us.iter().zip(vs)) {
-                (*r, *g, *b) = inverse_cc(y.wrapping_add(bias), u, v);
-            }
-        }
+        rgb_run(&mut ints, yuv, run * RUN, chunk.len() / (B * spp), bias, grey);
         for (src, dst) in ints.iter().zip(&mut converted) {
             for (d, &v) in dst.iter_mut().zip(src) {
                 *d = f(v);
@@ -938,6 +924,47 @@ fn write_rgb_runs<T: Copy + Default, const B: usize>(
             if padded {
                 p[3 * B..4 * B].fill(0);
             }
+        }
+    }
+}
+
+/// Pixels a step of [`write_rgb_runs`] and [`write_rgbe_runs`] converts.
+const RUN: usize = 64;
+
+/// The R, G, B samples of pixels `start..start + n` (`n` ≤ [`RUN`]) of the rows `yuv` into
+/// `ints` (see [`write_rgb_runs`]).
+#[inline(always)]
+fn rgb_run(ints: &mut [[i32; RUN]; 3], yuv: [&[i32]; 3], start: usize, n: usize, bias: i32, grey: bool) {
+    let [ys, us, vs] = yuv.map(|plane| plane.get(start..).map_or(&[][..], |p| &p[..n.min(p.len())]));
+    let [r_run, g_run, b_run] = ints;
+    let rgb = r_run.iter_mut().zip(g_run.iter_mut()).zip(b_run.iter_mut());
+    if grey {
+        for (((r, g), b), &y) in rgb.zip(ys) {
+            let v = y.wrapping_add(bias);
+            [*r, *g, *b] = [v, v, v];
+        }
+    } else {
+        for ((((r, g), b), &y), (&u, &v)) in rgb.zip(ys).zip(us.iter().zip(vs)) {
+            (*r, *g, *b) = inverse_cc(y.wrapping_add(bias), u, v);
+        }
+    }
+}
+
+/// Writes the RGBE bytes of every pixel of `out` from the rows `yuv` (as [`write_rgb_runs`]),
+/// each sample shifted right by `s` first ([`int_to_rgbe`]), in runs: the colour transform,
+/// then the conversion of the run (lane-wise, branch-free), then the bytes.
+#[inline(always)]
+fn write_rgbe_runs(out: &mut [u8], yuv: [&[i32]; 3], bias: i32, grey: bool, s: u32) {
+    let mut ints = [[0i32; RUN]; 3];
+    let mut words = [0u32; RUN];
+    for (run, chunk) in out.chunks_mut(4 * RUN).enumerate() {
+        rgb_run(&mut ints, yuv, run * RUN, chunk.len() / 4, bias, grey);
+        let [rs, gs, bs] = &ints;
+        for (w, ((&r, &g), &b)) in words.iter_mut().zip(rs.iter().zip(gs).zip(bs)) {
+            *w = int_to_rgbe_word(r >> s, g >> s, b >> s);
+        }
+        for (p, &w) in chunk.chunks_exact_mut(4).zip(&words) {
+            p.copy_from_slice(&w.to_le_bytes());
         }
     }
 }
@@ -1339,6 +1366,67 @@ mod tests {
         // No overflow check: the exponent runs into the sign bit as jxrlib's does.
         assert_eq!(int_to_float_bits(0x7FFF_FFFF, -128, 23), ((0xFFu32 + 255) << 23) | 0x7F_FFFF);
         let _ = int_to_float_bits(i32::MIN, 127, 0);
+    }
+
+    /// jxrlib's `inverseConvertRGBE` as it reads, with its branches (the model of the
+    /// branch-free [`int_to_rgbe`]).
+    fn rgbe_reference(r: i32, g: i32, b: i32) -> [u8; 4] {
+        let channel = |v: i32| -> (u8, u8) {
+            if v <= 0 {
+                (0, 0)
+            } else if (v >> 7) > 1 {
+                (((v & 0x7f) | 0x80) as u8, (v >> 7) as u8)
+            } else {
+                (v as u8, 1)
+            }
+        };
+        let ch = [channel(r), channel(g), channel(b)];
+        let e = ch[0].1.max(ch[1].1).max(ch[2].1);
+        let mant = |(m, ce): (u8, u8)| -> u8 {
+            if e > ce {
+                ((i32::from(m) * 2 + 1) >> ((u32::from(e - ce) + 1) & 31)) as u8
+            } else {
+                m
+            }
+        };
+        [mant(ch[0]), mant(ch[1]), mant(ch[2]), e]
+    }
+
+    #[test]
+    fn rgbe_matches_the_branching_reference() {
+        // Every exponent and mantissa edge (0, 1, 255, 256, powers of two and their
+        // neighbours, the 8-bit wrap of the exponent, negatives), in every combination.
+        let mut values = vec![i32::MIN, -70000, -256, -1, 0, 1, 2, 127, 128, 255, 256, 257, 383, 384, i32::MAX];
+        for k in 8..31 {
+            values.extend([(1 << k) - 1, 1 << k, (1 << k) + 77]);
+        }
+        for e in [31, 32, 63, 64, 255, 256, 257] {
+            values.extend([e << 7, (e << 7) + 127]);
+        }
+        for &r in &values {
+            for &g in &values {
+                for &b in &values {
+                    assert_eq!(int_to_rgbe(r, g, b), rgbe_reference(r, g, b), "{r} {g} {b}");
+                }
+            }
+        }
+        // xorshift32 triples over the whole range and near the small exponents.
+        let mut x = 0x9E37_79B9u32;
+        for i in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let v = |k: u32| -> i32 {
+                let w = x.rotate_left(k * 11);
+                if i % 2 == 0 {
+                    w as i32
+                } else {
+                    (w % 70_000) as i32 - 1000
+                }
+            };
+            let (r, g, b) = (v(0), v(1), v(2));
+            assert_eq!(int_to_rgbe(r, g, b), rgbe_reference(r, g, b), "{r} {g} {b}");
+        }
     }
 
     #[test]
