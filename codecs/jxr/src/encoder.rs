@@ -17,7 +17,7 @@ use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSour
 use crate::input::{Clipped, SampleCoder};
 use crate::macroblock::{flex_mb_encode, PlaneEncoder};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::{forward_cc, half_codes};
+use crate::output::{forward_cc, half_rgb_yuv};
 use crate::predict;
 use crate::quant;
 use crate::transform::{
@@ -485,13 +485,8 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         let row = image.row(y.min(height - 1) as u32);
         let [o0, o1, o2] = out else { unreachable!("three colour channels") };
         if half_rgb {
-            // Half RGB: the whole row's codes in one vectorised pass, then the colour
-            // transform pixel by pixel.
-            let mut codes = vec![0i32; width * 3];
-            (clipped.nan, clipped.above) = half_codes(&row[..width * 3], scale, &mut codes);
-            for (((p, yy), u), v) in codes.chunks_exact(3).zip(o0.iter_mut()).zip(o1.iter_mut()).zip(o2.iter_mut()) {
-                (*yy, *u, *v) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
-            }
+            // Half RGB: codes and colour transform in one vectorised pass.
+            (clipped.nan, clipped.above) = half_rgb_yuv(&row[..width * 3], scale, shift, [o0, o1, o2]);
         } else {
             for (x, p) in row.chunks_exact(spp).take(width).enumerate() {
                 let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);
