@@ -10,14 +10,19 @@
 //! jxrlib the half floats in memory (rows packed), encoding into a memory stream over a buffer
 //! allocated once outside the timing.
 //!
-//! Settings, "equal" as far as the two encoders allow. jxrlib: JxrEncApp's for the same `-q`
-//! (lossless = 1.0, 0.9, 0.6, 0.3): its QP tables for half floats, 4:4:4, overlap 1 (2 below
-//! 0.5), FREQUENCY bitstream order with progressive mode (JxrEncApp's default), one tile.
-//! Ours: quality 100 / 90 / 60 / 30 (the scales differ: ours maps quality linearly to one
-//! base QP index, jxrlib interpolates its tables; see QPS below), `adaptive: false` (one HP
-//! quantizer, as jxrlib), jxrlib's overlap for that quality, half format, SPATIAL order (the
-//! only one our encoder writes). At equal `-q`/quality the QP indices are close, not equal,
-//! so the files' sizes differ somewhat (printed in the setup).
+//! Settings. jxrlib: JxrEncApp's for `-q` 1.0 (lossless), 0.9, 0.6 and 0.3: its QP tables
+//! for half floats (six indices: Y, U, V for DC and LP, Y, U, V for HP), 4:4:4, overlap 1 (2
+//! below 0.5), FREQUENCY bitstream order with progressive mode (JxrEncApp's default), one
+//! tile. Ours at **equal settings** (`hdrcodec_1thread`, `hdrcodec_2threads`): the quantizers
+//! read back from jxrlib's file (`Quantizers::of_file`: per band and channel), the same
+//! overlap, FREQUENCY order, one quantizer set for every macroblock (`adaptive: false`, as
+//! jxrlib), half format, 4:4:4, every band, one tile; the files are then about jxrlib's size
+//! (printed in the setup with both files' PU21-PSNR against the input). Ours at our own
+//! **quality** scale (`hdrcodec_1thread_quality`): quality 100 / 90 / 60 / 30 with the same
+//! overlap and `adaptive: false`, SPATIAL order (our default); its quantizers are not
+//! jxrlib's (ours: luma 0 / 10 / 52 / 94 for every band, chroma 24 more for DC and LP and 32
+//! more for HP; jxrlib's at 0.3: 97, 118, 120 and HP 109, 137, 144), so those files are not
+//! the same size as jxrlib's and those rows do not compare equal settings.
 //!
 //! Before timing, for every input and quality: our decoder must decode jxrlib's in-process
 //! file (lossless: to the input's bits), and that file must be within 1% of the size JxrEncApp
@@ -29,10 +34,14 @@
 //! 5x3 tiles, on the mosaic; one tile, so no parallel entropy coding, on the small image).
 //! Criterion's throughput is in pixels (elements), so Melem/s = MP/s.
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
+#[cfg(jxrlib)]
+use hdrcodec_core::{metrics::pu21_psnr, ImageCodec};
 use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, DecodeOptions, HdrImage, Limits, ThreadPool};
 use hdrcodec_jxr::decode_raw;
-use hdrcodec_jxr::encoder::{encode, EncodeOptions, SampleFormat};
+use hdrcodec_jxr::encoder::{encode, BitstreamOrder, EncodeOptions, SampleFormat};
 use hdrcodec_jxr::transform::OverlapMode;
+#[cfg(jxrlib)]
+use hdrcodec_jxr::{encoder::Quantizers, JxrCodec};
 #[path = "jxr_common.rs"]
 mod jxr_common;
 #[cfg(jxrlib)]
@@ -192,6 +201,7 @@ fn bench(c: &mut Criterion) {
         group.throughput(Throughput::Elements(u64::from(input.width) * u64::from(input.height)));
         for &(qname, jxr_q, our_q, overlap) in &QUALITIES {
             let id = format!("{}_{qname}", input.name);
+            // At our own quality scale (not jxrlib's quantizers).
             let opts = EncodeOptions {
                 quality: our_q,
                 overlap: Some(overlap),
@@ -200,18 +210,12 @@ fn bench(c: &mut Criterion) {
                 adaptive: false,
                 ..EncodeOptions::default()
             };
-            let tiled = EncodeOptions { tile_mbs: input.tile_mbs, ..opts.clone() };
             // Checked before timing, since criterion's --list runs no iterations.
             let (ours, _) = encode(&input.image, &opts, &single).expect("our encode");
             let ours_raw = decode_raw(&ours, &decode_opts).expect("our decode of our file");
             if our_q == 100 {
                 assert!(ours_raw == input.half, "{id}: our lossless file gives back the input");
             }
-            let (ours_tiled, _) = encode(&input.image, &tiled, &two).expect("our tiled encode");
-            assert_eq!(
-                decode_raw(&ours_tiled, &decode_opts).expect("our decode of our tiled file").len(),
-                ours_raw.len()
-            );
             #[cfg(jxrlib)]
             {
                 let mut out = vec![0u8; input.half.len() * 2 + (1 << 16)];
@@ -224,10 +228,41 @@ fn bench(c: &mut Criterion) {
                 if jxr_q >= 1.0 {
                     assert!(theirs_raw == input.half, "{id}: jxrlib's lossless file gives back the input");
                 }
+                // Equal settings: jxrlib's quantizers, overlap and bitstream order.
+                let quantizers = Quantizers::of_file(theirs)
+                    .expect("jxrlib's file parses")
+                    .unwrap_or_else(|| panic!("{id}: jxrlib's file has one quantizer set per band"));
+                let equal =
+                    EncodeOptions { quantizers: Some(quantizers), order: BitstreamOrder::Frequency, ..opts.clone() };
+                let tiled = EncodeOptions { tile_mbs: input.tile_mbs, ..equal.clone() };
+                let (ours_equal, _) = encode(&input.image, &equal, &single).expect("our encode at equal settings");
+                assert_eq!(Quantizers::of_file(&ours_equal).unwrap(), Some(quantizers), "{id}: the same quantizers");
+                let (ours_tiled, _) = encode(&input.image, &tiled, &two).expect("our tiled encode");
+                let ours_equal_raw = decode_raw(&ours_equal, &decode_opts).expect("our decode of our file");
+                if jxr_q >= 1.0 {
+                    assert!(ours_equal_raw == input.half, "{id}: our lossless file gives back the input");
+                }
+                assert_eq!(
+                    decode_raw(&ours_tiled, &decode_opts).expect("our tiled file decodes").len(),
+                    ours_raw.len()
+                );
+                // PU21-PSNR against the input, each file decoded by our decoder (which gives
+                // jxrlib's samples: tests/jxr_reference.rs).
+                let psnr = |file: &[u8]| {
+                    let decoded = JxrCodec.decode(file, &Limits::default()).expect("our decoder");
+                    pu21_psnr(&input.image, &decoded).expect("PU21-PSNR")
+                };
                 let mut line = format!(
-                    "jxr_encode bench: {id}: jxrlib in-process {len} bytes, ours {} bytes (tiled {})",
+                    "jxr_encode bench: {id}: jxrlib in-process {len} bytes ({:.2} dB PU21-PSNR); ours at equal \
+                     settings {} bytes ({:+.2}%, {:.2} dB; quantizers {quantizers:?}; tiled {} bytes); ours at \
+                     quality {our_q} {} bytes ({:.2} dB)",
+                    psnr(theirs),
+                    ours_equal.len(),
+                    100.0 * (ours_equal.len() as f64 / len as f64 - 1.0),
+                    psnr(&ours_equal),
+                    ours_tiled.len(),
                     ours.len(),
-                    ours_tiled.len()
+                    psnr(&ours),
                 );
                 if let Some(app) = jxrencapp(input, jxr_q) {
                     let common = theirs.iter().rev().zip(app.iter().rev()).take_while(|(a, b)| a == b).count();
@@ -257,14 +292,17 @@ fn bench(c: &mut Criterion) {
                         .unwrap()
                     })
                 });
+                group.bench_function(BenchmarkId::new("hdrcodec_1thread", &id), |b| {
+                    b.iter(|| encode(black_box(&input.image), &equal, &single).unwrap())
+                });
+                group.bench_function(BenchmarkId::new("hdrcodec_2threads", &id), |b| {
+                    b.iter(|| encode(black_box(&input.image), &tiled, &two).unwrap())
+                });
             }
             #[cfg(not(jxrlib))]
-            let _ = jxr_q;
-            group.bench_function(BenchmarkId::new("hdrcodec_1thread", &id), |b| {
+            let _ = (jxr_q, &two);
+            group.bench_function(BenchmarkId::new("hdrcodec_1thread_quality", &id), |b| {
                 b.iter(|| encode(black_box(&input.image), &opts, &single).unwrap())
-            });
-            group.bench_function(BenchmarkId::new("hdrcodec_2threads", &id), |b| {
-                b.iter(|| encode(black_box(&input.image), &tiled, &two).unwrap())
             });
         }
     }

@@ -15,7 +15,9 @@
 # (`examples/jxr_encode`, JXR_ADAPTIVE=0, `encoder::encode` from the f32 image, one thread);
 # only the encode is counted on either side: jxrlib's call, and ours as the whole run minus a
 # run that only decodes the input (JXR_TIMES=0; a toggle on `encoder::encode*` would switch
-# collection off again in the nested functions of the same prefix).
+# collection off again in the nested functions of the same prefix). Ours twice: at our own
+# quality scale (its quantizers are not jxrlib's), and at equal settings (the quantizers read
+# from jxrlib's file, JXR_QP_FROM, and its frequency order: files of about jxrlib's size).
 #
 # Without files: the three corpus .jxr files and GoldenGate re-encoded by jxrlib with
 # JxrEncApp's settings (tests/peers/jxrlib_shim.c's encoder) at q 0.3 and 0.6, as
@@ -38,7 +40,7 @@ if [ "${1:-}" = "--encode" ]; then
     (cd "$root" && CARGO_PROFILE_RELEASE_DEBUG=line-tables-only cargo build -q --release -j1 -p hdrcodec-jxr --example jxr_encode)
     ours="${CARGO_TARGET_DIR:-$root/target}/release/examples/jxr_encode"
     src=${2:-$corpus/jxr/GoldenGate_48bppRGBHalf_lossless.jxr}
-    printf '| %s, 1 thread | ours (M instructions) | jxrlib | jxrlib / ours |\n|---|---|---|---|\n' "$(basename "$src" .jxr)"
+    printf '| %s, 1 thread | ours at quality (M instructions) | jxrlib | jxrlib / ours | ours at equal settings | jxrlib / ours | bytes: ours equal / jxrlib |\n|---|---|---|---|---|---|---|\n' "$(basename "$src" .jxr)"
     JXR_TIMES=0 valgrind --tool=callgrind --callgrind-out-file="$work/ours.dec.cg" "$ours" "$src" 2>/dev/null
     decode=$(count "$work/ours.dec.cg")
     for q in 1.0 0.9 0.6 0.3; do
@@ -47,9 +49,15 @@ if [ "${1:-}" = "--encode" ]; then
             --callgrind-out-file="$work/ours.enc.q$q.cg" "$ours" "$src" "$quality" 2>/dev/null
         valgrind --tool=callgrind --callgrind-out-file="$work/jxrlib.enc.q$q.cg" --toggle-collect=jxrlib_shim_encode \
             "$work/jxrlib_driver" encode "$src" "$work/jxrlib.enc.q$q.jxr" "$q" half 2>/dev/null
+        JXR_ADAPTIVE=0 JXR_QP_FROM="$work/jxrlib.enc.q$q.jxr" JXR_OUT="$work/ours.equal.q$q.jxr" valgrind \
+            --tool=callgrind --callgrind-out-file="$work/ours.equal.q$q.cg" "$ours" "$src" "$quality" order=frequency 2>/dev/null
         a=$(($(count "$work/ours.enc.q$q.cg") - decode))
+        e=$(($(count "$work/ours.equal.q$q.cg") - decode))
         b=$(count "$work/jxrlib.enc.q$q.cg")
-        awk -v n="q $quality / $q" -v a="$a" -v b="$b" 'BEGIN { printf "| %s | %.1f | %.1f | %.2f× |\n", n, a / 1e6, b / 1e6, b / a }'
+        sa=$(stat -c %s "$work/ours.equal.q$q.jxr")
+        sb=$(stat -c %s "$work/jxrlib.enc.q$q.jxr")
+        awk -v n="q $quality / $q" -v a="$a" -v b="$b" -v e="$e" -v sa="$sa" -v sb="$sb" \
+            'BEGIN { printf "| %s | %.1f | %.1f | %.2f× | %.1f | %.2f× | %d / %d |\n", n, a / 1e6, b / 1e6, b / a, e / 1e6, b / e, sa, sb }'
     done
     exit 0
 fi

@@ -17,7 +17,7 @@ use crate::header::{self, Bands, ClrFmt, ImageHeader, PlaneHeader, QpSet, QpSour
 use crate::input::{Clipped, SampleCoder};
 use crate::macroblock::{flex_mb_encode, PlaneEncoder};
 use crate::mb::{MbCoeffs, MB_COEFFS};
-use crate::output::{forward_cc, half_codes};
+use crate::output::{forward_cc, half_rgb_yuv};
 use crate::predict;
 use crate::quant;
 use crate::transform::{
@@ -87,6 +87,77 @@ pub struct EncodeOptions {
     /// TRIM_FLEXBITS, 0-15: the lowest bits of the HP refinement ("flex") bits that are not
     /// coded. Lossy when above 0; no effect without flexbits.
     pub trim_flexbits: u8,
+    /// Explicit quantizers of the colour codestream instead of those `quality` maps to (see
+    /// [`Quantizers`]); `None`: `quality`'s. `quality` still chooses the default overlap.
+    pub quantizers: Option<Quantizers>,
+}
+
+/// Explicit QP indices (T.832 9.4.2: 16 indices double the step; 0 is step 1) for each band
+/// (DC, LP, HP) and channel (Y, U, V) of the colour codestream, written as they are: the
+/// format's code scale does not move them (as it moves `quality`'s), and with
+/// [`EncodeOptions::adaptive`] they are the finest set, the macroblocks' coarser sets
+/// [`QP_SET_OFFSETS`] above them. All zero is lossless; otherwise lossy, in scaled arithmetic
+/// where the format allows (as JxrEncApp). The plane header codes each band's set with
+/// CHANNEL_MODE 0 (one index), 1 (luma, chroma) or 2 (three indices), whichever holds.
+///
+/// What JxrEncApp uses for a `-q` can be read from its file ([`Quantizers::of_file`]), so that
+/// both encoders can be compared at equal settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Quantizers {
+    /// The DC band's indices: Y, U, V.
+    pub dc: [u8; 3],
+    /// The LP band's indices: Y, U, V.
+    pub lp: [u8; 3],
+    /// The HP band's indices: Y, U, V.
+    pub hp: [u8; 3],
+}
+
+impl Quantizers {
+    /// One index for every band and channel.
+    pub fn uniform(index: u8) -> Self {
+        Quantizers { dc: [index; 3], lp: [index; 3], hp: [index; 3] }
+    }
+
+    /// The quantizers of the option `qp=`: comma-separated indices 0-255, either one (every
+    /// band and channel), six in JxrEncApp's order (Y, U, V for DC and LP, then Y, U, V for
+    /// HP; its `uiDefaultQPIndex`, `…U`, `…V`, `…YHP`, `…UHP`, `…VHP`, the LP band taking the
+    /// DC's as it does) or nine (DC, LP, HP, each Y, U, V).
+    pub fn parse(text: &str) -> Result<Self> {
+        let bad = || {
+            Error::invalid(format!(
+                "jxr: qp={text}: expected 1, 6 (Y,U,V,YHP,UHP,VHP) or 9 (DC, LP, HP of Y,U,V) QP indices 0-255"
+            ))
+        };
+        let v: Vec<u8> = text.split(',').map(|t| t.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?;
+        let three = |i: usize| [v[i], v[i + 1], v[i + 2]];
+        match v.len() {
+            1 => Ok(Quantizers::uniform(v[0])),
+            6 => Ok(Quantizers { dc: three(0), lp: three(0), hp: three(3) }),
+            9 => Ok(Quantizers { dc: three(0), lp: three(3), hp: three(6) }),
+            _ => Err(bad()),
+        }
+    }
+
+    /// The quantizers of the colour codestream of a `.jxr` file, when its plane header gives
+    /// one set per band for the whole image (as JxrEncApp writes it; a band left out takes the
+    /// band below's); `None` when the tiles carry their own, or for fewer than three channels.
+    pub fn of_file(data: &[u8]) -> Result<Option<Self>> {
+        let container = container::parse_container(data)?;
+        let plane = header::parse(container.image)?.primary;
+        if plane.channels < 3 {
+            return Ok(None);
+        }
+        let set = |source: QpSource| match source {
+            QpSource::Uniform(set) => Some([set.index[0], set.index[1], set.index[2]]),
+            QpSource::PerTile => None,
+        };
+        Ok((|| Some(Quantizers { dc: set(plane.dc)?, lp: set(plane.lp)?, hp: set(plane.hp)? }))())
+    }
+
+    /// Every index is 0: lossless.
+    fn lossless(&self) -> bool {
+        [self.dc, self.lp, self.hp].iter().flatten().all(|&i| i == 0)
+    }
 }
 
 impl Default for EncodeOptions {
@@ -103,6 +174,7 @@ impl Default for EncodeOptions {
             order: BitstreamOrder::Spatial,
             bands: Bands::All,
             trim_flexbits: 0,
+            quantizers: None,
         }
     }
 }
@@ -114,7 +186,8 @@ impl EncodeOptions {
     /// in pixels, a multiple of 16; 0 for one tile), `adaptive` (`false`: one HP quantizer
     /// for every macroblock), `target_bpp` (rate control: bits per pixel), `alpha_quality`
     /// (0-100), `subsampling` (`444`, `422` or `420`), `order` (`spatial` or `frequency`),
-    /// `bands` (`all`, `noflex`, `nohp` or `dc`) and `trim_flexbits` (0-15).
+    /// `bands` (`all`, `noflex`, `nohp` or `dc`), `trim_flexbits` (0-15) and `qp` (explicit
+    /// quantizers, see [`Quantizers::parse`]; they contradict `lossless` and `target_bpp`).
     pub fn from_settings(settings: &EncodeSettings) -> Result<Self> {
         settings.check_options(
             "jxr",
@@ -131,6 +204,7 @@ impl EncodeOptions {
                 "order",
                 "bands",
                 "trim_flexbits",
+                "qp",
             ],
         )?;
         let mut o = EncodeOptions { quality: settings.quality.min(100), ..EncodeOptions::default() };
@@ -196,12 +270,21 @@ impl EncodeOptions {
                 .filter(|&t| t <= 15)
                 .ok_or_else(|| Error::invalid(format!("jxr: trim_flexbits={v}: expected 0 to 15")))?;
         }
+        if let Some(qp) = settings.option("qp") {
+            if o.target_bpp.is_some() {
+                return Err(Error::invalid("jxr: qp= and target_bpp contradict each other"));
+            }
+            o.quantizers = Some(Quantizers::parse(qp)?);
+        }
         if let Some(adaptive) = settings.bool_option("adaptive")? {
             o.adaptive = adaptive;
         }
         if settings.bool_option("lossless")? == Some(true) {
             if o.target_bpp.is_some() {
                 return Err(Error::invalid("jxr: lossless=true and target_bpp contradict each other"));
+            }
+            if o.quantizers.is_some() {
+                return Err(Error::invalid("jxr: lossless=true and qp= contradict each other"));
             }
             o.quality = 100;
         }
@@ -228,7 +311,7 @@ impl EncodeOptions {
     }
 
     fn lossless(&self) -> bool {
-        self.quality >= 100
+        self.quantizers.map_or(self.quality >= 100, |q| q.lossless())
     }
 
     /// SCALED_FLAG: jxrlib codes the 32-bit formats (floats) in unscaled arithmetic always,
@@ -247,6 +330,8 @@ impl EncodeOptions {
     fn for_alpha(&self) -> EncodeOptions {
         EncodeOptions {
             quality: self.alpha_quality,
+            // Alpha has its own quality; explicit quantizers are the colour's.
+            quantizers: None,
             adaptive: false,
             // The colour's order; every band of alpha (lossless by default).
             bands: Bands::All,
@@ -288,7 +373,8 @@ impl EncodeOptions {
         self.overlap.unwrap_or(if self.quality >= 50 { OverlapMode::One } else { OverlapMode::Two })
     }
 
-    /// QP indices (T.832 9.4.2) of the DC, LP and HP bands, each for luma and for chroma.
+    /// QP indices (T.832 9.4.2) of the DC, LP and HP bands, each for Y, U and V: the explicit
+    /// [`Quantizers`], or those of `quality`:
     ///
     /// One base index falls linearly with quality (16 indices double the step): 10 at
     /// quality 90, 66 at 50, 136 at 0. Luma uses it for every band; chroma, which the eye
@@ -297,13 +383,17 @@ impl EncodeOptions {
     /// equal quantizers our files are jxrlib's size; these choices put our curve of bytes
     /// against PU21-PSNR level with JxrEncApp's (see the crate README). Formats whose codes are
     /// coarser or finer than half's move the base index (`SampleFormat`'s QP offset).
-    fn qp_indices(&self) -> [[u8; 2]; 3] {
+    fn qp_indices(&self) -> [[u8; 3]; 3] {
+        if let Some(q) = self.quantizers {
+            return [q.dc, q.lp, q.hp];
+        }
         if self.lossless() {
-            return [[0; 2]; 3];
+            return [[0; 3]; 3];
         }
         let base = 1.4 * f32::from(100 - self.quality.min(99)) - 4.0 + self.format.qp_offset();
         let idx = |offset: f32| (base + offset).round().clamp(1.0, 255.0) as u8;
-        [[idx(0.0), idx(24.0)], [idx(0.0), idx(24.0)], [idx(0.0), idx(32.0)]]
+        let (luma, chroma) = (idx(0.0), idx(24.0));
+        [[luma, chroma, chroma], [luma, chroma, chroma], [luma, idx(32.0), idx(32.0)]]
     }
 }
 
@@ -318,6 +408,9 @@ pub fn encode(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> R
 /// [`encode`] on the calling thread.
 fn encode_rated(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Result<(Vec<u8>, EncodeReport)> {
     let Some(target) = options.target_bpp else { return encode_at(image, options, pool) };
+    if options.quantizers.is_some() {
+        return Err(Error::invalid("jxr: explicit quantizers and a target bits per pixel contradict each other"));
+    }
     // Rate control: file size falls with quality, so bisect for the highest quality (0-99,
     // lossy) whose file fits, in at most 7 encodes.
     let pixels = f64::from(image.width()) * f64::from(image.height());
@@ -392,13 +485,8 @@ fn encode_at(image: &HdrImage, options: &EncodeOptions, pool: &ThreadPool) -> Re
         let row = image.row(y.min(height - 1) as u32);
         let [o0, o1, o2] = out else { unreachable!("three colour channels") };
         if half_rgb {
-            // Half RGB: the whole row's codes in one vectorised pass, then the colour
-            // transform pixel by pixel.
-            let mut codes = vec![0i32; width * 3];
-            (clipped.nan, clipped.above) = half_codes(&row[..width * 3], scale, &mut codes);
-            for (((p, yy), u), v) in codes.chunks_exact(3).zip(o0.iter_mut()).zip(o1.iter_mut()).zip(o2.iter_mut()) {
-                (*yy, *u, *v) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
-            }
+            // Half RGB: codes and colour transform in one vectorised pass.
+            (clipped.nan, clipped.above) = half_rgb_yuv(&row[..width * 3], scale, shift, [o0, o1, o2]);
         } else {
             for (x, p) in row.chunks_exact(spp).take(width).enumerate() {
                 let [r, g, b] = coder.colour([p[0], p[1], p[2]], &mut clipped).map(|c| c << shift);
@@ -597,8 +685,8 @@ fn encode_codestream(
     let overlap = options.overlap();
     let params = TransformParams { overlap, scaled, hard: None, operators: OperatorSet::JpegXr };
     let [qdc, qlp, qhp] = options.qp_indices();
-    // Channel 0 is luma, the others chroma.
-    let pick = |q: [u8; 2], ch: usize| q[usize::from(ch > 0)];
+    // Channel 0 is luma, then U and V.
+    let pick = |q: [u8; 3], ch: usize| q[ch.min(2)];
     // Each channel's quantizer steps: DC, LP and HP of every set.
     let steps: Vec<(i32, Vec<i32>, Vec<i32>)> = (0..channels)
         .map(|ch| {
@@ -626,16 +714,25 @@ fn encode_codestream(
         }
     };
 
-    // CHANNEL_MODE 0 (one index) when luma and chroma share it, else 1 (luma, chroma); one
-    // channel (alpha) has no CHANNEL_MODE (T.832 8.3.5), which is mode 0.
-    let qp_set = |q: [u8; 2]| {
-        let mut set = QpSet { mode: u8::from(channels > 1 && q[0] != q[1]), ..QpSet::default() };
+    // CHANNEL_MODE 0 (one index) when the channels share it, else 1 (luma, chroma) when the
+    // chroma channels do, else 2 (each its own); one channel (alpha) has no CHANNEL_MODE
+    // (T.832 8.3.5), which is mode 0.
+    let qp_set = |q: [u8; 3]| {
+        let mut set = QpSet::default();
         for ch in 0..channels {
             set.index[ch] = pick(q, ch);
         }
+        let used = &set.index[..channels];
+        set.mode = if used.iter().all(|&i| i == used[0]) {
+            0
+        } else if used[1..].iter().all(|&i| i == used[1]) {
+            1
+        } else {
+            2
+        };
         set
     };
-    let sets = |q: [u8; 2], n: usize| -> Vec<QpSet> { (0..n).map(|k| qp_set(q.map(|q| set_index(q, k, n)))).collect() };
+    let sets = |q: [u8; 3], n: usize| -> Vec<QpSet> { (0..n).map(|k| qp_set(q.map(|q| set_index(q, k, n)))).collect() };
     let (lp_qp_sets, hp_qp_sets) = (sets(qlp, lp_sets), sets(qhp, hp_sets));
 
     // Prediction and entropy coding, each tile on its own (its own adaptive state, predictions
@@ -1687,8 +1784,89 @@ mod tests {
             ("alpha_quality", "101"),
             ("alpha_quality", "x"),
             ("no-such", "1"),
+            ("qp", ""),
+            ("qp", "1,2"),
+            ("qp", "1,2,3,4,5,6,7"),
+            ("qp", "256"),
+            ("qp", "a,b,c,d,e,f"),
         ] {
             assert!(EncodeOptions::from_settings(&EncodeSettings::default().with_option(k, v)).is_err(), "{k}={v}");
         }
+    }
+
+    #[test]
+    fn explicit_quantizers_come_from_the_settings() {
+        let qp = |v: &str| EncodeOptions::from_settings(&EncodeSettings::default().with_option("qp", v));
+        assert_eq!(qp("40").unwrap().quantizers, Some(Quantizers::uniform(40)));
+        // JxrEncApp's order: Y, U, V for DC and LP, then the HP indices.
+        let jxrencapp = Quantizers { dc: [97, 118, 120], lp: [97, 118, 120], hp: [109, 137, 144] };
+        assert_eq!(qp("97,118,120,109,137,144").unwrap().quantizers, Some(jxrencapp));
+        let nine = Quantizers { dc: [1, 2, 3], lp: [4, 5, 6], hp: [7, 8, 9] };
+        assert_eq!(qp(" 1, 2,3,4,5,6,7,8,9").unwrap().quantizers, Some(nine));
+        for other in [("lossless", "true"), ("target_bpp", "2")] {
+            let s = EncodeSettings::default().with_option("qp", "40").with_option(other.0, other.1);
+            assert!(EncodeOptions::from_settings(&s).is_err(), "{other:?}");
+        }
+        let both = EncodeOptions { quantizers: Some(jxrencapp), target_bpp: Some(2.0), ..EncodeOptions::default() };
+        assert!(encode(&ramp(32, 32, ColorPrimaries::Bt709), &both, &ThreadPool::single()).is_err());
+    }
+
+    /// The quantizers given are the ones the plane header carries (each band's CHANNEL_MODE
+    /// the one that holds them), whatever `quality` says; all zero is lossless.
+    #[test]
+    fn explicit_quantizers_are_written_as_given() {
+        let image = ramp(70, 45, ColorPrimaries::Bt709);
+        let cases = [
+            Quantizers { dc: [97, 118, 120], lp: [97, 118, 120], hp: [109, 137, 144] },
+            Quantizers { dc: [30, 30, 30], lp: [40, 50, 50], hp: [60, 60, 70] },
+            Quantizers::uniform(20),
+        ];
+        for (i, q) in cases.into_iter().enumerate() {
+            for adaptive in [false, true] {
+                let o = EncodeOptions { quality: 95, quantizers: Some(q), adaptive, ..EncodeOptions::default() };
+                let (file, _) = encode(&image, &o, &ThreadPool::single()).unwrap();
+                let read = Quantizers::of_file(&file).unwrap();
+                assert_eq!(read, (!adaptive).then_some(q), "case {i}, adaptive {adaptive}");
+                let modes = |s: QpSource| match s {
+                    QpSource::Uniform(set) => set.mode,
+                    QpSource::PerTile => 255,
+                };
+                let plane = header::parse(container::parse_container(&file).unwrap().image).unwrap().primary;
+                assert!(plane.scaled, "case {i}: lossy in scaled arithmetic");
+                if !adaptive {
+                    let want = [[2, 2, 2], [0, 1, 2], [0, 0, 0]][i];
+                    assert_eq!([modes(plane.dc), modes(plane.lp), modes(plane.hp)], want, "case {i}");
+                }
+                // Coarser quantizers, larger error; and the quality asked for plays no part.
+                let at_quality =
+                    encode(&image, &EncodeOptions { quantizers: None, ..o.clone() }, &ThreadPool::single());
+                assert_ne!(file, at_quality.unwrap().0, "case {i}");
+            }
+        }
+        let lossless =
+            EncodeOptions { quality: 30, quantizers: Some(Quantizers::uniform(0)), ..EncodeOptions::default() };
+        let (file, _) = encode(&image, &lossless, &ThreadPool::single()).unwrap();
+        assert_eq!(code_error(&file, &image), 0.0);
+        let fine = code_error(
+            &encode(
+                &image,
+                &EncodeOptions { quantizers: Some(Quantizers::uniform(30)), ..lossless.clone() },
+                &ThreadPool::single(),
+            )
+            .unwrap()
+            .0,
+            &image,
+        );
+        let coarse = code_error(
+            &encode(
+                &image,
+                &EncodeOptions { quantizers: Some(Quantizers::uniform(90)), ..lossless },
+                &ThreadPool::single(),
+            )
+            .unwrap()
+            .0,
+            &image,
+        );
+        assert!(0.0 < fine && fine < coarse, "{fine} {coarse}");
     }
 }

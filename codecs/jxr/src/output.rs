@@ -227,45 +227,108 @@ pub fn f32_to_half_bits(value: f32) -> u16 {
     sign | (h + up) as u16
 }
 
-/// The encoder's integer codes of the samples `src` times `scale` as halves into `out`
-/// ([`half_bits_to_int`] of [`f32_to_half_bits`]), NaN as 0 and magnitudes beyond the largest
-/// half (infinities included) as ±65504, each counted: returns (NaNs, clipped). Branch-free,
-/// so that the loop vectorises; compiled portable and for AVX2 (variable shifts), chosen at
-/// run time.
+/// The encoder's colour rows from half RGB: the integer codes of the samples `src` (RGB,
+/// interleaved) times `scale` as halves ([`half_bits_to_int`] of [`f32_to_half_bits`]; NaN
+/// as 0 and magnitudes beyond the largest half, infinities included, as ±65504, each
+/// counted), shifted left by `shift` and through [`forward_cc`] into the planes Y, U and V
+/// (one value a pixel; as many pixels as the shortest). Returns (NaNs, clipped).
+///
+/// On x86-64 with AVX2 (and F16C, which [`hdrcodec_core::cpu`]'s AVX2 level includes) eight
+/// pixels at a time: the channels gathered into vectors, converted by the CPU's own
+/// float → half instruction (round to nearest even, as [`f32_to_half_bits`]), the colour
+/// transform on the vectors; `half_rgb_yuv_twins_agree` checks it against the portable code.
 #[allow(unsafe_code)]
-pub fn half_codes(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
+pub fn half_rgb_yuv(src: &[f32], scale: f32, shift: u32, [y, u, v]: [&mut [i32]; 3]) -> (usize, usize) {
     #[cfg(target_arch = "x86_64")]
     if hdrcodec_core::cpu::avx2() {
-        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
-        return unsafe { half_codes_avx2(src, scale, out) };
+        // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, FMA and F16C; the twin
+        // needs AVX2 and F16C.
+        return unsafe { half_rgb_yuv_avx2(src, scale, shift, [y, u, v]) };
     }
-    half_codes_portable(src, scale, out)
+    half_rgb_yuv_portable(src, scale, shift, [y, u, v])
 }
 
-/// [`half_codes_portable`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(unsafe_code)]
-unsafe fn half_codes_avx2(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
-    half_codes_portable(src, scale, out)
-}
-
-#[inline(always)]
-fn half_codes_portable(src: &[f32], scale: f32, out: &mut [i32]) -> (usize, usize) {
+/// The portable [`half_rgb_yuv`]: [`half_code`] and [`forward_cc`] pixel by pixel.
+fn half_rgb_yuv_portable(src: &[f32], scale: f32, shift: u32, [y, u, v]: [&mut [i32]; 3]) -> (usize, usize) {
     let (mut nans, mut clipped) = (0u32, 0u32);
-    for (o, &v) in out.iter_mut().zip(src) {
-        let (code, nan, clip) = half_code(v * scale);
-        *o = code;
-        nans += nan;
-        clipped += clip;
+    for (((p, y), u), v) in src.chunks_exact(3).zip(y.iter_mut()).zip(u.iter_mut()).zip(v.iter_mut()) {
+        let mut code = [0i32; 3];
+        for (c, &s) in code.iter_mut().zip(p) {
+            let (h, nan, clip) = half_code(s * scale);
+            *c = h << shift;
+            nans += nan;
+            clipped += clip;
+        }
+        (*y, *u, *v) = forward_cc(code[0], code[1], code[2]);
     }
     (nans as usize, clipped as usize)
 }
 
-/// One sample of [`half_codes`]: (code, NaN, clipped), every case computed and one selected.
+/// The AVX2 + F16C twin of [`half_rgb_yuv_portable`], eight pixels a step; the pixels after
+/// the last whole step go through the portable code.
+///
+/// # Safety
+/// The CPU must support AVX2 and F16C.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,f16c")]
+#[allow(unsafe_code)]
+unsafe fn half_rgb_yuv_avx2(src: &[f32], scale: f32, shift: u32, [y, u, v]: [&mut [i32]; 3]) -> (usize, usize) {
+    use std::arch::x86_64::*;
+    let n = y.len().min(u.len()).min(v.len()).min(src.len() / 3);
+    let full = n - n % 8;
+    let load = |s: &[f32], k: usize| -> __m256 {
+        let s: &[f32; 8] = s[8 * k..8 * k + 8].try_into().expect("8 floats");
+        // SAFETY: `s` holds 8 floats, exactly what the unaligned load reads.
+        unsafe { _mm256_loadu_ps(s.as_ptr()) }
+    };
+    let store = |d: &mut [i32], x: __m256i| {
+        let d: &mut [i32; 8] = (&mut d[..8]).try_into().expect("8 values");
+        // SAFETY: `d` holds 8 values, exactly what the unaligned store writes.
+        unsafe { _mm256_storeu_si256(d.as_mut_ptr().cast(), x) }
+    };
+    let (scale_v, count) = (_mm256_set1_ps(scale), _mm_cvtsi32_si128(shift as i32));
+    let (inf, max) = (_mm256_set1_epi32(0x7c00), _mm256_set1_epi32(0x7bff));
+    let (mut nans, mut clipped) = (0u32, 0u32);
+    // One channel of 8 pixels: its codes (shifted), counting NaNs and clipped values.
+    let mut codes = |x: __m256| -> __m256i {
+        // Round to nearest even (T.832's halves are IEEE's; the immediate overrides MXCSR).
+        let h = _mm256_cvtepu16_epi32(_mm256_cvtps_ph::<_MM_FROUND_TO_NEAREST_INT>(_mm256_mul_ps(x, scale_v)));
+        let abs = _mm256_and_si256(h, _mm256_set1_epi32(0x7fff));
+        let nan = _mm256_cmpgt_epi32(abs, inf);
+        let big = _mm256_cmpeq_epi32(abs, inf);
+        nans += (_mm256_movemask_ps(_mm256_castsi256_ps(nan)) as u32).count_ones();
+        clipped += (_mm256_movemask_ps(_mm256_castsi256_ps(big)) as u32).count_ones();
+        let magnitude = _mm256_andnot_si256(nan, _mm256_min_epi32(abs, max));
+        // The sign bit (bit 15) to a mask of 0 or −1, then (m ^ s) − s.
+        let s = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<16>(h));
+        _mm256_sll_epi32(_mm256_sub_epi32(_mm256_xor_si256(magnitude, s), s), count)
+    };
+    for (i, px) in src[..3 * full].chunks_exact(24).enumerate() {
+        // Lanes of (a0, a1, a2) hold samples 3i + c: blend each channel's lanes together (in
+        // the order 0 3 6 1 4 7 2 5, rotated for G and B) and permute them into order.
+        let (a0, a1, a2) = (load(px, 0), load(px, 1), load(px, 2));
+        let rr = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(a0, a1), a2);
+        let gg = _mm256_blend_ps::<0b0100_1001>(_mm256_blend_ps::<0b0010_0100>(a0, a1), a2);
+        let bb = _mm256_blend_ps::<0b1001_0010>(_mm256_blend_ps::<0b0100_1001>(a0, a1), a2);
+        let r = codes(_mm256_permutevar8x32_ps(rr, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5)));
+        let g = codes(_mm256_permutevar8x32_ps(gg, _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6)));
+        let b = codes(_mm256_permutevar8x32_ps(bb, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7)));
+        // forward_cc on the vectors (wrapping adds, arithmetic shifts).
+        let b = _mm256_sub_epi32(b, r);
+        let r =
+            _mm256_add_epi32(r, _mm256_sub_epi32(_mm256_srai_epi32::<1>(_mm256_add_epi32(b, _mm256_set1_epi32(1))), g));
+        let g = _mm256_add_epi32(g, _mm256_srai_epi32::<1>(r));
+        let at = 8 * i;
+        store(&mut y[at..], g);
+        store(&mut u[at..], _mm256_sub_epi32(_mm256_setzero_si256(), r));
+        store(&mut v[at..], b);
+    }
+    let (tail_nans, tail_clipped) =
+        half_rgb_yuv_portable(&src[3 * full..], scale, shift, [&mut y[full..], &mut u[full..], &mut v[full..]]);
+    (nans as usize + tail_nans, clipped as usize + tail_clipped)
+}
+
+/// One sample of [`half_rgb_yuv`]: (code, NaN, clipped), every case computed and one selected.
 #[inline(always)]
 fn half_code(v: f32) -> (i32, u32, u32) {
     let x = v.to_bits();
@@ -1188,11 +1251,12 @@ mod tests {
         }
     }
 
-    /// [`half_codes`] (and its AVX2 twin) against the per-sample conversion it replaces:
-    /// `half::f16::from_f32`, infinities clipped to ±65504, NaN as 0.
+    /// [`half_rgb_yuv`] (and its AVX2 twin) against the per-sample conversion it replaces:
+    /// `half::f16::from_f32`, infinities clipped to ±65504, NaN as 0, then the shift and
+    /// [`forward_cc`]; lengths with and without a tail of fewer than 8 pixels.
     #[test]
     #[allow(unsafe_code)]
-    fn half_codes_match_the_per_sample_conversion() {
+    fn half_rgb_yuv_twins_agree() {
         let mut src = Vec::new();
         for e in 0..256u32 {
             for m in [0u32, 1, 0xfff, 0x1000, 0x1001, 0x3000, 0x40_0000, 0x7f_f000, 0x7f_ffff] {
@@ -1214,33 +1278,49 @@ mod tests {
             src.push(f32::from_bits(x));
         }
         src.extend([65504.0, 65519.99, 65520.0, -65520.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -0.0]);
+        src.truncate(src.len() - src.len() % 3);
         for scale in [1.0f32, 0.37, 3.0] {
+            // Each sample's code, and whether it was NaN and clipped.
             let mut want = Vec::new();
-            let (mut nans, mut clipped) = (0, 0);
+            let mut flags = Vec::new();
             for &v in &src {
                 let v = v * scale;
                 if v.is_nan() {
-                    nans += 1;
+                    flags.push((1, 0));
                     want.push(0);
                     continue;
                 }
                 let h = half::f16::from_f32(v);
                 if h.is_infinite() {
-                    clipped += 1;
+                    flags.push((0, 1));
                     want.push(if v < 0.0 { -0x7bff } else { 0x7bff });
                 } else {
+                    flags.push((0, 0));
                     want.push(half_bits_to_int(h.to_bits()));
                 }
             }
-            let mut got = vec![0; src.len()];
-            assert_eq!(half_codes_portable(&src, scale, &mut got), (nans, clipped));
-            assert!(got == want, "scale {scale}");
-            #[cfg(target_arch = "x86_64")]
-            if hdrcodec_core::cpu::twin_test_can_run(hdrcodec_core::cpu::CpuLevel::Avx2, "half_codes") {
-                let mut twin = vec![0; src.len()];
-                // SAFETY: the CPU has AVX2 (checked above).
-                assert_eq!(unsafe { half_codes_avx2(&src, scale, &mut twin) }, (nans, clipped));
-                assert!(twin == want, "AVX2, scale {scale}");
+            for (shift, drop) in [(0u32, 0usize), (3, 5), (3, 3 * 8 + 2)] {
+                // Drop a few pixels at the end so the twin has a tail (the counts then come
+                // from the pixels kept).
+                let (src, want) = (&src[..src.len() - 3 * drop], &want[..want.len() - 3 * drop]);
+                let n = src.len() / 3;
+                let (mut yw, mut uw, mut vw) = (vec![0; n], vec![0; n], vec![0; n]);
+                for (i, p) in want.chunks_exact(3).enumerate() {
+                    (yw[i], uw[i], vw[i]) = forward_cc(p[0] << shift, p[1] << shift, p[2] << shift);
+                }
+                let expected = flags[..src.len()].iter().fold((0, 0), |(n, c), &(a, b)| (n + a, c + b));
+                assert!(drop > 0 || (expected.0 > 100 && expected.1 > 100), "{expected:?}");
+                let (mut y, mut u, mut v) = (vec![0; n], vec![0; n], vec![0; n]);
+                assert_eq!(half_rgb_yuv_portable(src, scale, shift, [&mut y, &mut u, &mut v]), expected);
+                assert!(y == yw && u == uw && v == vw, "scale {scale}, shift {shift}");
+                #[cfg(target_arch = "x86_64")]
+                if hdrcodec_core::cpu::twin_test_can_run(hdrcodec_core::cpu::CpuLevel::Avx2, "half_rgb_yuv") {
+                    let (mut y, mut u, mut v) = (vec![0; n], vec![0; n], vec![0; n]);
+                    // SAFETY: the CPU has AVX2 and F16C (checked above: the AVX2 level has both).
+                    let got = unsafe { half_rgb_yuv_avx2(src, scale, shift, [&mut y, &mut u, &mut v]) };
+                    assert_eq!(got, expected);
+                    assert!(y == yw && u == uw && v == vw, "AVX2, scale {scale}, shift {shift}");
+                }
             }
         }
     }
