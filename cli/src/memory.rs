@@ -6,8 +6,10 @@
 //! `/proc/self/status`: `VmHWM`, the figure `getrusage`'s `ru_maxrss` and `/usr/bin/time -f %M`
 //! give) and its resident set before reading the file (`VmRSS`: the program itself). The row
 //! sets the growth, peak minus start, against the size of the decoded image (RGB or RGBA
-//! `f32`), whose target is at most 1.5x. The encoded file is held in memory while it is decoded
-//! (`ImageCodec::decode` takes bytes): that is part of the figure.
+//! `f32`), whose target is at most 1.5x. The child decodes from the open file
+//! (`Registry::read`, `ImageCodec::decode_from`): a codec that reads its file piece by piece
+//! (OpenEXR) holds none of it whole; the others read it into memory first, which is part of the
+//! figure.
 
 use crate::bench::{Config, Encoder, Input};
 use crate::jxrlib::TempDir;
@@ -49,10 +51,7 @@ pub fn status_bytes(field: &str) -> Option<u64> {
 pub fn decode_peak(path: &Path) -> Result<DecodePeak> {
     let unavailable = || Error::unsupported("peak memory is read from /proc/self/status (Linux only)");
     let start = status_bytes("VmRSS").ok_or_else(unavailable)?;
-    let registry = hdrcodec::registry();
-    let data = hdrcodec::read_file(path)?;
-    let codec = registry.for_input(path, &data)?;
-    let image = codec.decode(&data, &Limits::default())?;
+    let (codec, image) = hdrcodec::registry().read(path, &Limits::default())?;
     let peak = status_bytes("VmHWM").ok_or_else(unavailable)?;
     Ok(DecodePeak {
         codec: codec.name().to_string(),
@@ -158,7 +157,7 @@ pub fn table(rows: &[MemoryRow]) -> String {
         }
     }
     s.push_str(&format!(
-        "memory rows: a child `hdrcodec memory-peak FILE` reads and decodes the file into a whole image; growth = (peak − \
+        "memory rows: a child `hdrcodec memory-peak FILE` decodes the file from disk into a whole image; growth = (peak − \
          start) / decoded\n  (peak and start: its VmHWM and VmRSS before reading; decoded: the image's f32 samples); \
          target ≤ {TARGET}x\n"
     ));
