@@ -28,6 +28,7 @@ use crate::equal_quality;
 use crate::jxrlib;
 use crate::libultrahdr;
 use crate::peers;
+use crate::text_table::{Align, TextTable};
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
@@ -889,58 +890,57 @@ fn fmt_mps(v: Option<f64>) -> String {
 /// The marker after a line whose decoded samples differ from the peer's.
 const DIFFERS: &str = "  DIFFERS FROM PEER";
 
-/// The column headers after the first one or two: sizes, quality, our speeds (one thread, then
+/// A table whose first columns are `first`, then sizes, quality, our speeds (one thread, then
 /// all threads of the report's pool) and the peer's decode speed.
-fn headers(report: &Report) -> String {
+fn bench_table(report: &Report, first: &[(&str, Align)]) -> TextTable {
     let n = report.threads;
-    format!(
-        "{:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "bytes",
-        "bpp",
-        "PU21-PSNR",
-        "dE-ITP",
-        "log-RMSE",
-        "enc 1T",
-        "dec 1T",
-        format!("enc {n}T"),
-        format!("dec {n}T"),
-        "peer dec"
-    )
+    let (enc, dec) = (format!("enc {n}T"), format!("dec {n}T"));
+    let figures = ["bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc 1T", "dec 1T", &enc, &dec, "peer dec"];
+    let columns: Vec<(&str, Align)> = first.iter().copied().chain(figures.iter().map(|h| (*h, Align::Right))).collect();
+    TextTable::new(&columns)
 }
 
-/// The figures of one line, in the order of [`headers`].
+/// The figures of one line, in the order of [`bench_table`]'s columns after the first ones.
 #[allow(clippy::too_many_arguments)]
-fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 4], peer: Option<f64>) -> String {
+fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 4], peer: Option<f64>) -> Vec<String> {
     let [e1, d1, en, dn] = speeds.map(|v| fmt_mps(Some(v)));
-    format!(
-        "{bytes:>10} {bpp:>8.3} {psnr:>10} {de:>9.4} {log:>9.5} {e1:>9} {d1:>9} {en:>9} {dn:>9} {:>9}",
-        fmt_mps(peer)
-    )
+    vec![
+        bytes.to_string(),
+        format!("{bpp:.3}"),
+        psnr.to_string(),
+        format!("{de:.4}"),
+        format!("{log:.5}"),
+        e1,
+        d1,
+        en,
+        dn,
+        fmt_mps(peer),
+    ]
 }
 
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
-    // The image column is as wide as the longest name (cropped corpus files: `NAME@cWxH`).
-    let w = report.rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
-    let mut s = format!("{:<24} {:<w$} {}\n", "config", "image", headers(report));
+    let mut t = bench_table(report, &[("config", Align::Left), ("image", Align::Left)]);
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
         let psnr = if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) };
         let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
-        let line = figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer);
+        let cells = [r.config.clone(), r.image.clone()].into_iter();
+        let cells = cells.chain(figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer)).collect();
         let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {:<w$} {line}{mark}\n", r.config, r.image));
+        t.row(cells, mark);
     }
+    let mut s = t.render();
     s.push('\n');
     s
 }
 
 /// The report as a plain-text table, one line per configuration.
 pub fn table(report: &Report) -> String {
-    let mut s = format!("{:<24} {:>6} {}\n", "config", "images", headers(report));
+    let mut t = bench_table(report, &[("config", Align::Left), ("images", Align::Right)]);
     for r in &report.summary {
         if let Some(why) = &r.unavailable {
-            s.push_str(&format!("{:<24} {why}\n", r.config));
+            t.note_row(vec![r.config.clone()], why);
             continue;
         }
         let images = if r.failed > 0 { format!("{}/{}", r.images, r.images + r.failed) } else { r.images.to_string() };
@@ -948,8 +948,9 @@ pub fn table(report: &Report) -> String {
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
         let line = figures(r.bytes, r.bpp, &fmt_db(r.pu21_psnr), r.de_itp_mean, r.log_rmse, speeds, peer);
         let mark = if r.peer.as_ref().is_some_and(|p| p.mismatches > 0) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {images:>6} {line}{mark}\n", r.config));
+        t.row([r.config.clone(), images].into_iter().chain(line).collect(), mark);
     }
+    let mut s = t.render();
     let unavailable = |label: &str| report.summary.iter().any(|r| r.config == label && r.unavailable.is_some());
     for r in report.rows.iter().filter(|r| r.error.is_some() && !unavailable(&r.config)) {
         s.push_str(&format!("{} on {}: {}\n", r.config, r.image, r.error.as_deref().unwrap_or("")));
