@@ -584,6 +584,23 @@ fn bench_table_columns_line_up_whatever_the_labels() {
     assert!(text.contains(long), "{text}");
 }
 
+/// With `--crop`, the memory rows still decode the largest image whole.
+#[test]
+fn bench_memory_rows_decode_the_whole_largest_image_under_crop() {
+    let dir = common::temp_dir("cli-bench-memory-crop");
+    std::fs::copy(corpus().join("odd-3x5.exr"), dir.join("small.exr")).unwrap();
+    let args: [&dyn AsRef<std::ffi::OsStr>; 9] =
+        [&"bench", &dir, &"--quick", &"--filter", &"exr:none-half", &"--crop", &"2x2", &"--memory", &"--json"];
+    let v = json(&hdrcodec(&args));
+    assert_eq!(v["rows"][0]["image"], "small.exr@c2x2", "{v}");
+    let m = &v["memory"][0];
+    assert_eq!(
+        (m["image"].as_str(), m["width"].as_u64(), m["height"].as_u64()),
+        (Some("small.exr"), Some(3), Some(5)),
+        "{v}"
+    );
+}
+
 #[test]
 fn bench_video_rows_compare_ours_with_svt_av1() {
     if common::require(common::tool("ffmpeg"), "ffmpeg (Debian ffmpeg, with libsvtav1 and libdav1d)").is_none() {
