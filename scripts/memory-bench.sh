@@ -96,10 +96,12 @@ done
 # Decoding into a whole image, as `hdrcodec bench --memory` (and every `bench --report`) measures it:
 # the child `hdrcodec memory-peak FILE` prints its own peak (VmHWM, the figure `time -f %M` gives) and
 # its resident set before reading the file; growth = (peak - start) / decoded image, the bench's target
-# 1.5x. Shown beside /usr/bin/time's figure for the same process; not counted by --check (a whole image
-# is held by design, which the target above does not allow for).
+# 1.5x. Shown beside /usr/bin/time's figure for the same process. --check counts the formats that meet
+# 1.5x (OpenEXR read from the file a batch of chunks at a time, Radiance, LogLuv TIFF, DDS, KTX2); PFM
+# and `.hdrc` read their whole file before decoding (1.0x and 0.5x of the image here) and are shown only.
 printf '\n| `hdrcodec memory-peak` (whole image) | peak MB (time) | peak MB (VmHWM) | start MB | growth x decoded | met 1.5x |\n'
 printf '| --- | --- | --- | --- | --- | --- |\n'
+growth_checked="exr hdr tif dds ktx2"
 for f in $formats; do
   /usr/bin/time -f %M -o "$dir/peak" "$bin" memory-peak "$dir/big.$f" >"$dir/peak.json"
   field() { sed -n "s/.*\"$1\": \([0-9]*\).*/\1/p" "$dir/peak.json"; }
@@ -107,6 +109,7 @@ for f in $formats; do
   start=$(field start_rss_bytes)
   growth=$(awk -v p="$peak" -v s="$start" -v d="$(field decoded_bytes)" 'BEGIN { printf "%.2f", (p - s) / d }')
   met=$(awk -v g="$growth" 'BEGIN { print (g <= 1.5) ? "yes" : "no" }')
+  if [ "$met" = no ] && [[ " $growth_checked " == *" $f "* ]]; then missed=$((missed + 1)); fi
   printf '| `big.%s` | %s | %s | %s | %s | %s |\n' "$f" "$(mb $(($(tail -n 1 "$dir/peak") * 1024)))" "$(mb "$peak")" \
     "$(mb "$start")" "$growth" "$met"
 done

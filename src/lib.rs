@@ -214,8 +214,23 @@ impl Registry {
 
     /// Reads and decodes the file at `path`.
     pub fn read(&self, path: &Path, limits: &Limits) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
-        let data = read_file(path)?;
-        self.decode(path, &data, limits)
+        self.read_with(path, &DecodeOptions::new(limits.clone()))
+    }
+
+    /// [`Registry::read`] with the caller's limits and threads: the codec is chosen from the
+    /// file's first bytes as [`Registry::for_input`] chooses it, then decodes from the open file
+    /// ([`ImageCodec::decode_from`]), so that a codec that reads its file piece by piece
+    /// (OpenEXR) never holds it whole.
+    pub fn read_with(&self, path: &Path, options: &DecodeOptions) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
+        use std::io::{Read, Seek};
+        let named = |e: std::io::Error| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())));
+        let mut file = std::fs::File::open(path).map_err(named)?;
+        let mut head = Vec::with_capacity(64);
+        (&mut file).take(64).read_to_end(&mut head).map_err(named)?;
+        file.rewind().map_err(named)?;
+        let codec = self.for_input(path, &head)?;
+        let image = codec.decode_from(&mut file, options)?;
+        Ok((codec, image))
     }
 }
 

@@ -28,6 +28,7 @@ use crate::equal_quality;
 use crate::jxrlib;
 use crate::libultrahdr;
 use crate::peers;
+use crate::text_table::{Align, TextTable};
 use hdrcodec::core::{metrics, Channels, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec::Registry;
 use serde::Serialize;
@@ -536,13 +537,38 @@ pub(crate) fn mps(pixels: usize, t: Duration) -> f64 {
 }
 
 /// Runs one configuration on one image, timing it on one thread and on `pool`.
-fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Row {
+/// What the peers' rows make of one image before their tools run (the files the tools read,
+/// the reference they are scored against), made by the first configuration that needs it and
+/// shared by the others: each kind once per image, not once per configuration.
+#[derive(Default)]
+pub(crate) struct Prepared {
+    items: std::cell::RefCell<std::collections::HashMap<&'static str, std::rc::Rc<dyn std::any::Any>>>,
+}
+
+impl Prepared {
+    /// The item `key` (of type `T`), made by `make` the first time it is asked for.
+    pub(crate) fn get<T: 'static>(
+        &self,
+        key: &'static str,
+        make: impl FnOnce() -> hdrcodec::core::Result<T>,
+    ) -> hdrcodec::core::Result<std::rc::Rc<T>> {
+        let held = self.items.borrow().get(key).cloned();
+        if let Some(item) = held.and_then(|item| item.downcast::<T>().ok()) {
+            return Ok(item);
+        }
+        let item = std::rc::Rc::new(make()?);
+        self.items.borrow_mut().insert(key, item.clone());
+        Ok(item)
+    }
+}
+
+fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool, prepared: &Prepared) -> Row {
     let pixels = input.image.pixel_count();
     let mut row = Row::blank(config.label.clone(), input.name.clone(), pixels, config.lossless);
     row.encoder = config.encoder.describe();
     if peers::handles(config.encoder) {
         row.decoder = peers::describe(config.encoder).1;
-        peers::measure(config, input, runs, pool, &mut row);
+        peers::measure(config, input, runs, pool, prepared, &mut row);
         return row;
     }
     if let Encoder::Jxrlib(args) = config.encoder {
@@ -551,7 +577,7 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
                 row.error = Some(format!("{NOT_INSTALLED}: {} ({}) is not on PATH", jxrlib::ENCODER, jxrlib::PACKAGE))
             }
             Some(enc) => {
-                if let Err(e) = measure_jxrlib(config, &enc, args, input, runs, pool, &mut row) {
+                if let Err(e) = measure_jxrlib(config, &enc, args, input, runs, pool, prepared, &mut row) {
                     row.error = Some(e.to_string());
                 }
             }
@@ -573,7 +599,7 @@ fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool) -> Ro
         match libultrahdr::python() {
             None => row.error = Some(format!("{NOT_INSTALLED}: {}", libultrahdr::PACKAGE)),
             Some(python) => {
-                if let Err(e) = measure_libultrahdr(config, &python, quality, input, runs, pool, &mut row) {
+                if let Err(e) = measure_libultrahdr(config, &python, quality, input, runs, pool, prepared, &mut row) {
                     row.error = Some(e.to_string());
                 }
             }
@@ -646,6 +672,7 @@ pub(crate) const NOT_INSTALLED: &str = "not installed";
 /// `.jxr` file in a temporary directory (removed on return, also on failure); our codec decodes
 /// it (quality, speed on one thread and on `pool`); JxrDecApp, if installed, decodes it too
 /// (the peer's speed and the check that its samples equal ours).
+#[allow(clippy::too_many_arguments)]
 fn measure_jxrlib(
     config: &Config,
     enc: &Path,
@@ -653,12 +680,14 @@ fn measure_jxrlib(
     input: &Input,
     runs: usize,
     pool: &ThreadPool,
+    prepared: &Prepared,
     row: &mut Row,
 ) -> hdrcodec::core::Result<()> {
     let pixels = row.pixels;
     let dir = jxrlib::TempDir::new("bench-jxr")?;
     let (tif, jxr, peer_tif) = (dir.path().join("in.tif"), dir.path().join("out.jxr"), dir.path().join("jxrlib.tif"));
-    let (tiff, clipped) = jxrlib::scrgb_half_tiff(&input.image)?;
+    let tiff_and_clipped = prepared.get("jxrlib", || jxrlib::scrgb_half_tiff(&input.image))?;
+    let (tiff, clipped) = (&tiff_and_clipped.0, tiff_and_clipped.1);
     std::fs::write(&tif, tiff)?;
     let mut notes = Vec::new();
     if clipped > 0 {
@@ -732,6 +761,7 @@ pub(crate) fn decode_peer_file(
 /// A gain-map JPEG row written by libultrahdr ([`Encoder::Libultrahdr`]): the input, its colour
 /// prepared as for our encoder (BT.709 or Display P3), goes to `python`'s imagecodecs as linear
 /// half floats; our decoder reads the file.
+#[allow(clippy::too_many_arguments)]
 fn measure_libultrahdr(
     config: &Config,
     python: &Path,
@@ -739,12 +769,18 @@ fn measure_libultrahdr(
     input: &Input,
     runs: usize,
     pool: &ThreadPool,
+    cache: &Prepared,
     row: &mut Row,
 ) -> hdrcodec::core::Result<()> {
-    let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
-    let gamut = libultrahdr::gamut(prepared.image.color.primaries)?;
-    let (rgba, clipped) = libultrahdr::linear_half_rgba(&prepared.image);
-    let mut notes = prepared.notes.clone();
+    // The rows differ by quality only: the colour and the half-float input are the same.
+    let made = cache.get("libultrahdr", || {
+        let prepared = hdrcodec::prepare_colour(config.codec.as_ref(), &input.image, &config.settings)?;
+        let gamut = libultrahdr::gamut(prepared.image.color.primaries)?;
+        let (rgba, clipped) = libultrahdr::linear_half_rgba(&prepared.image);
+        Ok((gamut, rgba, clipped, prepared.notes))
+    })?;
+    let (gamut, rgba, clipped) = (made.0, &made.1, made.2);
+    let mut notes = made.3.clone();
     if clipped > 0 {
         notes.push(format!(
             "{} on {}: {clipped} negative, NaN or beyond-half samples clipped in libultrahdr's input",
@@ -753,7 +789,7 @@ fn measure_libultrahdr(
     }
     let dir = jxrlib::TempDir::new("bench-uhdr")?;
     let (w, h) = (input.image.width(), input.image.height());
-    let (enc_t, bytes) = timed(runs, || libultrahdr::encode(python, &dir, &rgba, w, h, quality, gamut))?;
+    let (enc_t, bytes) = timed(runs, || libultrahdr::encode(python, &dir, rgba, w, h, quality, gamut))?;
     decode_peer_file(config, &bytes, input, runs, pool, enc_t, row)?;
     row.notes = notes;
     Ok(())
@@ -844,13 +880,19 @@ pub fn run(
     mut progress: impl FnMut(usize, usize, &str),
 ) -> Report {
     let total = configs.len() * inputs.len();
-    let mut rows = Vec::with_capacity(total);
-    for c in configs {
-        for i in inputs {
-            rows.push(measure(c, i, runs, pool));
-            progress(rows.len(), total, &c.label);
+    // Image by image, so that what the peers make of an image (their input files) is made once
+    // and shared by their configurations; the rows are kept configuration by configuration.
+    let mut slots: Vec<Option<Row>> = (0..total).map(|_| None).collect();
+    let mut done = 0;
+    for (k, i) in inputs.iter().enumerate() {
+        let prepared = Prepared::default();
+        for (j, c) in configs.iter().enumerate() {
+            slots[j * inputs.len() + k] = Some(measure(c, i, runs, pool, &prepared));
+            done += 1;
+            progress(done, total, &c.label);
         }
     }
+    let rows: Vec<Row> = slots.into_iter().flatten().collect();
     let summary = configs
         .iter()
         .map(|c| summarize(&c.label, &rows.iter().filter(|r| r.config == c.label).collect::<Vec<_>>()))
@@ -889,58 +931,57 @@ fn fmt_mps(v: Option<f64>) -> String {
 /// The marker after a line whose decoded samples differ from the peer's.
 const DIFFERS: &str = "  DIFFERS FROM PEER";
 
-/// The column headers after the first one or two: sizes, quality, our speeds (one thread, then
+/// A table whose first columns are `first`, then sizes, quality, our speeds (one thread, then
 /// all threads of the report's pool) and the peer's decode speed.
-fn headers(report: &Report) -> String {
+fn bench_table(report: &Report, first: &[(&str, Align)]) -> TextTable {
     let n = report.threads;
-    format!(
-        "{:>10} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "bytes",
-        "bpp",
-        "PU21-PSNR",
-        "dE-ITP",
-        "log-RMSE",
-        "enc 1T",
-        "dec 1T",
-        format!("enc {n}T"),
-        format!("dec {n}T"),
-        "peer dec"
-    )
+    let (enc, dec) = (format!("enc {n}T"), format!("dec {n}T"));
+    let figures = ["bytes", "bpp", "PU21-PSNR", "dE-ITP", "log-RMSE", "enc 1T", "dec 1T", &enc, &dec, "peer dec"];
+    let columns: Vec<(&str, Align)> = first.iter().copied().chain(figures.iter().map(|h| (*h, Align::Right))).collect();
+    TextTable::new(&columns)
 }
 
-/// The figures of one line, in the order of [`headers`].
+/// The figures of one line, in the order of [`bench_table`]'s columns after the first ones.
 #[allow(clippy::too_many_arguments)]
-fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 4], peer: Option<f64>) -> String {
+fn figures(bytes: usize, bpp: f64, psnr: &str, de: f64, log: f64, speeds: [f64; 4], peer: Option<f64>) -> Vec<String> {
     let [e1, d1, en, dn] = speeds.map(|v| fmt_mps(Some(v)));
-    format!(
-        "{bytes:>10} {bpp:>8.3} {psnr:>10} {de:>9.4} {log:>9.5} {e1:>9} {d1:>9} {en:>9} {dn:>9} {:>9}",
-        fmt_mps(peer)
-    )
+    vec![
+        bytes.to_string(),
+        format!("{bpp:.3}"),
+        psnr.to_string(),
+        format!("{de:.4}"),
+        format!("{log:.5}"),
+        e1,
+        d1,
+        en,
+        dn,
+        fmt_mps(peer),
+    ]
 }
 
 /// One line per (configuration, image): the `--per-image` table.
 pub fn per_image_table(report: &Report) -> String {
-    // The image column is as wide as the longest name (cropped corpus files: `NAME@cWxH`).
-    let w = report.rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
-    let mut s = format!("{:<24} {:<w$} {}\n", "config", "image", headers(report));
+    let mut t = bench_table(report, &[("config", Align::Left), ("image", Align::Left)]);
     for r in report.rows.iter().filter(|r| r.error.is_none()) {
         let psnr = if r.identical { "lossless".to_string() } else { fmt_db(r.pu21_psnr) };
         let speeds = [r.encode_mps, r.decode_mps, r.encode_mps_all, r.decode_mps_all];
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
-        let line = figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer);
+        let cells = [r.config.clone(), r.image.clone()].into_iter();
+        let cells = cells.chain(figures(r.bytes, r.bpp, &psnr, r.de_itp_mean, r.log_rmse, speeds, peer)).collect();
         let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {:<w$} {line}{mark}\n", r.config, r.image));
+        t.row(cells, mark);
     }
+    let mut s = t.render();
     s.push('\n');
     s
 }
 
 /// The report as a plain-text table, one line per configuration.
 pub fn table(report: &Report) -> String {
-    let mut s = format!("{:<24} {:>6} {}\n", "config", "images", headers(report));
+    let mut t = bench_table(report, &[("config", Align::Left), ("images", Align::Right)]);
     for r in &report.summary {
         if let Some(why) = &r.unavailable {
-            s.push_str(&format!("{:<24} {why}\n", r.config));
+            t.note_row(vec![r.config.clone()], why);
             continue;
         }
         let images = if r.failed > 0 { format!("{}/{}", r.images, r.images + r.failed) } else { r.images.to_string() };
@@ -948,8 +989,9 @@ pub fn table(report: &Report) -> String {
         let peer = r.peer.as_ref().map(|p| p.decode_mps);
         let line = figures(r.bytes, r.bpp, &fmt_db(r.pu21_psnr), r.de_itp_mean, r.log_rmse, speeds, peer);
         let mark = if r.peer.as_ref().is_some_and(|p| p.mismatches > 0) { DIFFERS } else { "" };
-        s.push_str(&format!("{:<24} {images:>6} {line}{mark}\n", r.config));
+        t.row([r.config.clone(), images].into_iter().chain(line).collect(), mark);
     }
+    let mut s = t.render();
     let unavailable = |label: &str| report.summary.iter().any(|r| r.config == label && r.unavailable.is_some());
     for r in report.rows.iter().filter(|r| r.error.is_some() && !unavailable(&r.config)) {
         s.push_str(&format!("{} on {}: {}\n", r.config, r.image, r.error.as_deref().unwrap_or("")));
@@ -991,4 +1033,26 @@ pub fn table(report: &Report) -> String {
     }
     s.push_str(&equal_quality::table(&report.equal_quality));
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn peer_inputs_are_made_once_per_kind() {
+        let prepared = Prepared::default();
+        let made = std::cell::Cell::new(0);
+        let make = |v: u32| {
+            made.set(made.get() + 1);
+            Ok(v)
+        };
+        assert_eq!(*prepared.get("a", || make(1)).unwrap(), 1);
+        assert_eq!(*prepared.get("a", || make(2)).unwrap(), 1, "the first one is kept");
+        assert_eq!(*prepared.get("b", || make(3)).unwrap(), 3);
+        assert_eq!(made.get(), 2);
+        // A failure is not kept: the next asker makes it again.
+        assert!(prepared.get::<u32>("c", || Err(hdrcodec::core::Error::invalid("no"))).is_err());
+        assert_eq!(*prepared.get("c", || make(4)).unwrap(), 4);
+    }
 }

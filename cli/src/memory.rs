@@ -6,11 +6,14 @@
 //! `/proc/self/status`: `VmHWM`, the figure `getrusage`'s `ru_maxrss` and `/usr/bin/time -f %M`
 //! give) and its resident set before reading the file (`VmRSS`: the program itself). The row
 //! sets the growth, peak minus start, against the size of the decoded image (RGB or RGBA
-//! `f32`), whose target is at most 1.5x. The encoded file is held in memory while it is decoded
-//! (`ImageCodec::decode` takes bytes): that is part of the figure.
+//! `f32`), whose target is at most 1.5x. The child decodes from the open file
+//! (`Registry::read`, `ImageCodec::decode_from`): a codec that reads its file piece by piece
+//! (OpenEXR) holds none of it whole; the others read it into memory first, which is part of the
+//! figure.
 
 use crate::bench::{Config, Encoder, Input};
 use crate::jxrlib::TempDir;
+use crate::text_table::{Align, TextTable};
 use hdrcodec::core::{Error, Limits, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -49,10 +52,7 @@ pub fn status_bytes(field: &str) -> Option<u64> {
 pub fn decode_peak(path: &Path) -> Result<DecodePeak> {
     let unavailable = || Error::unsupported("peak memory is read from /proc/self/status (Linux only)");
     let start = status_bytes("VmRSS").ok_or_else(unavailable)?;
-    let registry = hdrcodec::registry();
-    let data = hdrcodec::read_file(path)?;
-    let codec = registry.for_input(path, &data)?;
-    let image = codec.decode(&data, &Limits::default())?;
+    let (codec, image) = hdrcodec::registry().read(path, &Limits::default())?;
     let peak = status_bytes("VmHWM").ok_or_else(unavailable)?;
     Ok(DecodePeak {
         codec: codec.name().to_string(),
@@ -135,30 +135,38 @@ fn measure_one(config: &Config, input: &Input, exe: &Path, row: &mut MemoryRow) 
 
 /// The rows as a plain-text table.
 pub fn table(rows: &[MemoryRow]) -> String {
-    let w = rows.iter().map(|r| r.image.chars().count()).max().unwrap_or(0).max(24);
-    let mut s = format!(
-        "{:<24} {:<w$} {:>10} {:>11} {:>9} {:>9} {:>8} {:>5}\n",
-        "memory: config", "image", "file MB", "decoded MB", "start MB", "peak MB", "growth", "met"
-    );
-    let mb = |b: u64| b as f64 / 1e6;
+    let mut t = TextTable::new(&[
+        ("memory: config", Align::Left),
+        ("image", Align::Left),
+        ("file MB", Align::Right),
+        ("decoded MB", Align::Right),
+        ("start MB", Align::Right),
+        ("peak MB", Align::Right),
+        ("growth", Align::Right),
+        ("met", Align::Right),
+    ]);
+    let mb = |b: u64| format!("{:.2}", b as f64 / 1e6);
     for r in rows {
         match (&r.peak, &r.error) {
-            (Some(p), _) => s.push_str(&format!(
-                "{:<24} {:<w$} {:>10.2} {:>11.2} {:>9.2} {:>9.2} {:>7.2}x {:>5}\n",
-                r.config,
-                r.image,
-                mb(r.file_bytes),
-                mb(p.decoded_bytes),
-                mb(p.start_rss_bytes),
-                mb(p.peak_rss_bytes),
-                r.growth_ratio,
-                if r.growth_ratio <= TARGET { "yes" } else { "no" }
-            )),
-            (None, e) => s.push_str(&format!("{:<24} {:<w$} {}\n", r.config, r.image, e.as_deref().unwrap_or(""))),
+            (Some(p), _) => t.row(
+                vec![
+                    r.config.clone(),
+                    r.image.clone(),
+                    mb(r.file_bytes),
+                    mb(p.decoded_bytes),
+                    mb(p.start_rss_bytes),
+                    mb(p.peak_rss_bytes),
+                    format!("{:.2}x", r.growth_ratio),
+                    (if r.growth_ratio <= TARGET { "yes" } else { "no" }).to_string(),
+                ],
+                "",
+            ),
+            (None, e) => t.note_row(vec![r.config.clone(), r.image.clone()], e.as_deref().unwrap_or("")),
         }
     }
+    let mut s = t.render();
     s.push_str(&format!(
-        "memory rows: a child `hdrcodec memory-peak FILE` reads and decodes the file into a whole image; growth = (peak − \
+        "memory rows: a child `hdrcodec memory-peak FILE` decodes the file from disk into a whole image; growth = (peak − \
          start) / decoded\n  (peak and start: its VmHWM and VmRSS before reading; decoded: the image's f32 samples); \
          target ≤ {TARGET}x\n"
     ));

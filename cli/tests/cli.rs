@@ -552,6 +552,55 @@ fn bench_on_a_directory_and_as_a_table() {
     assert!(table.lines().any(|l| l.starts_with("exr:zip-float") && l.contains("small.exr")), "{table}");
 }
 
+/// The tables size their columns to their content: an image name longer than the old fixed
+/// 24 columns widens its column, and every row's figures end where their header ends.
+#[test]
+fn bench_table_columns_line_up_whatever_the_labels() {
+    let dir = common::temp_dir("cli-bench-columns");
+    let long = "an-image-name-much-longer-than-24-columns.exr";
+    std::fs::copy(corpus().join("odd-3x5.exr"), dir.join(long)).unwrap();
+    let filter = "exr:zip-float,exr:none-half";
+    let text = ok(&hdrcodec(&[&"bench", &dir, &"--quick", &"--filter", &filter, &"--per-image"]));
+    let mut tables = 0;
+    let mut lines = text.lines().peekable();
+    while let Some(header) = lines.next() {
+        if !header.starts_with("config") {
+            continue;
+        }
+        tables += 1;
+        let (bpp, dec) = (header.find(" bpp").unwrap() + 4, header.find(" dec 1T").unwrap() + 7);
+        let mut rows = 0;
+        while let Some(row) = lines.next_if(|l| l.starts_with("exr:")) {
+            let at = |end: usize| (row.as_bytes()[end - 1], row.as_bytes().get(end).copied().unwrap_or(b' '));
+            for end in [bpp, dec] {
+                let (last, next) = at(end);
+                assert!(last.is_ascii_digit() && next == b' ', "{row:?} against {header:?}\n{text}");
+            }
+            rows += 1;
+        }
+        assert_eq!(rows, 2, "{text}");
+    }
+    assert_eq!(tables, 2, "the summary and the per-image table: {text}");
+    assert!(text.contains(long), "{text}");
+}
+
+/// With `--crop`, the memory rows still decode the largest image whole.
+#[test]
+fn bench_memory_rows_decode_the_whole_largest_image_under_crop() {
+    let dir = common::temp_dir("cli-bench-memory-crop");
+    std::fs::copy(corpus().join("odd-3x5.exr"), dir.join("small.exr")).unwrap();
+    let args: [&dyn AsRef<std::ffi::OsStr>; 9] =
+        [&"bench", &dir, &"--quick", &"--filter", &"exr:none-half", &"--crop", &"2x2", &"--memory", &"--json"];
+    let v = json(&hdrcodec(&args));
+    assert_eq!(v["rows"][0]["image"], "small.exr@c2x2", "{v}");
+    let m = &v["memory"][0];
+    assert_eq!(
+        (m["image"].as_str(), m["width"].as_u64(), m["height"].as_u64()),
+        (Some("small.exr"), Some(3), Some(5)),
+        "{v}"
+    );
+}
+
 #[test]
 fn bench_video_rows_compare_ours_with_svt_av1() {
     if common::require(common::tool("ffmpeg"), "ffmpeg (Debian ffmpeg, with libsvtav1 and libdav1d)").is_none() {

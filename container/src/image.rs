@@ -6,7 +6,7 @@ use crate::raw::{RawF16Codec, RawF32Codec};
 use crate::reader::{in_chunk, DataRef, HeadInfo, Reader};
 use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
-use hdrcodec_core::sink::{fill_rows, ImageSink, RowSink, Scratch};
+use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec,
     ImageInfo, Limits, Result, RowCounter,
@@ -46,15 +46,7 @@ fn same_primaries(a: &ColorPrimaries, b: &ColorPrimaries) -> bool {
 ///
 /// Alpha is untouched. One 3x3 matrix per tile, nothing is clipped.
 fn to_header_colour(mut tile: HdrImage, header: &ColorInfo, records_scale: bool) -> HdrImage {
-    let from = tile.color.primaries;
-    let to = header.primaries;
-    let convert = from.is_specified() && to.is_specified() && !same_primaries(&from, &to);
-    let (tile_nits, header_nits) = (tile.color.nits_per_unit, header.nits_per_unit);
-    let rescale = records_scale && tile_nits != header_nits && tile_nits.is_finite() && tile_nits > 0.0;
-    if convert || rescale {
-        let m: Mat3 = if convert { rgb_to_rgb(&from, &to) } else { IDENTITY };
-        let k = if rescale { f64::from(tile_nits) / f64::from(header_nits) } else { 1.0 };
-        let m = mat_to_f32(&m.map(|row| row.map(|v| v * k)));
+    if let Some(m) = header_matrix(&tile.color, header, records_scale) {
         let n = tile.channels().count();
         for px in tile.samples_mut().chunks_exact_mut(n) {
             let [r, g, b] = hdrcodec_core::color::mat_apply_f32s(&m, [px[0], px[1], px[2]]);
@@ -63,6 +55,86 @@ fn to_header_colour(mut tile: HdrImage, header: &ColorInfo, records_scale: bool)
     }
     tile.color = header.clone();
     tile
+}
+
+/// The matrix that brings the RGB of a tile decoded in colour `tile` into the header's colour
+/// (primaries and, if the payload records it, scale), or `None` when the samples are already
+/// in it: see [`to_header_colour`].
+fn header_matrix(tile: &ColorInfo, header: &ColorInfo, records_scale: bool) -> Option<[[f32; 3]; 3]> {
+    let from = tile.primaries;
+    let to = header.primaries;
+    let convert = from.is_specified() && to.is_specified() && !same_primaries(&from, &to);
+    let (tile_nits, header_nits) = (tile.nits_per_unit, header.nits_per_unit);
+    let rescale = records_scale && tile_nits != header_nits && tile_nits.is_finite() && tile_nits > 0.0;
+    (convert || rescale).then(|| {
+        let m: Mat3 = if convert { rgb_to_rgb(&from, &to) } else { IDENTITY };
+        let k = if rescale { f64::from(tile_nits) / f64::from(header_nits) } else { 1.0 };
+        mat_to_f32(&m.map(|row| row.map(|v| v * k)))
+    })
+}
+
+/// The options a tile's payload decodes with: a clone shares the caller's allocation budget;
+/// the tile's own size bounds the dimensions.
+fn tile_options(options: &DecodeOptions, t: DataHeader) -> DecodeOptions {
+    let mut tile_options = options.clone();
+    tile_options.limits.max_width = t.width;
+    tile_options.limits.max_height = t.height;
+    tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
+    tile_options
+}
+
+/// The sink a frame's only tile (an untiled file) decodes into: its rows go straight to the
+/// frame's sink, in place when the tile's channels and colour are the header's, else brought
+/// into them (channels as [`HdrImage::with_channels`], colour as [`to_header_colour`]) a band
+/// at a time. No tile image, no copy of the frame.
+struct WholeFrameSink<'s> {
+    inner: &'s mut dyn RowSink,
+    info: &'s ImageInfo,
+    records_scale: bool,
+    /// The tile's channel count and matrix once started, when its rows need converting.
+    convert: Option<(usize, Option<[[f32; 3]; 3]>)>,
+    started: bool,
+    buf: Vec<f32>,
+}
+
+impl RowSink for WholeFrameSink<'_> {
+    fn start(&mut self, tile: &ImageInfo) -> Result<()> {
+        if (tile.width, tile.height) != (self.info.width, self.info.height) {
+            return Err(Error::invalid(format!("the payload decodes to {}x{}", tile.width, tile.height)));
+        }
+        let m = header_matrix(&tile.color, &self.info.color, self.records_scale);
+        self.convert = (m.is_some() || tile.channels != self.info.channels).then_some((tile.channels.count(), m));
+        self.started = true;
+        self.inner.start(self.info)
+    }
+
+    fn rows_mut(&mut self, y: u32, rows: u32) -> Option<&mut [f32]> {
+        if self.convert.is_some() || !self.started {
+            return None;
+        }
+        self.inner.rows_mut(y, rows)
+    }
+
+    fn put_rows(&mut self, y: u32, samples: &[f32]) -> Result<()> {
+        let Some((from, m)) = self.convert else { return self.inner.put_rows(y, samples) };
+        let to = self.info.channels.count();
+        // A band of about 1 MB at a time, whatever the payload delivers at once.
+        let tile_row = self.info.width as usize * from;
+        let band = band_rows(tile_row, 1 << 20) as usize;
+        for (k, rows) in samples.chunks(band * tile_row).enumerate() {
+            self.buf.clear();
+            for px in rows.chunks_exact(from) {
+                let rgb = [px[0], px[1], px[2]];
+                let [r, g, b] = m.map_or(rgb, |m| hdrcodec_core::color::mat_apply_f32s(&m, rgb));
+                self.buf.extend_from_slice(&[r, g, b]);
+                if to == 4 {
+                    self.buf.push(if from == 4 { px[3] } else { 1.0 });
+                }
+            }
+            self.inner.put_rows(y + (k * band) as u32, &self.buf)?;
+        }
+        Ok(())
+    }
 }
 
 /// The tile as the payload codec is given it: in primaries the payload can record as they are,
@@ -454,26 +526,35 @@ pub(crate) fn decode_frame_rows(
     let c = h.channels.count();
     let row_len = h.width as usize * c;
     let batch = options.pool.threads().max(1) * 2;
+    let ctx = |d: &DataRef<'_>| {
+        let t = d.header;
+        format!("DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})", d.offset, t.width, t.height, t.x, t.y)
+    };
+    // One tile covering the frame (an untiled file): the payload decodes straight into the sink.
+    if let [only] = refs {
+        let t = only.header;
+        if (t.x, t.y, t.width, t.height) == (0, 0, h.width, h.height) {
+            let ctx = ctx(only);
+            let mut whole =
+                WholeFrameSink { inner: sink, info, records_scale, convert: None, started: false, buf: Vec::new() };
+            let tile_options = tile_options(options, t);
+            return codec.decode_rows(only.payload, &tile_options, &mut whole).map_err(|e| in_chunk(&ctx, e));
+        }
+    }
     // Decodes a few tiles in parallel, each checked against its rectangle and brought into the
     // header's channels and colour.
     let decode_group = |group: &[DataRef<'_>]| -> Result<Vec<HdrImage>> {
         let tiles: Vec<Result<HdrImage>> = options.pool.map(group.len(), |k| {
             let d = &group[k];
             let t = d.header;
-            // A clone shares the caller's allocation budget; the tile's own size bounds it.
-            let mut tile_options = options.clone();
-            tile_options.limits.max_width = t.width;
-            tile_options.limits.max_height = t.height;
-            tile_options.limits.max_pixels = u64::from(t.width) * u64::from(t.height);
-            let ctx = format!(
-                "DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})",
-                d.offset, t.width, t.height, t.x, t.y
-            );
-            let img = codec.decode_with(d.payload, &tile_options).map_err(|e| in_chunk(&ctx, e))?;
+            let ctx = ctx(d);
+            let img = codec.decode_with(d.payload, &tile_options(options, t)).map_err(|e| in_chunk(&ctx, e))?;
             if (img.width(), img.height()) != (t.width, t.height) {
                 return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
             }
-            Ok(to_header_colour(img.with_channels(h.channels), &info.color, records_scale))
+            // A tile already in the header's channels is kept as it is (no copy).
+            let img = if img.channels() == h.channels { img } else { img.with_channels(h.channels) };
+            Ok(to_header_colour(img, &info.color, records_scale))
         });
         tiles.into_iter().collect()
     };
@@ -767,15 +848,30 @@ mod tests {
         }
     }
 
-    /// Raw f32 samples that says, for every tile, how many of its samples exceed 1 (as a codec
-    /// that clips would), and records no colour.
-    struct Noisy;
-    impl ImageCodec for Noisy {
+    /// Raw f32 samples. `Noisy` says, for every tile, how many of its samples exceed 1 (as a
+    /// codec that clips would), and records no colour; `Elsewhere` decodes without alpha, in
+    /// BT.709 at 200 nits per unit (a payload that records its own colour and scale in other
+    /// terms than the header's).
+    #[derive(Clone, Copy, PartialEq)]
+    enum Test {
+        Noisy,
+        Elsewhere,
+    }
+    use Test::{Elsewhere, Noisy};
+    impl ImageCodec for Test {
         fn name(&self) -> &'static str {
-            "noisy"
+            if *self == Noisy {
+                "noisy"
+            } else {
+                "elsewhere"
+            }
         }
         fn id(&self) -> [u8; 4] {
-            *b"NOIS"
+            if *self == Noisy {
+                *b"NOIS"
+            } else {
+                *b"ELSW"
+            }
         }
         fn extensions(&self) -> &'static [&'static str] {
             &[]
@@ -784,10 +880,23 @@ mod tests {
             false
         }
         fn color_signalling(&self) -> ColorSignalling {
-            ColorSignalling::None
+            if *self == Noisy {
+                ColorSignalling::None
+            } else {
+                ColorSignalling::Any
+            }
+        }
+        fn records_nits_per_unit(&self) -> bool {
+            *self == Elsewhere
         }
         fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
-            crate::RawF32Codec.decode_with(data, options)
+            let image = crate::RawF32Codec.decode_with(data, options)?;
+            if *self == Noisy {
+                return Ok(image);
+            }
+            let mut image = image.with_channels(Channels::Rgb);
+            image.color = ColorInfo { primaries: ColorPrimaries::Bt709, nits_per_unit: 200.0, hdr10: None };
+            Ok(image)
         }
         fn encode_to(
             &self,
@@ -796,9 +905,11 @@ mod tests {
             out: &mut dyn std::io::Write,
         ) -> Result<EncodeReport> {
             let mut report = crate::RawF32Codec.encode_to(image, settings, out)?;
-            let n = image.samples().iter().filter(|&&v| v > 1.0).count();
-            report.note(format!("{n} samples above 1"));
-            report.note("the same sentence from every tile");
+            if *self == Noisy {
+                let n = image.samples().iter().filter(|&&v| v > 1.0).count();
+                report.note(format!("{n} samples above 1"));
+                report.note("the same sentence from every tile");
+            }
             Ok(report)
         }
     }
@@ -833,5 +944,26 @@ mod tests {
             ["noisy payload: 27 samples above 1", "noisy payload: the same sentence from every tile"]
         );
         assert_eq!(codec.decode(&out, &Default::default()).unwrap(), img);
+    }
+
+    /// An untiled frame decodes straight into the frame's sink, converted there: the same
+    /// samples as the same image in tiles, each tile converted on its own.
+    #[test]
+    fn an_untiled_frame_is_converted_as_tiles_are() {
+        let samples: Vec<f32> = (0..13 * 9 * 4).map(|i| (i as f32 * 0.37).sin().abs() * 3.0).collect();
+        let color = ColorInfo { primaries: ColorPrimaries::Bt2020, nits_per_unit: 100.0, hdr10: None };
+        let img = HdrImage::new(13, 9, Channels::Rgba, samples, color).unwrap();
+        let resolve = |_: [u8; 4]| Some(&Elsewhere as &dyn ImageCodec);
+        let decode = |tile| {
+            let file = encode_image(&img, &Elsewhere, &EncodeSettings::default(), tile).unwrap();
+            decode_image(&file, &Limits::default().into(), &resolve).unwrap()
+        };
+        let (whole, tiled) = (decode(None), decode(Some(4)));
+        assert_eq!(whole.samples(), tiled.samples());
+        assert_eq!(whole.color, img.color);
+        assert_eq!(whole.channels(), Channels::Rgba);
+        // Converted: alpha set to 1, the colour brought to BT.2020 at 100 nits per unit.
+        assert!(whole.samples().chunks_exact(4).all(|p| p[3] == 1.0));
+        assert!(whole.samples().chunks_exact(4).zip(img.samples().chunks_exact(4)).any(|(a, b)| a[0] != b[0]));
     }
 }

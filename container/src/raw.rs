@@ -15,6 +15,7 @@
 
 use half::f16;
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
+use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
 };
@@ -118,11 +119,25 @@ fn probe<S: Sample>(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     Ok(ImageInfo::new(width, height, channels, raw_color()).with_format(S::FORMAT))
 }
 
-fn decode<S: Sample>(data: &[u8], limits: &Limits) -> Result<HdrImage> {
+/// Decodes into `sink` a band of rows at a time (in place when the sink allows it): nothing of
+/// the image's size is held besides the sink's storage.
+fn decode_rows<S: Sample>(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
     let (width, height, channels, body) = header::<S>(data, limits)?;
     crate::format::check_image(limits, width, height, channels)?;
-    let samples = body.chunks_exact(S::BYTES).map(S::get).collect();
-    HdrImage::new(width, height, channels, samples, raw_color())
+    sink.start(&ImageInfo::new(width, height, channels, raw_color()).with_format(S::FORMAT))?;
+    let row_len = width as usize * channels.count();
+    let band = band_rows(row_len, 1 << 20);
+    let mut scratch = Scratch::new(limits);
+    let mut y = 0;
+    for rows in body.chunks(band as usize * row_len * S::BYTES) {
+        let n = (rows.len() / (row_len * S::BYTES)) as u32;
+        fill_rows(sink, y, n, row_len, &mut scratch, |out| {
+            out.iter_mut().zip(rows.chunks_exact(S::BYTES)).for_each(|(o, b)| *o = S::get(b));
+            Ok(())
+        })?;
+        y += n;
+    }
+    Ok(())
 }
 
 macro_rules! raw_codec {
@@ -149,9 +164,16 @@ macro_rules! raw_codec {
                 probe::<$t>(data, limits)
             }
             fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
-                // The image is charged against the caller's budget while the decode runs.
-                let _image = self.probe(data, &options.limits)?.charge(&options.limits)?;
-                decode::<$t>(data, &options.limits)
+                hdrcodec_core::decode_image(self, data, options)
+            }
+            /// A band of rows at a time, converted straight into the sink.
+            fn decode_rows(
+                &self,
+                data: &[u8],
+                options: &hdrcodec_core::DecodeOptions,
+                sink: &mut dyn RowSink,
+            ) -> Result<()> {
+                decode_rows::<$t>(data, &options.limits, sink)
             }
             fn encode_to(
                 &self,

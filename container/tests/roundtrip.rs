@@ -49,6 +49,21 @@ fn raw_f32_round_trips_are_bit_exact() {
     }
 }
 
+/// An untiled file decodes straight into the image: the budget's peak is the image, not also
+/// a tile image of its size (and a copy of it) as before.
+#[test]
+fn an_untiled_file_decodes_into_the_image_alone() {
+    let img = pattern(257, 129, Channels::Rgba, 3);
+    for codec in [&RawF16Codec as &dyn ImageCodec, &RawF32Codec] {
+        let file = encode_image(&img, codec, &EncodeSettings::default(), None).unwrap();
+        let limits = Limits::default();
+        let back = decode_image(&file, &limits.clone().into(), &raw).unwrap();
+        assert_eq!((back.width(), back.height()), (257, 129));
+        let image_bytes = 257 * 129 * 16;
+        assert!(limits.peak() <= image_bytes, "{}: peak {} of {image_bytes}", codec.name(), limits.peak());
+    }
+}
+
 #[test]
 fn raw_f16_round_trip_equals_ieee_half_rounding() {
     // The reference is the `half` crate's IEEE 754 binary16 round-to-nearest-even conversion.

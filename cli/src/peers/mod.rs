@@ -84,7 +84,14 @@ fn programs(encoder: Encoder) -> (&'static str, Vec<(&'static str, Option<PathBu
 
 /// Measures one row of a peer of this module into `row`: "not installed: ..." when one of
 /// its programs is missing, the failure (with the program's message) when a step fails.
-pub(crate) fn measure(config: &Config, input: &Input, runs: usize, pool: &ThreadPool, row: &mut Row) {
+pub(crate) fn measure(
+    config: &Config,
+    input: &Input,
+    runs: usize,
+    pool: &ThreadPool,
+    prepared: &bench::Prepared,
+    row: &mut Row,
+) {
     let (package, found) = programs(config.encoder);
     let missing: Vec<&str> = found.iter().filter(|(_, p)| p.is_none()).map(|(n, _)| *n).collect();
     if !missing.is_empty() {
@@ -94,10 +101,12 @@ pub(crate) fn measure(config: &Config, input: &Input, runs: usize, pool: &Thread
     }
     let paths: Vec<PathBuf> = found.into_iter().filter_map(|(_, p)| p).collect();
     let result = match config.encoder {
-        Encoder::Cjxl(distance) => measure_jxl(&paths[0], &paths[1], distance, input, runs, row),
-        Encoder::Avifenc { depth, quantizer } => measure_avif(&paths[0], &paths[1], depth, quantizer, input, runs, row),
+        Encoder::Cjxl(distance) => measure_jxl(&paths[0], &paths[1], distance, input, runs, prepared, row),
+        Encoder::Avifenc { depth, quantizer } => {
+            measure_avif(&paths[0], &paths[1], (depth, quantizer), input, runs, prepared, row)
+        }
         Encoder::Oiiotool { compression, pixel } => {
-            measure_oiio(config, &paths[0], compression, pixel, input, runs, pool, row)
+            measure_oiio(config, &paths[0], (compression, pixel), input, runs, pool, prepared, row)
         }
         _ => return,
     };
@@ -145,17 +154,29 @@ fn note(notes: &mut Vec<String>, note: String) {
 
 /// A JPEG XL row ([`Encoder::Cjxl`]): the input as linear PFM ([`jxl::prepare`]), `cjxl` at
 /// `distance`, `djxl` back to PFM, read by our PFM decoder.
-fn measure_jxl(cjxl: &Path, djxl: &Path, distance: &str, input: &Input, runs: usize, row: &mut Row) -> Result<()> {
-    let (reference, assumed) = reference(input);
-    let prepared = jxl::prepare(&reference)?;
+fn measure_jxl(
+    cjxl: &Path,
+    djxl: &Path,
+    distance: &str,
+    input: &Input,
+    runs: usize,
+    cache: &bench::Prepared,
+    row: &mut Row,
+) -> Result<()> {
+    let made = cache.get("jxl", || {
+        let (reference, assumed) = reference(input);
+        let prepared = jxl::prepare(&reference)?;
+        Ok((reference, assumed, prepared))
+    })?;
+    let (reference, assumed, prepared) = (&made.0, made.1.clone(), &made.2);
     let dir = TempDir::new("bench-jxl")?;
     let (pfm, jxl_path, back) = (dir.path().join("in.pfm"), dir.path().join("out.jxl"), dir.path().join("back.pfm"));
     std::fs::write(&pfm, &prepared.pfm)?;
-    let enc_t = timed_run(cjxl, &jxl::encode_args(&pfm, &jxl_path, distance, &prepared), &jxl_path, runs)?;
+    let enc_t = timed_run(cjxl, &jxl::encode_args(&pfm, &jxl_path, distance, prepared), &jxl_path, runs)?;
     let bytes = std::fs::read(&jxl_path)?.len();
     let dec_t = timed_run(djxl, &jxl::decode_args(&jxl_path, &back), &back, runs)?;
-    let decoded = jxl::read_back(&std::fs::read(&back)?, &prepared, &reference)?;
-    score(&reference, &decoded, bytes, (enc_t, dec_t), row)?;
+    let decoded = jxl::read_back(&std::fs::read(&back)?, prepared, reference)?;
+    score(reference, &decoded, bytes, (enc_t, dec_t), row)?;
     let mut notes: Vec<String> = assumed.into_iter().collect();
     notes.extend(prepared.notes.iter().map(|n| format!("jxl(cjxl) on {}: {n}", input.name)));
     if distance == "0" && !row.identical {
@@ -176,23 +197,27 @@ fn measure_jxl(cjxl: &Path, djxl: &Path, distance: &str, input: &Input, runs: us
 fn measure_avif(
     avifenc: &Path,
     avifdec: &Path,
-    depth: u8,
-    quantizer: u8,
+    (depth, quantizer): (u8, u8),
     input: &Input,
     runs: usize,
+    cache: &bench::Prepared,
     row: &mut Row,
 ) -> Result<()> {
-    let (reference, assumed) = reference(input);
-    let bt2020 = hdrcodec::core::color::convert_primaries(&reference, ColorPrimaries::Bt2020);
-    let (png, clipped) = avif::pq_png(&bt2020)?;
+    let made = cache.get("avif", || {
+        let (reference, assumed) = reference(input);
+        let bt2020 = hdrcodec::core::color::convert_primaries(&reference, ColorPrimaries::Bt2020);
+        let (png, clipped) = avif::pq_png(&bt2020)?;
+        Ok((reference, assumed, bt2020, png, clipped))
+    })?;
+    let (reference, assumed, bt2020, png, clipped) = (&made.0, made.1.clone(), &made.2, &made.3, made.4);
     let dir = TempDir::new("bench-avif")?;
     let (src, out, back) = (dir.path().join("in.png"), dir.path().join("out.avif"), dir.path().join("back.png"));
     std::fs::write(&src, png)?;
     let enc_t = timed_run(avifenc, &avif::encode_args(&src, &out, depth, quantizer), &out, runs)?;
     let bytes = std::fs::read(&out)?.len();
     let dec_t = timed_run(avifdec, &avif::decode_args(&out, &back), &back, runs)?;
-    let decoded = avif::read_pq_png(&std::fs::read(&back)?, &bt2020)?;
-    score(&reference, &decoded, bytes, (enc_t, dec_t), row)?;
+    let decoded = avif::read_pq_png(&std::fs::read(&back)?, bt2020)?;
+    score(reference, &decoded, bytes, (enc_t, dec_t), row)?;
     let mut notes: Vec<String> = assumed.into_iter().collect();
     if clipped > 0 {
         notes.push(format!(
@@ -214,17 +239,20 @@ fn measure_avif(
 fn measure_oiio(
     config: &Config,
     oiiotool: &Path,
-    compression: &str,
-    pixel: &str,
+    (compression, pixel): (&str, &str),
     input: &Input,
     runs: usize,
     pool: &ThreadPool,
+    cache: &bench::Prepared,
     row: &mut Row,
 ) -> Result<()> {
     let codec = config.codec.as_ref();
-    let plain =
-        hdrcodec::core::EncodeSettings::default().with_option("compression", "none").with_option("pixel", "float");
-    let (exr, mut notes) = hdrcodec::encode_for(codec, &input.image, &plain)?;
+    let made = cache.get("oiio", || {
+        let plain =
+            hdrcodec::core::EncodeSettings::default().with_option("compression", "none").with_option("pixel", "float");
+        hdrcodec::encode_for(codec, &input.image, &plain)
+    })?;
+    let (exr, mut notes) = (&made.0, made.1.clone());
     let dir = TempDir::new("bench-oiio")?;
     let (src, out, back) = (dir.path().join("in.exr"), dir.path().join("out.exr"), dir.path().join("back.exr"));
     std::fs::write(&src, exr)?;

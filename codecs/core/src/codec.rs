@@ -83,6 +83,30 @@ pub trait ImageCodec: Send + Sync {
     fn decode(&self, data: &[u8], limits: &Limits) -> Result<HdrImage> {
         self.decode_with(data, &DecodeOptions::new(limits.clone()))
     }
+    /// [`decode_rows`](Self::decode_rows) from a source that reads and seeks (a file, from its
+    /// current position) instead of bytes held in memory: a codec whose layout allows it reads
+    /// the file piece by piece as it decodes (OpenEXR: a batch of chunks at a time), so that the
+    /// peak is the sink's storage and its working buffers, not also the whole file. Same rows,
+    /// same errors (a file that ends early is [`Error::Truncated`]).
+    ///
+    /// The provided version reads the rest of `input` into memory, charged to
+    /// `options.limits` while it is held, and calls `decode_rows`.
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn ReadSeek,
+        options: &DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        let data = read_rest(input, &options.limits)?;
+        self.decode_rows(&data, options, sink)
+    }
+    /// [`decode_rows_from`](Self::decode_rows_from) into a whole image (an [`ImageSink`]
+    /// charged to `options.limits`): [`decode_with`](Self::decode_with) for a file.
+    fn decode_from(&self, input: &mut dyn ReadSeek, options: &DecodeOptions) -> Result<HdrImage> {
+        let mut sink = ImageSink::new(&options.limits);
+        self.decode_rows_from(input, options, &mut sink)?;
+        sink.finish()
+    }
     /// [`encode_to`](Self::encode_to) into a writer that can also seek (a file): formats whose
     /// index precedes the data it points at (OpenEXR's offset table, TIFF's IFD offset) fill it
     /// in by seeking back, instead of holding the encoded file whole. The provided version is
@@ -243,6 +267,43 @@ impl RowCounter {
 pub trait WriteSeek: Write + std::io::Seek {}
 
 impl<T: Write + std::io::Seek + ?Sized> WriteSeek for T {}
+
+/// A reader that can also seek: what [`ImageCodec::decode_rows_from`] reads (a file, a
+/// `Cursor` over bytes).
+pub trait ReadSeek: std::io::Read + std::io::Seek {}
+
+impl<T: std::io::Read + std::io::Seek + ?Sized> ReadSeek for T {}
+
+/// The bytes of `input` from its position to its end, their size charged to `limits` (checked
+/// before anything is allocated) while the returned buffer lives. A source that ends before
+/// the size it reported is [`Error::Truncated`].
+pub fn read_rest(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ChargedBytes> {
+    let at = input.stream_position()?;
+    let end = input.seek(std::io::SeekFrom::End(0))?;
+    input.seek(std::io::SeekFrom::Start(at))?;
+    let len = end.saturating_sub(at);
+    let charge = limits.charge(len, "the encoded file")?;
+    let mut bytes = vec![0; usize::try_from(len).map_err(|_| Error::limit("the encoded file is too large"))?];
+    input.read_exact(&mut bytes).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => Error::truncated(format!("the file (it ended before its {len} bytes)")),
+        _ => Error::Io(e),
+    })?;
+    Ok(ChargedBytes { bytes, _charge: charge })
+}
+
+/// Bytes read by [`read_rest`], charged to the limits they were read under until dropped.
+#[derive(Debug)]
+pub struct ChargedBytes {
+    bytes: Vec<u8>,
+    _charge: crate::Allocation,
+}
+
+impl std::ops::Deref for ChargedBytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        &self.bytes
+    }
+}
 
 /// Which colour signalling a format's files carry.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -623,6 +684,38 @@ mod options {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A source that claims `extra` more bytes than it holds (a file cut while it was read).
+    struct Shrunk(std::io::Cursor<Vec<u8>>, u64);
+    impl std::io::Read for Shrunk {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            self.0.read(buf)
+        }
+    }
+    impl std::io::Seek for Shrunk {
+        fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+            match pos {
+                std::io::SeekFrom::End(d) => Ok((self.0.get_ref().len() as u64 + self.1).saturating_add_signed(d)),
+                p => self.0.seek(p),
+            }
+        }
+    }
+
+    #[test]
+    fn read_rest_charges_the_bytes_and_reports_a_short_source() {
+        let mut c = std::io::Cursor::new((0..100u8).collect::<Vec<u8>>());
+        c.set_position(30);
+        let limits = Limits::default();
+        let rest = read_rest(&mut c, &limits).unwrap();
+        assert_eq!(&rest[..], &(30..100u8).collect::<Vec<u8>>()[..]);
+        assert_eq!(limits.peak(), 70);
+        drop(rest);
+        c.set_position(0);
+        let small = Limits::new(16, 16, 256, 50);
+        assert!(matches!(read_rest(&mut c, &small), Err(Error::LimitExceeded { .. })));
+        let mut short = Shrunk(std::io::Cursor::new(vec![1; 20]), 5);
+        assert!(matches!(read_rest(&mut short, &limits), Err(Error::Truncated { .. })));
+    }
 
     #[test]
     fn unknown_options_are_named() {

@@ -16,16 +16,17 @@ use exr::meta::header::{Header, ImageAttributes, LayerAttributes};
 use exr::meta::MetaData;
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
-    Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits, Result,
-    ThreadPool,
+    Allocation, Channels, Chromaticities, ColorInfo, ColorPrimaries, DecodeOptions, Error, HdrImage, ImageInfo, Limits,
+    ReadSeek, Result, ThreadPool,
 };
-use std::io::Cursor;
+use std::collections::BTreeMap;
+use std::io::{Cursor, Read, Seek, SeekFrom};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use crate::{compression_name, MAGIC};
 
-/// Most chunks decompressed per parallel batch: bounds the memory held in decompressed blocks
-/// to a few dozen blocks while keeping every core busy.
+/// Most chunks decompressed per parallel batch (four per thread up to this): bounds the memory
+/// held in decompressed blocks to a few dozen blocks while keeping every core busy.
 const BATCH: usize = 32;
 
 /// Decodes an OpenEXR file held in memory. Never panics: a panic inside the `exr` crate is
@@ -53,7 +54,27 @@ pub fn decode_exr_with(data: &[u8], options: &DecodeOptions) -> Result<HdrImage>
 /// Decodes an OpenEXR file into `sink`, block row by block row (in place when the sink allows
 /// it); chunks decompress in parallel on `options.pool`, a batch of whole block rows at a time.
 pub fn decode_exr_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-    guarded("reading the OpenEXR file", || decode_inner(data, &options.limits, &options.pool, sink))
+    guarded("reading the OpenEXR file", || {
+        decode_inner(Cursor::new(data), data.len() as u64, &options.limits, &options.pool, sink)
+    })
+}
+
+/// [`decode_exr_rows`] from a file (any source that reads and seeks, positioned at the file's
+/// first byte): the headers and offset tables are read first, then the chunks a batch at a
+/// time as they are decoded, so that neither the file nor a copy of its chunks is held
+/// (chunks stored out of top-to-bottom order wait, charged to `options.limits`, until their
+/// turn). Same rows and errors as [`decode_exr_rows`] on the file's bytes.
+pub fn decode_exr_rows_from(input: &mut dyn ReadSeek, options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
+    if input.stream_position()? != 0 {
+        // The offset tables count from the file's first byte.
+        let data = hdrcodec_core::read_rest(input, &options.limits)?;
+        return decode_exr_rows(&data, options, sink);
+    }
+    let len = input.seek(SeekFrom::End(0))?;
+    input.seek(SeekFrom::Start(0))?;
+    guarded("reading the OpenEXR file", || {
+        decode_inner(std::io::BufReader::new(input), len, &options.limits, &options.pool, sink)
+    })
 }
 
 /// Runs `f`, turning a panic into an `Invalid` error that names `what` and the panic message.
@@ -98,15 +119,19 @@ struct Selection {
     channels: Channels,
 }
 
-/// Reads the magic number and the headers (the `exr` crate validates them), nothing else.
-fn read_meta(data: &[u8]) -> Result<exr::block::reader::Reader<Cursor<&[u8]>>> {
-    if data.len() < 4 {
-        return Err(Error::truncated("the OpenEXR magic number"));
-    }
-    if data[..4] != MAGIC {
+/// Reads the magic number and the headers (the `exr` crate validates them), nothing else,
+/// from `input` at the file's first byte.
+fn read_meta<R: Read + Seek>(mut input: R) -> Result<exr::block::reader::Reader<R>> {
+    let mut magic = [0; 4];
+    input.read_exact(&mut magic).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => Error::truncated("the OpenEXR magic number"),
+        _ => Error::Io(e),
+    })?;
+    if magic != MAGIC {
         return Err(Error::invalid("not an OpenEXR file (the magic number 76 2f 31 01 is missing)"));
     }
-    exr::block::read(Cursor::new(data), false).map_err(map_err)
+    input.seek(SeekFrom::Start(0))?;
+    exr::block::read(input, false).map_err(map_err)
 }
 
 /// The first part's header, refused if deep, with the channels the decoder returns.
@@ -120,9 +145,9 @@ fn first_part(meta: &MetaData) -> Result<(&Header, Selection)> {
 
 /// The offset tables of every part are read before any chunk: 8 bytes each in the file, so a
 /// table longer than the file is a truncation, found before `exr` allocates it.
-fn check_offset_tables(meta: &MetaData, data: &[u8]) -> Result<()> {
+fn check_offset_tables(meta: &MetaData, file_len: u64) -> Result<()> {
     let offsets: u64 = meta.headers.iter().map(|h| h.chunk_count as u64).sum::<u64>().saturating_mul(8);
-    if offsets > data.len() as u64 {
+    if offsets > file_len {
         return Err(Error::truncated(format!("the OpenEXR offset tables ({offsets} bytes declared)")));
     }
     Ok(())
@@ -131,12 +156,16 @@ fn check_offset_tables(meta: &MetaData, data: &[u8]) -> Result<()> {
 /// Size, channels, colour and stored format of an OpenEXR file, from its headers only: see
 /// [`crate::probe_exr`].
 fn probe_inner(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
-    let reader = read_meta(data)?;
-    let meta = reader.meta_data();
+    let reader = read_meta(Cursor::new(data))?;
+    probe_meta(reader.meta_data(), data.len() as u64, limits)
+}
+
+/// [`probe_inner`] from the headers of a file of `file_len` bytes.
+fn probe_meta(meta: &MetaData, file_len: u64, limits: &Limits) -> Result<ImageInfo> {
     let (header, selection) = first_part(meta)?;
     let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
     limits.check_dimensions(w, h)?;
-    check_offset_tables(meta, data)?;
+    check_offset_tables(meta, file_len)?;
     let mut types: Vec<&str> = selection.sources.iter().map(|s| type_name(s.sample_type)).collect();
     types.dedup();
     let mut format = format!("{}, {}", types.join("+"), compression_label(header.compression));
@@ -164,10 +193,69 @@ fn type_name(t: SampleType) -> &'static str {
     }
 }
 
-fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn RowSink) -> Result<()> {
-    let info = probe_inner(data, limits)?;
-    let reader = read_meta(data)?;
+/// The size of a chunk's compressed bytes (deep chunks are refused).
+fn chunk_bytes(chunk: &Chunk) -> Result<usize> {
+    match &chunk.compressed_block {
+        CompressedBlock::ScanLine(b) => Ok(b.compressed_pixels_le.len()),
+        CompressedBlock::Tile(b) => Ok(b.compressed_pixels_le.len()),
+        _ => Err(Error::unsupported("deep OpenEXR chunks")),
+    }
+}
+
+/// The chunks of the first part's full-resolution level, handed out in the order the decoder
+/// asks for them (top to bottom) while they are read in the order the file stores them: a
+/// chunk read before its turn waits in `pending`, charged to the limits, so that a file stored
+/// top to bottom holds one chunk at a time and one stored otherwise at most its chunks.
+struct ChunkSource<'l, I> {
+    chunks: I,
+    pending: BTreeMap<(i32, i32), Chunk>,
+    pending_bytes: u64,
+    charge: Option<Allocation>,
+    limits: &'l Limits,
+}
+
+impl<I: Iterator<Item = exr::error::Result<Chunk>>> ChunkSource<'_, I> {
+    /// The chunk of the block at `key` (data window row, column).
+    fn take(&mut self, key: (i32, i32), header: &Header) -> Result<Chunk> {
+        if let Some(chunk) = self.pending.remove(&key) {
+            self.pending_bytes -= chunk_bytes(&chunk)? as u64;
+            return Ok(chunk);
+        }
+        loop {
+            let chunk = self
+                .chunks
+                .next()
+                .ok_or_else(|| Error::invalid(format!("OpenEXR: no chunk holds the block at ({}, {})", key.1, key.0)))?
+                .map_err(map_err)?;
+            let bytes = chunk_bytes(&chunk)? as u64;
+            let at = header
+                .get_block_data_indices(&chunk.compressed_block)
+                .and_then(|tile| header.get_block_data_window_pixel_coordinates(tile))
+                .map_err(map_err)?
+                .position;
+            if (at.y(), at.x()) == key {
+                return Ok(chunk);
+            }
+            if self.pending.insert((at.y(), at.x()), chunk).is_some() {
+                return Err(Error::invalid("OpenEXR: the offset tables point at the same chunks more than once"));
+            }
+            self.pending_bytes += bytes;
+            self.charge = None;
+            self.charge = Some(self.limits.charge(self.pending_bytes, "the OpenEXR chunks read before their turn")?);
+        }
+    }
+}
+
+fn decode_inner<R: Read + Seek>(
+    input: R,
+    file_len: u64,
+    limits: &Limits,
+    pool: &ThreadPool,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    let reader = read_meta(input)?;
     let meta = reader.meta_data().clone();
+    let info = probe_meta(&meta, file_len, limits)?;
     let (header, selection) = first_part(&meta)?;
     let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
     // A block never exceeds the data window, whatever tile size the header declares.
@@ -175,43 +263,32 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
     let block_pixels = (block.width() as u64).min(w) * (block.height() as u64).min(h);
     let block_bytes = block_pixels * header.channels.bytes_per_pixel as u64;
     limits.check_alloc(block_bytes, "one decompressed OpenEXR block")?;
-    // Fewer blocks per batch when they are large, so that a batch stays within the limit too.
-    let batch_len = (limits.max_alloc_bytes / block_bytes.max(1)).clamp(1, BATCH as u64) as usize;
+    // Four blocks per thread (one on a single thread, whose batches need no more), fewer when
+    // they are large, so that a batch stays within the limit too.
+    let per_pool = if pool.is_parallel() { pool.threads() * 4 } else { 1 };
+    let batch_len = (limits.max_alloc_bytes / block_bytes.max(1)).clamp(1, per_pool.clamp(1, BATCH) as u64) as usize;
 
-    let chunks = reader
-        .filter_chunks(false, |_, _, block| block.layer == 0 && block.level == exr::math::Vec2(0, 0))
+    let level0 = |level: exr::math::Vec2<usize>| level == exr::math::Vec2(0, 0);
+    // Where each block of level 0 lies in the data window, top to bottom (files written with
+    // a decreasing or random line order hold the same blocks in another order): the order in
+    // which the rows are delivered, in whole bands. At most one per 8 bytes of the file
+    // (checked with the offset tables).
+    let mut order = header
+        .blocks_increasing_y_order()
+        .filter(|t| level0(t.location.level_index))
+        .map(|t| header.get_block_data_window_pixel_coordinates(t.location).map(|b| (b.position.y(), b.position.x())))
+        .collect::<exr::error::Result<Vec<_>>>()
         .map_err(map_err)?;
-    let expected = chunks.expected_chunk_count();
-    // Each chunk is copied out of the file. Offset tables that point at the same bytes again
-    // and again would multiply that copy; distinct chunks never add up to more than the file.
-    let mut held = 0usize;
-    let mut list = Vec::with_capacity(expected.min(data.len() / 8));
-    for chunk in chunks {
-        let chunk = chunk.map_err(map_err)?;
-        held += match &chunk.compressed_block {
-            CompressedBlock::ScanLine(b) => b.compressed_pixels_le.len(),
-            CompressedBlock::Tile(b) => b.compressed_pixels_le.len(),
-            _ => return Err(Error::unsupported("deep OpenEXR chunks")),
-        };
-        if held > data.len() {
-            return Err(Error::invalid("OpenEXR: the offset tables point at the same chunks more than once"));
-        }
-        // Where the block lies in the data window (checked again on the decompressed block).
-        let at = header
-            .get_block_data_indices(&chunk.compressed_block)
-            .and_then(|tile| header.get_block_data_window_pixel_coordinates(tile))
-            .map_err(map_err)?
-            .position;
-        list.push(((at.y(), at.x()), chunk));
+    order.sort_unstable();
+    let chunks = reader.filter_chunks(false, |_, _, block| block.layer == 0 && level0(block.level)).map_err(map_err)?;
+    if chunks.expected_chunk_count() != order.len() {
+        return Err(Error::invalid(format!(
+            "OpenEXR: {} chunks for the {} blocks of the image",
+            chunks.expected_chunk_count(),
+            order.len()
+        )));
     }
-    // The copies are charged for as long as they are held (at most the file's size).
-    let _chunks = limits.charge(held as u64, "the compressed OpenEXR chunks")?;
-    if list.len() != expected {
-        return Err(Error::truncated("the OpenEXR chunks"));
-    }
-    // Top to bottom, so that the rows are delivered in whole bands (files written with a
-    // decreasing or random line order hold the same chunks in another order).
-    list.sort_by_key(|(key, _)| *key);
+    let mut source = ChunkSource { chunks, pending: BTreeMap::new(), pending_bytes: 0, charge: None, limits };
 
     let (w, h) = (w as usize, h as usize);
     let n = selection.channels.count();
@@ -226,32 +303,32 @@ fn decode_inner(data: &[u8], limits: &Limits, pool: &ThreadPool, sink: &mut dyn 
     let mut next_row = 0usize;
     let mut seen = std::collections::HashSet::new();
     // Large files decompress on the pool; small ones (most fuzz inputs) stay on this thread.
-    let parallel = pool.is_parallel() && list.len() > 2 && data.len() > 1 << 16;
-    let mut iter = list.into_iter().peekable();
+    let parallel = pool.is_parallel() && order.len() > 2 && file_len > 1 << 16;
+    let mut iter = order.into_iter().peekable();
     while iter.peek().is_some() {
         let decompress = |c: Chunk| {
             guarded("decompressing a chunk", || UncompressedBlock::decompress_chunk(c, &meta, false).map_err(map_err))
         };
         // Chunks up to `batch_len` within `batch_rows`, then on to the end of the last block
         // row begun.
-        let first_y = iter.peek().map_or(0, |((y, _), _)| i64::from(*y));
-        let mut batch: Vec<((i32, i32), Chunk)> = Vec::with_capacity(batch_len);
-        while batch.len() < batch_len {
-            match iter.next_if(|((y, _), _)| ((i64::from(*y) - first_y) as usize) < batch_rows) {
-                Some(c) => batch.push(c),
+        let first_y = iter.peek().map_or(0, |(y, _)| i64::from(*y));
+        let mut keys: Vec<(i32, i32)> = Vec::with_capacity(batch_len);
+        while keys.len() < batch_len {
+            match iter.next_if(|(y, _)| ((i64::from(*y) - first_y) as usize) < batch_rows) {
+                Some(k) => keys.push(k),
                 None => break,
             }
         }
-        let last_y = batch.last().map_or(0, |((y, _), _)| *y);
-        while let Some(c) = iter.next_if(|((y, _), _)| *y == last_y) {
-            batch.push(c);
+        let last_y = keys.last().map_or(0, |(y, _)| *y);
+        while let Some(k) = iter.next_if(|(y, _)| *y == last_y) {
+            keys.push(k);
         }
-        let _blocks = limits.charge(block_bytes * batch.len() as u64, "a batch of decompressed OpenEXR blocks")?;
-        let batch = batch.into_iter().map(|(_, c)| c);
+        let _blocks = limits.charge(block_bytes * keys.len() as u64, "a batch of decompressed OpenEXR blocks")?;
+        let batch = keys.into_iter().map(|k| source.take(k, header)).collect::<Result<Vec<Chunk>>>()?;
         let blocks: Vec<Result<UncompressedBlock>> = if parallel {
-            pool.map_vec(batch.collect(), |(_, c)| decompress(c))
+            pool.map_vec(batch, |(_, c)| decompress(c))
         } else {
-            batch.map(decompress).collect()
+            batch.into_iter().map(decompress).collect()
         };
         let blocks = blocks.into_iter().collect::<Result<Vec<_>>>()?;
         let top = blocks.iter().map(|b| b.index.pixel_position.y()).min().unwrap_or(0);

@@ -41,7 +41,7 @@ pub mod interop;
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
 
-pub use decode::{decode_exr, decode_exr_rows, decode_exr_with, probe_exr};
+pub use decode::{decode_exr, decode_exr_rows, decode_exr_rows_from, decode_exr_with, probe_exr};
 pub use encode::{encode_exr, write_exr};
 
 use exr::compression::Compression;
@@ -268,6 +268,15 @@ impl ImageCodec for ExrCodec {
         sink: &mut dyn hdrcodec_core::sink::RowSink,
     ) -> Result<()> {
         decode_exr_rows(data, options, sink)
+    }
+    /// Reads the chunks a batch at a time as they decode (see [`decode_exr_rows_from`]).
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn hdrcodec_core::ReadSeek,
+        options: &hdrcodec_core::DecodeOptions,
+        sink: &mut dyn hdrcodec_core::sink::RowSink,
+    ) -> Result<()> {
+        decode_exr_rows_from(input, options, sink)
     }
     /// Into a plain writer the file is assembled in memory first (the offset table precedes
     /// the chunks); [`encode_to_seekable`](ImageCodec::encode_to_seekable) streams it.

@@ -476,3 +476,45 @@ fn files_are_the_bytes_exrs_own_writer_writes() {
         }
     }
 }
+
+/// From a reader (a file), the rows are those decoded from the file's bytes, whatever the
+/// blocks and their order in the file; a file stored top to bottom is read a batch of chunks
+/// at a time, so that the budget's peak is the image and a batch of blocks, not also a copy of
+/// every chunk (what the decoder held before it read from a reader). Truncations are errors.
+#[test]
+fn decoding_from_a_reader_holds_no_copy_of_the_chunks() {
+    use exr::image::{Blocks, Encoding, SpecificChannels};
+    use exr::meta::attribute::LineOrder;
+    let (w, h) = (67usize, 93usize);
+    let img = picture(w as u32, h as u32, Channels::Rgba);
+    let at = |x: usize, y: usize, k: usize| img.samples()[(y * w + x) * 4 + k];
+    let image_bytes = (w * h * 16) as u64;
+    for blocks in [Blocks::ScanLines, Blocks::Tiles(Vec2(16, 16))] {
+        for line_order in [LineOrder::Increasing, LineOrder::Decreasing] {
+            let encoding = Encoding { compression: exr::compression::Compression::Uncompressed, blocks, line_order };
+            let channels =
+                SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| (at(x, y, 0), at(x, y, 1), at(x, y, 2), at(x, y, 3)));
+            let layer = Layer::new(Vec2(w, h), LayerAttributes::default(), encoding, channels);
+            let mut file = std::io::Cursor::new(Vec::new());
+            Image::from_layer(layer).write().non_parallel().to_buffered(&mut file).unwrap();
+            let bytes = file.into_inner();
+            let what = format!("{blocks:?} {line_order:?}");
+            let from_bytes = ExrCodec.decode(&bytes, &Limits::default()).unwrap();
+            let limits = Limits::default();
+            let options = hdrcodec_core::DecodeOptions::new(limits.clone());
+            let from_reader = ExrCodec.decode_from(&mut std::io::Cursor::new(&bytes), &options).unwrap();
+            assert_eq!(from_reader.samples(), img.samples(), "{what}");
+            assert_eq!(from_bytes.samples(), img.samples(), "{what}");
+            if blocks == Blocks::ScanLines && line_order == LineOrder::Increasing {
+                // 32 blocks of one line each at most besides the image.
+                let batch = 32 * (w * 16) as u64;
+                assert!(limits.peak() <= image_bytes + batch, "{what}: peak {} of {image_bytes}", limits.peak());
+                assert!(batch < bytes.len() as u64 / 2, "the test tells the two apart");
+            }
+            for len in (0..bytes.len()).step_by(89) {
+                let r = ExrCodec.decode_from(&mut std::io::Cursor::new(&bytes[..len]), &options);
+                assert!(r.is_err(), "{what}: truncation to {len} of {} bytes decoded", bytes.len());
+            }
+        }
+    }
+}
