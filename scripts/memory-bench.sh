@@ -35,8 +35,10 @@ trap 'rm -rf "$dir"' EXIT
 "$bin" convert "$dir/big.exr" "$dir/big.hdrc" --opt payload=raw-f16 --opt tile=512 2>/dev/null
 # JPEG XR, a file for the decode rows: the image as half floats through jxrlib's
 # encoder (imagecodecs, quality 0.9), when the reference venv is there.
+# The venv is $HDRCODEC_VENV where set (as scripts/setup-reference-tools.sh takes it), else ./.venv.
+py="${HDRCODEC_VENV:-.venv}/bin/python"
 jxr=false
-if [ -x .venv/bin/python ] && .venv/bin/python - "$dir/big.pfm" "$dir/big.jxr" <<'PY' 2>/dev/null; then jxr=true; fi
+if [ -x "$py" ] && "$py" - "$dir/big.pfm" "$dir/big.jxr" <<'PY' 2>/dev/null; then jxr=true; fi
 import sys, numpy as np, imagecodecs
 with open(sys.argv[1], 'rb') as f:
     f.readline(); w, h = map(int, f.readline().split()); f.readline()
@@ -44,7 +46,7 @@ with open(sys.argv[1], 'rb') as f:
 open(sys.argv[2], 'wb').write(imagecodecs.jpegxr_encode(np.ascontiguousarray(rgb.astype(np.float16)), level=0.9))
 PY
 if ! $jxr; then
-  echo "memory-bench: no .venv with imagecodecs (scripts/setup-reference-tools.sh): the JPEG XR rows are left out" >&2
+  echo "memory-bench: no venv with imagecodecs at ${HDRCODEC_VENV:-.venv} (scripts/setup-reference-tools.sh): the JPEG XR rows are left out" >&2
   if $check && [ "${CI:-}" = true ]; then exit 1; fi
 fi
 
