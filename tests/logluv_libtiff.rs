@@ -389,6 +389,28 @@ fn truncated_and_corrupted_corpus_tiffs_are_errors_not_panics() {
     for f in files {
         let data = std::fs::read(&f).unwrap();
         let full = read_tiff(&data, &limits).unwrap();
+        // Read from the file (libtiff's layout: the IFD before the strips) instead of from
+        // its bytes: the same image, and on a sample of prefixes the same outcome.
+        let whole = decode(&data, &limits, &DecodeOptions::default()).unwrap();
+        let from_file = |d: &[u8]| {
+            let mut sink = hdrcodec_core::sink::ImageSink::new(&limits);
+            hdrcodec_logluv::decode_rows_from(
+                &mut std::io::Cursor::new(d),
+                &limits,
+                &DecodeOptions::default(),
+                &mut sink,
+            )
+            .and_then(|()| sink.finish())
+        };
+        assert_eq!(from_file(&data).unwrap().samples(), whole.samples(), "{}", f.display());
+        for cut in cut_points(data.len()).into_iter().step_by(50) {
+            let mem = decode(&data[..cut], &limits, &DecodeOptions::default()).map(|i| i.samples().to_vec());
+            let file = from_file(&data[..cut]).map(|i| i.samples().to_vec());
+            assert_eq!(file.is_ok(), mem.is_ok(), "{}: {cut}-byte prefix", f.display());
+            if let (Ok(a), Ok(b)) = (&mem, &file) {
+                assert!(a == b, "{}: {cut}-byte prefix decoded to something else", f.display());
+            }
+        }
         let (mut errors, mut same) = (0, 0);
         for cut in cut_points(data.len()) {
             // A prefix is an error, unless all it lost is bytes the decoder does not use (the

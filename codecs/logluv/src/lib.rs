@@ -42,7 +42,7 @@ use hdrcodec_core::color::{mat_inverse, mat_to_f32, Mat3};
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeReport, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
-    Result,
+    ReadSeek, Result,
 };
 use pixel::Tables;
 pub use scale::{Clipped, Stonits};
@@ -216,7 +216,11 @@ fn decoded_color(stonits: Option<f64>, opts: &DecodeOptions) -> ColorInfo {
 /// return them, from the TIFF header and first IFD only ([`tiff::read_info`]): checks the size
 /// against the limits' dimensions, allocates nothing of the image's size.
 pub fn probe(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<ImageInfo> {
-    let info = tiff::read_info(data)?;
+    image_info(&tiff::read_info(data)?, limits, opts)
+}
+
+/// What [`probe`] returns for the image the first IFD describes.
+fn image_info(info: &tiff::TiffInfo, limits: &Limits, opts: &DecodeOptions) -> Result<ImageInfo> {
     limits.check_dimensions(u64::from(info.width), u64::from(info.height))?;
     let compression = if info.encoding == Encoding::LogLuv24 { "SGILOG24" } else { "SGILOG" };
     let mut format = format!("{}, {compression}", info.encoding.label());
@@ -238,8 +242,31 @@ pub fn decode(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<HdrI
 /// strip and converted straight into the sink (in place when the sink allows it), so nothing
 /// of the image's size is held besides the sink's own storage.
 pub fn decode_rows(data: &[u8], limits: &Limits, opts: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
-    let info = probe(data, limits, opts)?;
-    let mut rows = tiff::StripRows::new(data)?;
+    probe(data, limits, opts)?;
+    decode_strip_rows(tiff::StripRows::new(data)?, limits, opts, sink)
+}
+
+/// [`decode_rows`] from a file (any source that reads and seeks, from its current position):
+/// the header, the first IFD and its tags' values are read from the file, then each strip as
+/// its rows are decoded ([`tiff::StripRows::from_reader`]), so that the file is never held
+/// whole. Same rows and the same kinds of errors as [`decode_rows`] on the file's bytes.
+pub fn decode_rows_from(
+    input: &mut dyn ReadSeek,
+    limits: &Limits,
+    opts: &DecodeOptions,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    decode_strip_rows(tiff::StripRows::from_reader(input, limits)?, limits, opts, sink)
+}
+
+/// Converts the rows of `rows` into `sink`, a band at a time.
+fn decode_strip_rows(
+    mut rows: tiff::StripRows<'_>,
+    limits: &Limits,
+    opts: &DecodeOptions,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    let info = image_info(&rows.info, limits, opts)?;
     let (width, height, encoding) = (rows.info.width, rows.info.height, rows.info.encoding);
     let to_rgb = WordsToRgb::new(encoding, opts)?;
     let row_len = width as usize * 3;
@@ -501,6 +528,15 @@ impl ImageCodec for LogLuvTiffCodec {
     fn decode_rows(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         decode_rows(data, &options.limits, &DecodeOptions::default(), sink)
     }
+    /// Reads the strips from the file as they are decoded (see [`decode_rows_from`]).
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn ReadSeek,
+        options: &hdrcodec_core::DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        decode_rows_from(input, &options.limits, &DecodeOptions::default(), sink)
+    }
     /// Into a plain writer the file is assembled in memory first (the header points at the
     /// IFD, which follows the strips); [`encode_to_seekable`](ImageCodec::encode_to_seekable)
     /// streams it.
@@ -569,6 +605,85 @@ mod tests {
         let report = codec.encode_to(img, settings, &mut file).unwrap();
         assert!(codec.sniff(&file));
         (codec.decode(&file, &Limits::default()).unwrap(), report.notes)
+    }
+
+    /// `file` decoded by `decode_from`, from `at` bytes into a source that holds it.
+    fn from_file(codec: &LogLuvTiffCodec, file: &[u8], at: usize, limits: &Limits) -> Result<HdrImage> {
+        let mut padded = vec![0xAA; at];
+        padded.extend_from_slice(file);
+        let mut input = std::io::Cursor::new(padded);
+        input.set_position(at as u64);
+        codec.decode_from(&mut input, &hdrcodec_core::DecodeOptions::new(limits.clone()))
+    }
+
+    /// A noisy image (so that the run-length coded file is about as large as its words).
+    fn noisy(width: u32, height: u32) -> HdrImage {
+        let mut state = 12345u32;
+        let samples = (0..width * height * 3)
+            .map(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                0.001 + (state >> 8) as f32 / (1u32 << 24) as f32 * 50.0
+            })
+            .collect();
+        let color = ColorInfo { nits_per_unit: 179.0, ..Default::default() };
+        HdrImage::new(width, height, Channels::Rgb, samples, color).unwrap()
+    }
+
+    #[test]
+    fn decoding_from_a_file_gives_the_in_memory_samples() {
+        let img = noisy(37, 23);
+        for enc in [Encoding::LogLuv32, Encoding::LogL16, Encoding::LogLuv24] {
+            let codec = LogLuvTiffCodec::new(enc);
+            for rows_per_strip in [0, 1, 5] {
+                let opts = EncodeOptions { encoding: enc, rows_per_strip, stonits: Stonits::Auto };
+                let file = encode(&img, &opts).unwrap();
+                let want = codec.decode(&file, &Limits::default()).unwrap();
+                for at in [0, 3] {
+                    let got = from_file(&codec, &file, at, &Limits::default()).unwrap();
+                    assert_eq!(got.samples(), want.samples(), "{enc:?} {rows_per_strip} at {at}");
+                    assert_eq!(got.color, want.color);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn decoding_from_a_file_does_not_hold_the_file() {
+        let img = noisy(300, 200);
+        let codec = LogLuvTiffCodec::new(Encoding::LogLuv32);
+        let file = codec.encode(&img, &EncodeSettings::default()).unwrap();
+        let image_bytes = 300 * 200 * 12;
+        assert!(file.len() > 150_000, "{}", file.len());
+        // Room for the image, a strip and a row of words, not for the image and the file.
+        let limits = Limits::default().with_max_alloc_bytes(image_bytes + 100_000).with_own_budget();
+        let whole_file = hdrcodec_core::read_rest(&mut std::io::Cursor::new(&file), &limits).unwrap();
+        assert!(matches!(limits.charge(image_bytes, "the image"), Err(Error::LimitExceeded { .. })));
+        drop(whole_file);
+        let got = from_file(&codec, &file, 0, &limits).unwrap();
+        assert_eq!(got.samples(), codec.decode(&file, &Limits::default()).unwrap().samples());
+        assert!(limits.peak() < image_bytes + 100_000, "{}", limits.peak());
+    }
+
+    #[test]
+    fn a_short_or_broken_file_is_the_same_kind_of_error_from_a_file() {
+        let img = noisy(20, 9);
+        let codec = LogLuvTiffCodec::new(Encoding::LogLuv32);
+        let file = encode(&img, &EncodeOptions { rows_per_strip: 2, ..Default::default() }).unwrap();
+        let kind = |r: Result<HdrImage>| std::mem::discriminant(&r.unwrap_err());
+        for len in (0..file.len()).step_by(7).chain([1, 7, 8, 9, file.len() - 1]) {
+            let mem = codec.decode(&file[..len], &Limits::default());
+            assert_eq!(kind(from_file(&codec, &file[..len], 2, &Limits::default())), kind(mem), "{len}");
+        }
+        // A strip offset past the end of the file.
+        let mut bad = file.clone();
+        let t = hdrcodec_core::tiff::Tiff::parse(&file, hdrcodec_core::tiff::MAGIC_TIFF).unwrap();
+        let e = t.first_ifd().unwrap();
+        let offsets = e.get(hdrcodec_core::tiff::tag::STRIP_OFFSETS).unwrap();
+        let at = offsets.values_at().unwrap() as usize + 4;
+        bad[at..at + 4].copy_from_slice(&(file.len() as u32 - 2).to_le_bytes());
+        let mem = codec.decode(&bad, &Limits::default()).unwrap_err();
+        let got = from_file(&codec, &bad, 0, &Limits::default()).unwrap_err();
+        assert!(matches!((&mem, &got), (Error::Truncated { .. }, Error::Truncated { .. })), "{mem} / {got}");
     }
 
     #[test]

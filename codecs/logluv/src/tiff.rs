@@ -9,7 +9,8 @@ use crate::rle;
 use crate::{Encoding, LogLuvRaster};
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::tiff::{self as core_tiff, tag, Entry, IfdWriter, Tiff, MAGIC_TIFF};
-use hdrcodec_core::{Error, Limits, Result};
+use hdrcodec_core::{Allocation, Error, Limits, ReadSeek, Result};
+use std::io::SeekFrom;
 
 /// Sample-to-nits factor: the cd/m² of Y = 1 (an SGI private tag, from Larson's LogLuv TIFF
 /// definition).
@@ -163,42 +164,180 @@ pub fn read(data: &[u8], limits: &Limits) -> Result<LogLuvRaster> {
 pub struct StripRows<'a> {
     /// What the IFD says of the image.
     pub info: TiffInfo,
-    file: ByteReader<'a>,
     rows_per_strip: u32,
     offsets: Vec<u32>,
     counts: Vec<u32>,
     /// The next row to read.
     row: u32,
-    /// The strip holding `row` and the position in it.
-    strip: &'a [u8],
+    /// Where the strips are read from, and the strip holding `row`.
+    source: StripSource<'a>,
+    /// The position in the current strip.
     pos: usize,
+}
+
+/// Where [`StripRows`] reads its strips: the file's bytes in memory (the current strip is a
+/// slice of them), or a file, each strip read into a buffer charged to the limits.
+enum StripSource<'a> {
+    Memory {
+        file: ByteReader<'a>,
+        strip: &'a [u8],
+    },
+    File {
+        input: &'a mut dyn ReadSeek,
+        base: u64,
+        len: u64,
+        strip: Vec<u8>,
+        charge: Option<Allocation>,
+        limits: Limits,
+    },
+}
+
+/// What [`StripRows`] needs from the IFD: the image, the rows per strip and the strip tables
+/// (at most one entry per strip of the checked height).
+type StripTables = (TiffInfo, u32, Vec<u32>, Vec<u32>);
+
+fn strip_tables(data: &[u8]) -> Result<StripTables> {
+    let (r, entries, info) = read_header(data)?;
+    let find = |t: u16| entries.iter().find(|e| e.tag == t);
+    let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
+    let height = info.height;
+    if info.width == 0 || height == 0 {
+        return Err(Error::invalid(format!("the TIFF image is empty ({}x{height})", info.width)));
+    }
+    let rows_per_strip =
+        find(tag::ROWS_PER_STRIP).map(|e| e.first_u32(&r)).transpose()?.unwrap_or(u32::MAX).clamp(1, height);
+    let strips = height.div_ceil(rows_per_strip) as usize;
+    // At most `strips` values each (bounded by the height), read lazily from the file.
+    let offsets: Vec<u32> = required(tag::STRIP_OFFSETS, "StripOffsets")?.uints(&r)?.take(strips).collect();
+    let counts: Vec<u32> = required(tag::STRIP_BYTE_COUNTS, "StripByteCounts")?.uints(&r)?.take(strips).collect();
+    if offsets.len() < strips || counts.len() < strips {
+        return Err(Error::invalid(format!(
+            "the TIFF lists {} strip offsets and {} byte counts for {strips} strips",
+            offsets.len(),
+            counts.len()
+        )));
+    }
+    Ok((info, rows_per_strip, offsets, counts))
+}
+
+/// Reads `len` bytes at `at` (from the file's start `base`) into `out`; a file that ends first
+/// is [`Error::Truncated`] naming `what`.
+fn read_at(input: &mut dyn ReadSeek, base: u64, at: u64, out: &mut [u8], what: &str) -> Result<()> {
+    input.seek(SeekFrom::Start(base + at))?;
+    input.read_exact(out).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => {
+            Error::truncated(format!("{what} (bytes {at}..{} of the file)", at + out.len() as u64))
+        }
+        _ => Error::Io(e),
+    })
+}
+
+/// The parts of a TIFF file (from `input`'s position, `len` bytes) that describe its first
+/// image, read from the file and laid out as a small TIFF of their own: the header, the first
+/// IFD (its next-IFD offset 0) and the out-of-line values of the tags the decoder uses, their
+/// offsets rewritten (other tags' offsets point past its end, so they are dropped as values
+/// outside the file are). The strip offsets it holds still count from the original file's
+/// start. The rest of the IFD chain is walked in the file and checked as [`read_ifd`] checks
+/// it (loops, IFDs past the end). What it reads is bounded by the file and charged to `limits`.
+fn read_structure(input: &mut dyn ReadSeek, base: u64, len: u64, limits: &Limits) -> Result<Vec<u8>> {
+    let mut head = [0u8; core_tiff::HEADER_LEN];
+    let n = (len as usize).min(head.len());
+    read_at(input, base, 0, &mut head[..n], "the TIFF header")?;
+    let t = Tiff::parse(&head[..n], MAGIC_TIFF)?;
+    let order = t.order();
+    let first = u64::from(t.first_ifd_offset());
+    if first == 0 {
+        return Err(Error::invalid("the TIFF file has no image (first IFD offset is 0)"));
+    }
+    let ifd_len = |input: &mut dyn ReadSeek, at: u64| -> Result<u64> {
+        let what = format!("the TIFF IFD at offset {at}");
+        let mut count = [0u8; 2];
+        read_at(input, base, at, &mut count, &what)?;
+        let n = u64::from(ByteReader::new(&count, order).u16(&what)?);
+        let ifd = 2 + core_tiff::ENTRY_LEN * n + 4;
+        if at.saturating_add(ifd) > len {
+            return Err(Error::truncated(format!("{what} ({ifd} bytes in a {len}-byte file)")));
+        }
+        Ok(ifd)
+    };
+    let first_len = ifd_len(input, first)?;
+    let mut charge = limits.charge(head.len() as u64 + first_len, "the TIFF's IFD and tag values")?;
+    let mut out = head.to_vec();
+    out.resize(first_len as usize + head.len(), 0);
+    read_at(input, base, first, &mut out[head.len()..], "the first TIFF IFD")?;
+    let put = |v: u32| match order {
+        ByteOrder::Little => v.to_le_bytes(),
+        ByteOrder::Big => v.to_be_bytes(),
+    };
+    out[4..8].copy_from_slice(&put(core_tiff::HEADER_LEN as u32));
+    // The original next-IFD offset; the copy's is 0.
+    let next_at = out.len() - 4;
+    let mut next = u64::from(ByteReader::new(&out[next_at..], order).u32("the first TIFF IFD")?);
+    out[next_at..].fill(0);
+    // The out-of-line values of the tags the decoder reads, appended word-aligned.
+    let ifd = Tiff::parse(&out, MAGIC_TIFF)?.read_ifd(core_tiff::HEADER_LEN as u64)?;
+    for e in &ifd.entries {
+        let Some(bytes) = e.byte_len() else { continue };
+        if bytes <= 4 {
+            continue;
+        }
+        let mut new_at = u32::MAX;
+        let from = u64::from(e.value_field);
+        if is_needed(e.tag) && from.saturating_add(bytes) <= len {
+            if out.len() % 2 == 1 {
+                out.push(0);
+            }
+            let grown = out.len() as u64 + bytes;
+            charge = {
+                drop(charge);
+                limits.charge(grown, "the TIFF's IFD and tag values")?
+            };
+            let at = out.len();
+            new_at = at as u32;
+            out.resize(at + bytes as usize, 0);
+            read_at(input, base, from, &mut out[at..], "a TIFF tag's values")?;
+        }
+        let field = e.field_at as usize;
+        out[field..field + 4].copy_from_slice(&put(new_at));
+    }
+    drop(charge);
+    // The rest of the chain, checked in the file.
+    let mut seen = std::collections::HashSet::from([first]);
+    while next != 0 {
+        if !seen.insert(next) {
+            return Err(Error::invalid(format!("the TIFF IFD chain loops (offset {next} again)")));
+        }
+        if seen.len() > core_tiff::MAX_IFDS {
+            return Err(Error::limit(format!("more than {} TIFF IFDs", core_tiff::MAX_IFDS)));
+        }
+        let l = ifd_len(input, next)?;
+        let mut link = [0u8; 4];
+        read_at(input, base, next + l - 4, &mut link, "a TIFF IFD")?;
+        next = u64::from(ByteReader::new(&link, order).u32("a TIFF IFD")?);
+    }
+    Ok(out)
 }
 
 impl<'a> StripRows<'a> {
     /// Reads the IFD and the strip tables (at most one entry per strip of the checked height).
     pub fn new(data: &'a [u8]) -> Result<Self> {
-        let (r, entries, info) = read_header(data)?;
-        let find = |t: u16| entries.iter().find(|e| e.tag == t);
-        let required =
-            |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
-        let height = info.height;
-        if info.width == 0 || height == 0 {
-            return Err(Error::invalid(format!("the TIFF image is empty ({}x{height})", info.width)));
-        }
-        let rows_per_strip =
-            find(tag::ROWS_PER_STRIP).map(|e| e.first_u32(&r)).transpose()?.unwrap_or(u32::MAX).clamp(1, height);
-        let strips = height.div_ceil(rows_per_strip) as usize;
-        // At most `strips` values each (bounded by the height), read lazily from the file.
-        let offsets: Vec<u32> = required(tag::STRIP_OFFSETS, "StripOffsets")?.uints(&r)?.take(strips).collect();
-        let counts: Vec<u32> = required(tag::STRIP_BYTE_COUNTS, "StripByteCounts")?.uints(&r)?.take(strips).collect();
-        if offsets.len() < strips || counts.len() < strips {
-            return Err(Error::invalid(format!(
-                "the TIFF lists {} strip offsets and {} byte counts for {strips} strips",
-                offsets.len(),
-                counts.len()
-            )));
-        }
-        Ok(StripRows { info, file: r.reader(), rows_per_strip, offsets, counts, row: 0, strip: &[], pos: 0 })
+        let (info, rows_per_strip, offsets, counts) = strip_tables(data)?;
+        let file = ByteReader::new(data, Tiff::parse(data, MAGIC_TIFF)?.order());
+        let source = StripSource::Memory { file, strip: &[] };
+        Ok(StripRows { info, rows_per_strip, offsets, counts, row: 0, source, pos: 0 })
+    }
+
+    /// [`new`](Self::new) for a file (any source that reads and seeks, from its current
+    /// position): the header, the first IFD and the values of its tags are read from the file,
+    /// then each strip when its first row is decoded, into a buffer charged to `limits` (the
+    /// largest strip), so that the file is never held whole.
+    pub fn from_reader(input: &'a mut dyn ReadSeek, limits: &Limits) -> Result<Self> {
+        let base = input.stream_position()?;
+        let len = input.seek(SeekFrom::End(0))?.saturating_sub(base);
+        let structure = read_structure(input, base, len, limits)?;
+        let (info, rows_per_strip, offsets, counts) = strip_tables(&structure)?;
+        let source = StripSource::File { input, base, len, strip: Vec::new(), charge: None, limits: limits.clone() };
+        Ok(StripRows { info, rows_per_strip, offsets, counts, row: 0, source, pos: 0 })
     }
 
     /// Decodes the next row into `out` (`width` words).
@@ -210,14 +349,37 @@ impl<'a> StripRows<'a> {
         let k = row % self.rows_per_strip;
         if k == 0 {
             let s = (row / self.rows_per_strip) as usize;
-            self.strip =
-                self.file.bytes_at(u64::from(self.offsets[s]), u64::from(self.counts[s]), format_args!("strip {s}"))?;
+            let (offset, count) = (u64::from(self.offsets[s]), u64::from(self.counts[s]));
+            match &mut self.source {
+                StripSource::Memory { file, strip } => {
+                    *strip = file.bytes_at(offset, count, format_args!("strip {s}"))?
+                }
+                StripSource::File { input, base, len, strip, charge, limits } => {
+                    if offset.saturating_add(count) > *len {
+                        return Err(Error::truncated(format!(
+                            "strip {s} (bytes {offset}..{} of a {len}-byte input)",
+                            offset.saturating_add(count)
+                        )));
+                    }
+                    if count as usize > strip.len() {
+                        *charge = None;
+                        *charge = Some(limits.charge(count, "a TIFF strip read from the file")?);
+                        strip.resize(count as usize, 0);
+                    }
+                    read_at(&mut **input, *base, offset, &mut strip[..count as usize], "a TIFF strip")?;
+                    strip.truncate(count as usize);
+                }
+            }
             self.pos = 0;
         }
+        let strip: &[u8] = match &self.source {
+            StripSource::Memory { strip, .. } => strip,
+            StripSource::File { strip, .. } => strip,
+        };
         match self.info.encoding {
             Encoding::LogLuv24 => {
                 let k = k as usize;
-                let Some(src) = self.strip.get(k * 3 * w..(k + 1) * 3 * w) else {
+                let Some(src) = strip.get(k * 3 * w..(k + 1) * 3 * w) else {
                     return Err(Error::truncated(format!("the SGILOG24 data of row {row}")));
                 };
                 for (p, b) in out.iter_mut().zip(src.chunks_exact(3)) {
@@ -226,7 +388,7 @@ impl<'a> StripRows<'a> {
             }
             Encoding::LogLuv32 | Encoding::LogL16 => {
                 let planes = if self.info.encoding == Encoding::LogL16 { 2 } else { 4 };
-                rle::decode_row(self.strip, &mut self.pos, out, planes, row)?;
+                rle::decode_row(strip, &mut self.pos, out, planes, row)?;
             }
         }
         self.row += 1;

@@ -36,8 +36,9 @@ use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
-    Result,
+    ReadSeek, Result,
 };
+use std::io::{Read, Seek, SeekFrom};
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
 #[derive(Clone, Copy, Debug, Default)]
@@ -127,6 +128,21 @@ fn pixel_bytes<'a>(h: &Header, r: &mut ByteReader<'a>) -> Result<&'a [u8]> {
     r.bytes(need, what)
 }
 
+/// What the decoder returns for a file with header `h`.
+fn header_info(h: &Header) -> ImageInfo {
+    let format = format!(
+        "{} f32 {}-endian",
+        if h.grey { "grey" } else { "RGB" },
+        if h.little_endian { "little" } else { "big" }
+    );
+    let info = ImageInfo::new(h.width, h.height, Channels::Rgb, pfm_color()).with_format(format);
+    if h.scale != 1.0 {
+        info.with_metadata("pfm.scale", h.scale.to_string())
+    } else {
+        info
+    }
+}
+
 /// Reads the header of a PFM file: size, channels (always RGB: grey is returned as R = G = B),
 /// colour (unspecified primaries) and the stored format ("RGB f32 little-endian"). Checks the
 /// size against the limits' dimensions and that the file holds every pixel, allocating nothing.
@@ -135,18 +151,52 @@ pub fn probe_pfm(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     let h = parse_header(&mut r)?;
     limits.check_dimensions(u64::from(h.width), u64::from(h.height))?;
     pixel_bytes(&h, &mut r)?;
-    let format = format!(
-        "{} f32 {}-endian",
-        if h.grey { "grey" } else { "RGB" },
-        if h.little_endian { "little" } else { "big" }
-    );
-    let info = ImageInfo::new(h.width, h.height, Channels::Rgb, pfm_color()).with_format(format);
-    Ok(if h.scale != 1.0 { info.with_metadata("pfm.scale", h.scale.to_string()) } else { info })
+    Ok(header_info(&h))
 }
 
 /// Decodes a PFM file held in memory.
 pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     hdrcodec_core::decode_image(&PfmCodec, data, &DecodeOptions::new(limits.clone()))
+}
+
+/// Where the pixel bytes come from: the file's bytes in memory, or a file read a band of rows
+/// at a time into a buffer charged to the limits.
+enum Pixels<'a> {
+    Memory(&'a [u8]),
+    File {
+        input: &'a mut dyn ReadSeek,
+        /// The position of the first pixel byte in `input`.
+        start: u64,
+        buf: Vec<u8>,
+        charge: Option<hdrcodec_core::Allocation>,
+        limits: &'a Limits,
+    },
+}
+
+impl Pixels<'_> {
+    /// The `len` pixel bytes from `offset` (counted from the first pixel byte), which the
+    /// caller has checked lie inside the declared pixels.
+    fn band(&mut self, offset: usize, len: usize) -> Result<&[u8]> {
+        match self {
+            Pixels::Memory(pixels) => Ok(&pixels[offset..offset + len]),
+            Pixels::File { input, start, buf, charge, limits } => {
+                if len > buf.len() {
+                    *charge = None;
+                    *charge = Some(limits.charge(len as u64, "a band of PFM rows read from the file")?);
+                    buf.resize(len, 0);
+                }
+                input.seek(SeekFrom::Start(*start + offset as u64))?;
+                input.read_exact(&mut buf[..len]).map_err(|e| match e.kind() {
+                    std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
+                        "the PFM pixels (the file ended inside bytes {offset}..{} of its pixels)",
+                        offset + len
+                    )),
+                    _ => Error::Io(e),
+                })?;
+                Ok(&buf[..len])
+            }
+        }
+    }
 }
 
 /// Decodes a PFM file into `sink`, one band of rows at a time (PFM stores rows bottom up, so
@@ -156,18 +206,63 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
     let info = probe_pfm(data, limits)?;
     let mut r = ByteReader::le(data);
     let h = parse_header(&mut r)?;
+    let pixels = pixel_bytes(&h, &mut r)?;
+    decode_bands(&h, &info, limits, sink, Pixels::Memory(pixels))
+}
+
+/// [`decode_pfm_rows`] from a file (any source that reads and seeks, from its current
+/// position): the header is read, the file's length checked against the pixels it declares,
+/// then each band of rows is read where the file stores it, so that the file is never held
+/// whole (at most a band of about 1 MB of its bytes, charged to `limits`). Same rows and the
+/// same kinds of errors as [`decode_pfm_rows`] on the file's bytes.
+pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
+    let at = input.stream_position()?;
+    let end = input.seek(SeekFrom::End(0))?;
+    input.seek(SeekFrom::Start(at))?;
+    // The header with a byte to spare past its longest accepted length (the parser looks at
+    // the byte after the last token), or the whole file when it is shorter.
+    let mut head = Vec::with_capacity(MAX_HEADER + 2);
+    input.take(MAX_HEADER as u64 + 2).read_to_end(&mut head)?;
+    let mut r = ByteReader::le(&head);
+    let h = parse_header(&mut r)?;
+    limits.check_dimensions(u64::from(h.width), u64::from(h.height))?;
+    let start = at + r.position();
+    let per_pixel = if h.grey { 1u64 } else { 3 };
+    let need = (u64::from(h.width) * u64::from(h.height)).saturating_mul(per_pixel * 4);
+    if need > end.saturating_sub(start) {
+        return Err(Error::truncated(format!(
+            "the PFM pixels (bytes {}..{} of a {}-byte input)",
+            start - at,
+            (start - at).saturating_add(need),
+            end.saturating_sub(at)
+        )));
+    }
+    let info = header_info(&h);
+    let pixels = Pixels::File { input, start, buf: Vec::new(), charge: None, limits };
+    decode_bands(&h, &info, limits, sink, pixels)
+}
+
+/// Delivers the rows of the image the header `h` describes, band by band from the top, each
+/// band's bytes fetched from `pixels` (where the file stores them: bottom up).
+fn decode_bands(
+    h: &Header,
+    info: &ImageInfo,
+    limits: &Limits,
+    sink: &mut dyn RowSink,
+    mut pixels: Pixels<'_>,
+) -> Result<()> {
     let w = h.width as usize;
     let per_pixel = if h.grey { 1 } else { 3 };
-    let pixels = pixel_bytes(&h, &mut r)?;
+    let little_endian = h.little_endian;
     let read = |b: &[u8]| {
         let b = [b[0], b[1], b[2], b[3]];
-        if h.little_endian {
+        if little_endian {
             f32::from_le_bytes(b)
         } else {
             f32::from_be_bytes(b)
         }
     };
-    sink.start(&info)?;
+    sink.start(info)?;
     let row_bytes = w * per_pixel * 4;
     let row_len = w * 3;
     let band = band_rows(row_len, 1 << 20);
@@ -175,11 +270,12 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
     let mut y = 0;
     while y < h.height {
         let rows = band.min(h.height - y);
+        // Rows are stored bottom to top: the band's rows are the stored rows from
+        // `height - y - rows`, last image row first.
+        let first_stored = (h.height - y - rows) as usize;
+        let bytes = pixels.band(first_stored * row_bytes, rows as usize * row_bytes)?;
         fill_rows(sink, y, rows, row_len, &mut scratch, |out| {
-            for (i, out_row) in out.chunks_exact_mut(row_len).enumerate() {
-                // Rows are stored bottom to top.
-                let stored = (h.height - 1 - (y + i as u32)) as usize;
-                let row = &pixels[stored * row_bytes..(stored + 1) * row_bytes];
+            for (out_row, row) in out.chunks_exact_mut(row_len).zip(bytes.chunks_exact(row_bytes).rev()) {
                 if h.grey {
                     for (px, b) in out_row.chunks_exact_mut(3).zip(row.chunks_exact(4)) {
                         px.fill(read(b));
@@ -309,6 +405,15 @@ impl ImageCodec for PfmCodec {
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         decode_pfm_rows(data, &options.limits, sink)
+    }
+    /// Reads the file a band of rows at a time (see [`decode_pfm_rows_from`]).
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn ReadSeek,
+        options: &DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        decode_pfm_rows_from(input, &options.limits, sink)
     }
     /// PFM has no options; any `key=value` is an error.
     fn encode_to(

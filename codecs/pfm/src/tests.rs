@@ -155,3 +155,77 @@ fn decode_into_a_strided_f16_or_f32_buffer_gives_the_decoded_samples() {
     let mut small = vec![0.0f32; stride * 2 - 3];
     assert!(PfmCodec.decode_into(&data, &options, FrameBufMut::f32(&mut small, stride)).is_err());
 }
+
+/// A file of `w`×`h` pixels whose samples all differ, so that a row read from the wrong place
+/// shows.
+fn numbered(magic: &str, w: u32, h: u32, big_endian: bool) -> Vec<u8> {
+    let n = (w * h) as usize * if magic == "Pf" { 1 } else { 3 };
+    let floats: Vec<f32> = (0..n).map(|i| i as f32 * 0.25 - 7.0).collect();
+    file(magic, w, h, if big_endian { "1" } else { "-1" }, &floats, big_endian)
+}
+
+fn from_file(data: &[u8], at: usize, limits: &Limits) -> Result<HdrImage> {
+    let mut padded = vec![b'x'; at];
+    padded.extend_from_slice(data);
+    let mut input = std::io::Cursor::new(padded);
+    input.set_position(at as u64);
+    PfmCodec.decode_from(&mut input, &DecodeOptions::new(limits.clone()))
+}
+
+#[test]
+fn decoding_from_a_file_gives_the_in_memory_samples() {
+    // 40000 RGB pixels a row: two rows a band, so 5 rows make three bands (the last short).
+    for (magic, w, h, big) in [("PF", 40000, 5, false), ("Pf", 40000, 7, true), ("PF", 3, 2, true), ("Pf", 1, 1, false)]
+    {
+        let data = numbered(magic, w, h, big);
+        let want = PfmCodec.decode(&data, &Limits::default()).unwrap();
+        for at in [0, 5] {
+            let got = from_file(&data, at, &Limits::default()).unwrap();
+            assert_eq!((got.width(), got.height()), (w, h));
+            assert_eq!(got.samples(), want.samples(), "{magic} {w}x{h} at {at}");
+            assert_eq!(got.metadata, want.metadata);
+        }
+    }
+}
+
+#[test]
+fn decoding_from_a_file_does_not_hold_the_file() {
+    let data = numbered("PF", 40000, 20, false);
+    let image_bytes = 40000 * 20 * 12;
+    // Room for the image and a band, not for the image and the file (as large as the image).
+    let limits = Limits::default().with_max_alloc_bytes(image_bytes + (1 << 20) + (1 << 16)).with_own_budget();
+    // What holding the file would need: the file and the image together do not fit.
+    let whole_file = hdrcodec_core::read_rest(&mut std::io::Cursor::new(&data), &limits).unwrap();
+    assert!(matches!(limits.charge(image_bytes, "the image"), Err(Error::LimitExceeded { .. })));
+    drop(whole_file);
+    let got = from_file(&data, 0, &limits).unwrap();
+    assert_eq!(got.samples(), PfmCodec.decode(&data, &Limits::default()).unwrap().samples());
+    assert!(limits.peak() <= image_bytes + (1 << 20), "peak {} for a {image_bytes}-byte image", limits.peak());
+    // A band that does not fit is refused, not allocated.
+    let tight = Limits::default().with_max_alloc_bytes(image_bytes + 1000).with_own_budget();
+    assert!(matches!(from_file(&data, 0, &tight), Err(Error::LimitExceeded { .. })));
+}
+
+#[test]
+fn a_short_file_is_truncated_when_decoded_from_a_file() {
+    let data = numbered("PF", 40000, 5, false);
+    let header_len = data.len() - 40000 * 5 * 12;
+    for len in [0, 2, 4, header_len - 1, header_len, header_len + 7, data.len() - 1] {
+        let err = from_file(&data[..len], 3, &Limits::default()).unwrap_err();
+        assert!(matches!(err, Error::Truncated { .. }), "{len}: {err}");
+        let mem = PfmCodec.decode(&data[..len], &Limits::default()).unwrap_err();
+        assert!(matches!(mem, Error::Truncated { .. }), "{len}: {mem}");
+    }
+    // Declared sizes the file cannot hold are refused before anything is read or allocated.
+    let huge = b"PF\n4000000000 4000000000\n-1\n";
+    let err = from_file(huge, 0, &Limits::none()).unwrap_err();
+    assert!(matches!(err, Error::Truncated { .. } | Error::LimitExceeded { .. }), "{err}");
+}
+
+#[test]
+fn a_bad_header_is_the_same_error_from_a_file() {
+    for h in [&b"PF\n-1 2\n-1\n"[..], b"P6\n1 1\n255\n", b"PF\n1 2\n-1", &[b' '; 300][..]] {
+        let mem = PfmCodec.decode(h, &Limits::default()).unwrap_err().to_string();
+        assert_eq!(from_file(h, 0, &Limits::default()).unwrap_err().to_string(), mem);
+    }
+}
