@@ -378,33 +378,44 @@ pub fn equal_quality(rows: &[VideoRow]) -> Option<equal_quality::Comparison> {
 
 /// The rows as a plain-text table, then what each side did.
 pub fn table(rows: &[VideoRow]) -> String {
-    let mut s = format!(
-        "{:<20} {:<28} {:>9} {:>9} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
-        "video config",
-        "sequence",
-        "size",
-        "bytes",
-        "bpp",
-        "PU21-PSNR",
-        "dE-ITP",
-        "dE p99",
-        "enc fps",
-        "dec fps",
-        "peer dec"
-    );
+    use crate::text_table::{Align, TextTable};
+    let (l, r) = (Align::Left, Align::Right);
+    let mut t = TextTable::new(&[
+        ("video config", l),
+        ("sequence", l),
+        ("size", r),
+        ("bytes", r),
+        ("bpp", r),
+        ("PU21-PSNR", r),
+        ("dE-ITP", r),
+        ("dE p99", r),
+        ("enc fps", r),
+        ("dec fps", r),
+        ("peer dec", r),
+    ]);
     for r in rows {
         if let Some(e) = &r.error {
-            s.push_str(&format!("{:<20} {:<28} {e}\n", r.config, r.sequence));
+            t.note_row(vec![r.config.clone(), r.sequence.clone()], e);
             continue;
         }
-        let size = format!("{}x{}x{}", r.width, r.height, r.frames);
         let peer = r.peer.as_ref().map_or_else(|| "-".to_string(), |p| format!("{:.1}", p.decode_fps));
         let mark = if r.peer.as_ref().is_some_and(|p| !p.matches) { "  DIFFERS FROM PEER" } else { "" };
-        s.push_str(&format!(
-            "{:<20} {:<28} {size:>9} {:>9} {:>8.4} {:>10.2} {:>9.4} {:>9.3} {:>9.1} {:>9.1} {peer:>9}{mark}\n",
-            r.config, r.sequence, r.bytes, r.bpp, r.pu21_psnr, r.de_itp_mean, r.de_itp_p99, r.encode_fps, r.decode_fps
-        ));
+        let cells = vec![
+            r.config.clone(),
+            r.sequence.clone(),
+            format!("{}x{}x{}", r.width, r.height, r.frames),
+            r.bytes.to_string(),
+            format!("{:.4}", r.bpp),
+            format!("{:.2}", r.pu21_psnr),
+            format!("{:.4}", r.de_itp_mean),
+            format!("{:.3}", r.de_itp_p99),
+            format!("{:.1}", r.encode_fps),
+            format!("{:.1}", r.decode_fps),
+            peer,
+        ];
+        t.row(cells, mark);
     }
+    let mut s = t.render();
     let mut seen: Vec<&String> = Vec::new();
     for r in rows {
         for n in &r.notes {
