@@ -154,7 +154,10 @@ fn decode_rows_from<S: Sample>(input: &mut dyn ReadSeek, limits: &Limits, sink: 
     decode_bands::<S>(width, height, channels, samples, limits, sink)
 }
 
-/// Delivers the rows of a `width` × `height` image stored as `samples`, a band at a time.
+/// Delivers the rows of a `width` × `height` image stored as `samples`, a band at a time. The
+/// image's bytes are the sink's to charge (a sink that converts rows as they come holds none of
+/// them); the header's dimensions were checked against the limits, and the samples' length
+/// against the payload's, so the image is at most twice the payload.
 fn decode_bands<S: Sample>(
     width: u32,
     height: u32,
@@ -163,7 +166,6 @@ fn decode_bands<S: Sample>(
     limits: &Limits,
     sink: &mut dyn RowSink,
 ) -> Result<()> {
-    crate::format::check_image(limits, width, height, channels)?;
     sink.start(&ImageInfo::new(width, height, channels, raw_color()).with_format(S::FORMAT))?;
     let row_len = width as usize * channels.count();
     let band = band_rows(row_len, 1 << 20);
