@@ -85,6 +85,11 @@ impl Layout {
         match ty {
             format::HEAD => return Err(dup()),
             format::DATA => {
+                // Bounds what is kept per chunk by the HEAD's grid (and so by the file's size).
+                if self.data.len() as u64 >= self.head.total_tiles() {
+                    let tiles = self.head.total_tiles();
+                    return Err(Error::invalid(format!("{ctx}: more DATA chunks than the {tiles} tiles of the grid")));
+                }
                 let (header, _) = DataHeader::parse(payload).map_err(|e| in_chunk(ctx, e))?;
                 let key = header.grid_key(&self.head).map_err(|e| in_chunk(ctx, e))?;
                 self.grid.push((key, self.data.len()));

@@ -8,7 +8,7 @@ use crate::format::{self, type_name, DataHeader, CHUNK_OVERHEAD, DATA_HEADER_LEN
 use crate::reader::{check_chunk, check_crc, chunk_crc, first_head, in_chunk, Counts, DataLoc, Layout, Step};
 use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::RowSink;
-use hdrcodec_core::{DecodeOptions, Error, ImageCodec, Limits, ReadSeek, Result};
+use hdrcodec_core::{Allocation, DecodeOptions, Error, ImageCodec, Limits, ReadSeek, Result};
 use std::io::{Read, Seek, SeekFrom};
 
 /// A `.hdrc` file in a stream, its structure read and checked ([`StreamFile::open`]).
@@ -16,6 +16,8 @@ pub(crate) struct StreamFile<'r> {
     src: Source<'r>,
     /// What the chunks say, checked as [`Reader::new`](crate::Reader::new) checks it.
     pub(crate) layout: Layout,
+    /// The charge for what `layout` keeps per tile.
+    _index_charge: Allocation,
 }
 
 /// The stream a file is read from.
@@ -41,7 +43,7 @@ impl<'r> StreamFile<'r> {
     /// every chunk but DATA whole (each checked against `limits` before it is read, and its
     /// CRC), and the tile header of every DATA chunk; checks the HEAD against `limits`, the
     /// tile grid, the index and that END ends the file, as [`Reader::new`](crate::Reader::new)
-    /// does. What it does not check is the DATA chunks' CRCs: [`StreamFile::read_tiles`] and
+    /// does. What it does not check is the DATA chunks' CRCs: [`StreamFile::read_tile`] and
     /// [`StreamFile::decode_tile_rows`] check each as they read it.
     pub(crate) fn open(input: &'r mut dyn ReadSeek, limits: &Limits) -> Result<Self> {
         let base = input.stream_position()?;
@@ -56,6 +58,9 @@ impl<'r> StreamFile<'r> {
         let head = first_head(ty, &payload, &ctx)?;
         // The whole image must fit the limits before anything of its size is allocated.
         format::check_head(&head, limits, len - at).map_err(|e| in_chunk(&ctx, e))?;
+        // What is kept of each tile's chunk while the file is decoded (at most one per tile).
+        let per_tile = (std::mem::size_of::<DataLoc>() + std::mem::size_of::<(u64, usize)>()) as u64;
+        let index_charge = limits.charge(head.total_tiles().saturating_mul(per_tile), "the file's tile index")?;
         let mut layout = Layout::new(head);
         let end_index_offset = loop {
             let Chunk { ty, payload, offset, len: chunk_len, ctx } = src.next_chunk(&mut at, &mut counts, limits)?;
@@ -81,7 +86,7 @@ impl<'r> StreamFile<'r> {
             }
             return Err(e);
         }
-        Ok(StreamFile { src, layout })
+        Ok(StreamFile { src, layout, _index_charge: index_charge })
     }
 
     /// The payload of the DATA chunk at `loc` (its tile header left out), read whole and its

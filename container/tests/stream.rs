@@ -131,3 +131,24 @@ fn the_file_is_never_charged_whole() {
         assert!(matches!(e, Error::LimitExceeded { .. }), "tile {tile:?}: {e}");
     }
 }
+
+#[test]
+fn a_data_chunk_beyond_the_grid_is_refused_before_it_is_kept() {
+    // The untiled file with its one DATA chunk twice: what a reader keeps per chunk is bounded
+    // by the HEAD's grid.
+    let (_, file) = files().remove(1);
+    let (start, end) = data_chunks(&file)[0];
+    let mut bad = file[..end].to_vec();
+    bad.extend_from_slice(&file[start - 8..end]);
+    bad.extend_from_slice(&file[end..]);
+    let options = DecodeOptions::new(Limits::fuzzing());
+    let errors =
+        [from_stream(&bad, 0, &options).unwrap_err(), HdrcCodec::default().decode_with(&bad, &options).unwrap_err()];
+    for e in errors {
+        assert!(
+            e.to_string().contains("DATA chunk #1 at offset")
+                && e.to_string().contains("more DATA chunks than the 1 tiles"),
+            "{e}"
+        );
+    }
+}
