@@ -62,8 +62,8 @@ fn probe_and_decode(codec: &dyn ImageCodec, data: &[u8], limits: &Limits) -> Res
 }
 
 /// The `.hdrc` container: the validating `Reader` and the whole decode path (`decode_frames`
-/// with the raw payload codecs, `HdrcCodec::decode` and `probe`) and the index-driven
-/// `SeekReader`. Fuzzing builds (`--cfg fuzzing`) skip the CRC check so that mutations reach
+/// with the raw payload codecs, `HdrcCodec::decode` and `probe`), the decode from a stream
+/// (`HdrcCodec::decode_from`, which must agree with it) and the index-driven `SeekReader`. Fuzzing builds (`--cfg fuzzing`) skip the CRC check so that mutations reach
 /// the chunk parsers behind it.
 pub fn container(data: &[u8]) {
     fn raw(id: [u8; 4]) -> Option<&'static dyn ImageCodec> {
@@ -93,7 +93,22 @@ pub fn container(data: &[u8]) {
             }
         }
     }
-    let _ = probe_and_decode(&HdrcCodec::default(), data, &limits);
+    let from_memory = probe_and_decode(&HdrcCodec::default(), data, &limits);
+    // Decoded from a stream (each DATA chunk read as it is decoded): the image decoded from
+    // memory, or an error; where only one of them fails, it is for holding a few chunks more
+    // or fewer within the budget.
+    let options = limits.clone().into();
+    let from_stream = HdrcCodec::default().decode_from(&mut std::io::Cursor::new(data), &options);
+    match (&from_memory, &from_stream) {
+        (Ok(a), Ok(b)) => {
+            let bits = |i: &HdrImage| i.samples().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!((bits(a), &a.color, &a.metadata), (bits(b), &b.color, &b.metadata));
+        }
+        (Ok(_), Err(e)) | (Err(e), Ok(_)) => {
+            assert!(matches!(e, hdrcodec_core::Error::LimitExceeded { .. }), "only one path failed: {e}")
+        }
+        (Err(_), Err(_)) => {}
+    }
     if let Ok(mut s) = SeekReader::new(std::io::Cursor::new(data), &limits) {
         let h = *s.head();
         // Bounded: `new` checked that the file can hold a DATA chunk per tile.

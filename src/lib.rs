@@ -222,15 +222,22 @@ impl Registry {
     /// ([`ImageCodec::decode_from`]), so that a codec that reads its file piece by piece
     /// (OpenEXR) never holds it whole.
     pub fn read_with(&self, path: &Path, options: &DecodeOptions) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
+        let (codec, mut file) = self.open(path)?;
+        let image = codec.decode_from(&mut file, options)?;
+        Ok((codec, image))
+    }
+
+    /// Opens the file at `path` for a decoder that reads it from the file
+    /// ([`ImageCodec::decode_rows_from`]): the codec chosen from its first bytes as
+    /// [`Registry::for_input`] chooses it, and the file, at its start.
+    pub fn open(&self, path: &Path) -> Result<(Arc<dyn ImageCodec>, std::fs::File)> {
         use std::io::{Read, Seek};
         let named = |e: std::io::Error| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())));
         let mut file = std::fs::File::open(path).map_err(named)?;
         let mut head = Vec::with_capacity(64);
         (&mut file).take(64).read_to_end(&mut head).map_err(named)?;
         file.rewind().map_err(named)?;
-        let codec = self.for_input(path, &head)?;
-        let image = codec.decode_from(&mut file, options)?;
-        Ok((codec, image))
+        Ok((self.for_input(path, &head)?, file))
     }
 }
 
@@ -569,10 +576,11 @@ pub fn encode_file(
     Ok(notes)
 }
 
-/// Decodes `data` with `decoder` and encodes it with `encoder` into the file at `path`
+/// Decodes `input` with `decoder` and encodes it with `encoder` into the file at `path`
 /// ([`write_atomic_with`]), row band by row band when the encoder can take rows
 /// ([`ImageCodec::row_encoder`]): then neither the decoded image nor the encoded file is held
-/// whole, only the bands in flight. The colour is prepared as [`prepare_colour`] would prepare
+/// whole, only the bands in flight (and, from an [`Input::File`], not the input file either for
+/// a decoder that reads it piece by piece). The colour is prepared as [`prepare_colour`] would prepare
 /// the whole image (the decision is taken from the header; conversions are applied per band),
 /// and the bytes written are those [`encode_file`] writes for the decoded image. Rows that a
 /// decoder delivers out of order wait (charged to the limits) until the rows above them came.
@@ -580,7 +588,7 @@ pub fn encode_file(
 /// preparation and of the encoder.
 pub fn convert_file(
     decoder: &dyn ImageCodec,
-    data: &[u8],
+    input: Input<'_>,
     options: &DecodeOptions,
     encoder: &dyn ImageCodec,
     settings: &EncodeSettings,
@@ -588,9 +596,24 @@ pub fn convert_file(
 ) -> Result<Vec<String>> {
     write_atomic_with(path, |out| {
         let mut sink = ConvertSink { encoder, settings, limits: &options.limits, out, state: ConvertState::Waiting };
-        decoder.decode_rows(data, options, &mut sink)?;
+        match input {
+            Input::Bytes(data) => decoder.decode_rows(data, options, &mut sink)?,
+            Input::File(file) => decoder.decode_rows_from(file, options, &mut sink)?,
+        }
         sink.finish()
     })
+}
+
+/// What [`convert_file`] decodes: a file's bytes in memory, or the file itself (any source
+/// that reads and seeks, from its position; [`Registry::open`] opens one), which the decoder
+/// reads as it decodes ([`ImageCodec::decode_rows_from`]), so that a codec that reads its file
+/// piece by piece (OpenEXR, PFM, LogLuv TIFF, `.hdrc`, ...) never holds it whole. Same bytes,
+/// notes and errors either way.
+pub enum Input<'a> {
+    /// The file's bytes.
+    Bytes(&'a [u8]),
+    /// The file.
+    File(&'a mut dyn crate::core::ReadSeek),
 }
 
 /// The [`RowSink`](crate::core::sink::RowSink) of [`convert_file`].

@@ -218,3 +218,37 @@ fn lpuv_frames_in_hdrc_carry_their_description_and_decode_to_linear() {
     }
     assert!(dec.next_frame().unwrap().is_none());
 }
+
+/// Decoded from the file in a stream (`decode_from`: the chunks read as they are decoded, an
+/// untiled payload read by its codec from the file), every payload codec of the family, tiled
+/// and untiled, gives the samples of the decode of the bytes in memory.
+#[test]
+fn every_payload_decodes_from_a_stream_as_from_memory() {
+    let hdrc = hdrc();
+    let img = scene(Channels::Rgba);
+    let reg = hdrcodec::registry();
+    let mut payloads: Vec<&str> =
+        reg.names().into_iter().filter(|&n| n != "hdrc" && reg.by_name(n).is_ok_and(|c| c.can_encode())).collect();
+    payloads.extend(["raw-f32", "raw-f16"]);
+    assert!(payloads.len() >= 8, "{payloads:?}");
+    for payload in payloads {
+        for tile in [None, Some(64)] {
+            let mut s = EncodeSettings::default().with_effort(0).with_option("payload", payload);
+            if let Some(t) = tile {
+                s = s.with_option("tile", t.to_string());
+            }
+            let what = format!("payload {payload}, tile {tile:?}");
+            let file = match hdrc.encode(&img, &s) {
+                Ok(f) => f,
+                Err(e) => panic!("{what}: {e}"),
+            };
+            let options = hdrcodec_core::DecodeOptions::new(Limits::default());
+            let want = hdrc.decode_with(&file, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let got =
+                hdrc.decode_from(&mut std::io::Cursor::new(&file), &options).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let bits = |i: &HdrImage| i.samples().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "{what}");
+            assert_eq!((&got.color, &got.metadata), (&want.color, &want.metadata), "{what}");
+        }
+    }
+}

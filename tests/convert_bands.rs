@@ -9,6 +9,7 @@ use hdrcodec::core::{
     Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, HdrImage,
     ImageCodec, ImageInfo, Limits, Result,
 };
+use hdrcodec::Input;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -141,12 +142,19 @@ fn check_conversion(from: &dyn ImageCodec, file: &[u8], to: &dyn ImageCodec, set
     let banded_path = dir.join("banded");
     let whole_path = dir.join("whole");
     let options = DecodeOptions::default();
-    let notes = hdrcodec::convert_file(from, file, &options, to, settings, &banded_path)
+    let notes = hdrcodec::convert_file(from, Input::Bytes(file), &options, to, settings, &banded_path)
         .unwrap_or_else(|e| panic!("{what}: {e}"));
     let image = from.decode_with(file, &options).unwrap();
     let whole_notes = hdrcodec::encode_file(to, &image, settings, &whole_path).unwrap();
     assert!(std::fs::read(&banded_path).unwrap() == std::fs::read(&whole_path).unwrap(), "{what}: bytes");
     assert_eq!(notes, whole_notes, "{what}: notes");
+    // The decoder reading the file itself gives the same file.
+    let from_path = dir.join("from");
+    let mut input = Cursor::new(file);
+    let from_notes = hdrcodec::convert_file(from, Input::File(&mut input), &options, to, settings, &from_path)
+        .unwrap_or_else(|e| panic!("{what}, from the file: {e}"));
+    assert!(std::fs::read(&from_path).unwrap() == std::fs::read(&whole_path).unwrap(), "{what}: bytes from the file");
+    assert_eq!(from_notes, whole_notes, "{what}: notes from the file");
 }
 
 #[test]
@@ -160,6 +168,7 @@ fn conversions_write_what_decoding_whole_and_encoding_writes() {
         ("pfm", picture(61, 70, Channels::Rgb, ColorPrimaries::Unspecified)),
         ("rgbe", picture(61, 70, Channels::Rgb, ColorPrimaries::Bt709)),
         ("bc6h", picture(61, 70, Channels::Rgb, ColorPrimaries::Unspecified)),
+        ("hdrc", picture(61, 70, Channels::Rgba, ColorPrimaries::Bt2020)),
     ];
     for (input, image) in inputs {
         let from = registry.by_name(input).unwrap();
@@ -177,7 +186,8 @@ fn conversions_write_what_decoding_whole_and_encoding_writes() {
                 let _ = std::fs::remove_file(&out);
                 let options = DecodeOptions::default();
                 let refused =
-                    hdrcodec::convert_file(from.as_ref(), &file, &options, to.as_ref(), &convert, &out).is_err();
+                    hdrcodec::convert_file(from.as_ref(), Input::Bytes(&file), &options, to.as_ref(), &convert, &out)
+                        .is_err();
                 if refused {
                     // A format that cannot say BT.2020 (gain-map JPEG: sRGB or Display P3)
                     // refuses the conversion of an image it would have to relabel, writing
@@ -251,7 +261,8 @@ fn rows_delivered_out_of_order_wait_within_the_limits() {
     let options = DecodeOptions::new(Limits::default().with_max_alloc_bytes(decoded / 2));
     let path = dir.join("small");
     let pfm = registry.by_name("pfm").unwrap();
-    let r = hdrcodec::convert_file(&decoder, &[], &options, pfm.as_ref(), &EncodeSettings::default(), &path);
+    let r =
+        hdrcodec::convert_file(&decoder, Input::Bytes(&[]), &options, pfm.as_ref(), &EncodeSettings::default(), &path);
     assert!(r.is_err(), "the early rows must not fit half the image's size");
     assert!(!path.exists(), "no file is left behind");
     assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().starts_with('.')));
@@ -274,11 +285,39 @@ fn a_conversion_in_order_holds_bands_not_the_image() {
         let path = dir.join(name);
         let settings = EncodeSettings::default().with_effort(0);
         let settings = if name == "hdrc" { settings.with_option("tile", "128") } else { settings };
-        hdrcodec::convert_file(pfm.as_ref(), &file, &options, to.as_ref(), &settings, &path)
+        hdrcodec::convert_file(pfm.as_ref(), Input::Bytes(&file), &options, to.as_ref(), &settings, &path)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(limits.peak() < u64::from(w * h) * 12 / 3, "{name}: peak {}", limits.peak());
         // The whole-image route does not fit that budget.
         assert!(pfm.decode_with(&file, &options).is_err());
+    }
+    // From files on disk that the decoder reads itself, a PFM and an untiled `.hdrc` as large as
+    // the image: the budget, a third of the file, holds neither the file nor the image.
+    let hdrc = registry.by_name("hdrc").unwrap();
+    let inputs = [("in.pfm", file.clone()), ("in.hdrc", hdrc.encode(&image, &EncodeSettings::default()).unwrap())];
+    for (input, bytes) in inputs {
+        let input_path = dir.join(input);
+        std::fs::write(&input_path, &bytes).unwrap();
+        for name in ["rgbe", "exr", "hdrc"] {
+            let limits = Limits::default().with_max_alloc_bytes(u64::from(w * h) * 12 / 3);
+            let options = DecodeOptions::new(limits.clone());
+            let (from, mut opened) = registry.open(&input_path).unwrap();
+            let to = registry.by_name(name).unwrap();
+            let settings = EncodeSettings::default().with_effort(0);
+            let settings = if name == "hdrc" { settings.with_option("tile", "128") } else { settings };
+            hdrcodec::convert_file(
+                from.as_ref(),
+                Input::File(&mut opened),
+                &options,
+                to.as_ref(),
+                &settings,
+                &dir.join(name),
+            )
+            .unwrap_or_else(|e| panic!("{input} -> {name}: {e}"));
+            assert!(limits.peak() < u64::from(w * h) * 12 / 3, "{input} -> {name}: peak {}", limits.peak());
+            // Reading the file whole does not fit that budget.
+            assert!(hdrcodec::core::read_rest(&mut std::fs::File::open(&input_path).unwrap(), &limits).is_err());
+        }
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -150,12 +150,19 @@ pub fn convert(
     };
     // One pool for the whole command, decoding and encoding alike.
     let conversion = ConversionSettings::new(quality, effort, ThreadPool::new(threads.unwrap_or(0))?, opts)?;
-    let data = hdrcodec::read_file(input)?;
-    let in_codec = reg.for_input(input, &data)?;
+    // The decoder reads the file itself (a codec that can reads it piece by piece), and band by
+    // band when the output format allows it: neither the input file, nor the decoded image, nor
+    // the encoded file is held whole.
+    let (in_codec, mut file) = reg.open(input)?;
     let (options, settings) = conversion.for_decoder(in_codec.as_ref(), Limits::default());
-    // Band by band when the output format allows it: neither the decoded image nor the encoded
-    // file is held whole.
-    let notes = hdrcodec::convert_file(in_codec.as_ref(), &data, &options, out_codec.as_ref(), &settings, output)?;
+    let notes = hdrcodec::convert_file(
+        in_codec.as_ref(),
+        hdrcodec::Input::File(&mut file),
+        &options,
+        out_codec.as_ref(),
+        &settings,
+        output,
+    )?;
     for n in notes {
         note(&n);
     }

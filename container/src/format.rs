@@ -35,14 +35,6 @@ pub(crate) const HEAD_LEN: usize = 26;
 pub(crate) const DATA_HEADER_LEN: usize = 20;
 pub(crate) const INDEX_ENTRY_LEN: usize = 20;
 
-/// [`Limits::check_image`] without its overflow: `Limits::none()` lets 2³²−1 × 2³²−1 through
-/// the dimension check, and the byte count of such an image does not fit in a `u64`.
-pub(crate) fn check_image(limits: &Limits, width: u32, height: u32, channels: Channels) -> Result<()> {
-    limits.check_dimensions(u64::from(width), u64::from(height))?;
-    let bytes = (u64::from(width) * u64::from(height)).saturating_mul(channels.count() as u64 * 4);
-    limits.check_alloc(bytes, "the decoded image")
-}
-
 /// Checks the eight signature bytes at the start of `data`, naming the damage if it looks
 /// like a text-mode transfer.
 pub(crate) fn check_signature(data: &[u8]) -> Result<()> {

@@ -3,14 +3,16 @@
 
 use crate::format::{DataHeader, Head, SIGNATURE};
 use crate::raw::{RawF16Codec, RawF32Codec};
-use crate::reader::{in_chunk, DataRef, HeadInfo, Reader};
+use crate::reader::{in_chunk, DataLoc, DataRef, HeadInfo, Reader};
+use crate::stream::StreamFile;
 use crate::writer::Writer;
 use hdrcodec_core::color::{convert_primaries, mat_to_f32, rgb_to_rgb, Mat3, IDENTITY};
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec,
-    ImageInfo, Limits, Result, RowCounter,
+    Allocation, Channels, ColorInfo, ColorPrimaries, ColorSignalling, DecodeOptions, EncodeSettings, Error, HdrImage,
+    ImageCodec, ImageInfo, Limits, ReadSeek, Result, RowCounter,
 };
+use std::borrow::Cow;
 use std::sync::Arc;
 
 /// The pixels of `image` inside the tile `t`, as an image of their own (same colour, no metadata).
@@ -425,6 +427,41 @@ pub fn decode_image_rows<'c>(
 ) -> Result<()> {
     let r = Reader::new(data, &options.limits)?;
     let h = *r.head();
+    let (info, codec) = single_frame_info(&h, r.color_info(), r.metadata(), resolve)?;
+    let refs: Vec<_> = r.frame_tiles(0).copied().collect();
+    decode_frame_rows(&h, 0, &refs, codec, options, &info, sink)
+}
+
+/// [`decode_image_rows`] from a file in a stream (from its current position) instead of bytes
+/// in memory, never holding the file whole: the chunk structure is read and checked first
+/// (every chunk but DATA whole, with its CRC), then each row of tiles is read when it is
+/// decoded, a few DATA chunks at a time, each CRC-checked before its tile is decoded; the one
+/// tile of an untiled file is decoded by the payload codec from the file
+/// ([`ImageCodec::decode_rows_from`]: the raw payloads a band at a time), its CRC checked as
+/// it is read and before this returns. Same rows and the same kinds of errors as
+/// [`decode_image_rows`] on the file's bytes.
+pub fn decode_image_rows_from<'c>(
+    input: &mut dyn ReadSeek,
+    options: &DecodeOptions,
+    resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    let mut file = StreamFile::open(input, &options.limits)?;
+    let layout = &file.layout;
+    let h = layout.head;
+    let (info, codec) = single_frame_info(&h, layout.color_info(), layout.metadata(), resolve)?;
+    let locs = layout.frame_positions(0).map(|i| layout.data[i]).collect();
+    decode_tiles(&h, 0, Tiles::Stream(&mut file, locs), codec, options, &info, sink)
+}
+
+/// What decoding the only frame of a file with this HEAD, colour and metadata gives, and its
+/// payload codec; an error for a file of many frames or an unknown payload codec.
+fn single_frame_info<'c>(
+    h: &Head,
+    color: ColorInfo,
+    metadata: &[(String, String)],
+    resolve: &dyn Fn([u8; 4]) -> Option<&'c dyn ImageCodec>,
+) -> Result<(ImageInfo, &'c dyn ImageCodec)> {
     if h.frames != 1 {
         return Err(Error::unsupported(format!(
             "the .hdrc file holds {} frames; decode it as a frame sequence",
@@ -432,11 +469,9 @@ pub fn decode_image_rows<'c>(
         )));
     }
     let codec = resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
-    let mut info =
-        ImageInfo::new(h.width, h.height, h.channels, r.color_info()).with_format(stored_format(codec.name(), &h));
-    info.metadata = r.metadata().to_vec();
-    let refs: Vec<_> = r.frame_tiles(0).copied().collect();
-    decode_frame_rows(&h, 0, &refs, codec, options, &info, sink)
+    let mut info = ImageInfo::new(h.width, h.height, h.channels, color).with_format(stored_format(codec.name(), h));
+    info.metadata = metadata.to_vec();
+    Ok((info, codec))
 }
 
 /// Decodes every frame of a `.hdrc` file. The tiles of each frame are decoded in parallel on
@@ -505,6 +540,75 @@ pub(crate) fn decode_frame(
     sink.finish()
 }
 
+/// The payloads of a group of tiles, borrowed from memory or read from a stream, and the charge
+/// for holding what was read.
+type Payloads<'p> = (Vec<Cow<'p, [u8]>>, Option<Allocation>);
+
+/// Where the tiles of a frame come from: a file in memory that [`Reader`] validated whole, or
+/// a file read from a stream ([`StreamFile`]), each DATA chunk read and CRC-checked when its
+/// tile is decoded.
+enum Tiles<'t, 'a> {
+    Memory(&'t [DataRef<'a>]),
+    Stream(&'t mut StreamFile<'a>, Vec<DataLoc>),
+}
+
+impl Tiles<'_, '_> {
+    /// The frame's tiles in grid order: rectangle, chunk offset and payload length.
+    fn locs(&self) -> Vec<DataLoc> {
+        match self {
+            Tiles::Memory(refs) => refs
+                .iter()
+                .map(|d| DataLoc {
+                    header: d.header,
+                    offset: d.offset,
+                    len: (d.payload.len() + crate::format::DATA_HEADER_LEN) as u32,
+                })
+                .collect(),
+            Tiles::Stream(_, locs) => locs.clone(),
+        }
+    }
+
+    /// The payloads of the tiles `range` (positions in [`Tiles::locs`]), each named by `ctx`
+    /// in errors; what is read from a stream is charged to `limits` while the returned
+    /// allocation lives.
+    fn payloads(
+        &mut self,
+        range: std::ops::Range<usize>,
+        limits: &Limits,
+        ctx: &dyn Fn(&DataLoc) -> String,
+    ) -> Result<Payloads<'_>> {
+        match self {
+            Tiles::Memory(refs) => Ok((refs[range].iter().map(|d| Cow::Borrowed(d.payload)).collect(), None)),
+            Tiles::Stream(file, locs) => {
+                let locs = &locs[range];
+                let bytes = locs.iter().map(|l| u64::from(l.len)).sum();
+                let charge = limits.charge(bytes, "DATA chunks read from the file")?;
+                let payloads = locs
+                    .iter()
+                    .map(|l| file.read_tile(l).map(Cow::Owned).map_err(|e| in_chunk(&ctx(l), e)))
+                    .collect::<Result<_>>()?;
+                Ok((payloads, Some(charge)))
+            }
+        }
+    }
+
+    /// Decodes the tile at position `i` into `sink` with the payload codec's row decoder: from
+    /// memory, or read from the stream as the codec asks for it (its CRC checked before this
+    /// returns).
+    fn decode_rows(
+        &mut self,
+        i: usize,
+        codec: &dyn ImageCodec,
+        options: &DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        match self {
+            Tiles::Memory(refs) => codec.decode_rows(refs[i].payload, options, sink),
+            Tiles::Stream(file, locs) => file.decode_tile_rows(&locs[i], codec, options, sink),
+        }
+    }
+}
+
 /// [`decode_frame`] into `sink`, one row of tiles at a time: the tiles of a row decode a few
 /// at a time and are copied into the row's band (in place when the sink allows it) as soon as
 /// they have decoded, so the peak is the sink's storage plus a row of tiles, not two frames.
@@ -519,36 +623,48 @@ pub(crate) fn decode_frame_rows(
     info: &ImageInfo,
     sink: &mut dyn RowSink,
 ) -> Result<()> {
-    if refs.is_empty() {
+    decode_tiles(h, f, Tiles::Memory(refs), codec, options, info, sink)
+}
+
+/// [`decode_frame_rows`] from wherever the tiles come from.
+fn decode_tiles(
+    h: &Head,
+    f: u32,
+    mut tiles: Tiles<'_, '_>,
+    codec: &dyn ImageCodec,
+    options: &DecodeOptions,
+    info: &ImageInfo,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
+    let locs = tiles.locs();
+    if locs.is_empty() {
         return Err(Error::invalid(format!("frame {f} has no tiles")));
     }
     let records_scale = codec.records_nits_per_unit();
     let c = h.channels.count();
     let row_len = h.width as usize * c;
     let batch = options.pool.threads().max(1) * 2;
-    let ctx = |d: &DataRef<'_>| {
+    let ctx = |d: &DataLoc| {
         let t = d.header;
         format!("DATA chunk at offset {} (tile {}x{} at ({}, {}) of frame {f})", d.offset, t.width, t.height, t.x, t.y)
     };
     // One tile covering the frame (an untiled file): the payload decodes straight into the sink.
-    if let [only] = refs {
+    if let [only] = locs[..] {
         let t = only.header;
         if (t.x, t.y, t.width, t.height) == (0, 0, h.width, h.height) {
-            let ctx = ctx(only);
             let mut whole =
                 WholeFrameSink { inner: sink, info, records_scale, convert: None, started: false, buf: Vec::new() };
             let tile_options = tile_options(options, t);
-            return codec.decode_rows(only.payload, &tile_options, &mut whole).map_err(|e| in_chunk(&ctx, e));
+            return tiles.decode_rows(0, codec, &tile_options, &mut whole).map_err(|e| in_chunk(&ctx(&only), e));
         }
     }
     // Decodes a few tiles in parallel, each checked against its rectangle and brought into the
     // header's channels and colour.
-    let decode_group = |group: &[DataRef<'_>]| -> Result<Vec<HdrImage>> {
-        let tiles: Vec<Result<HdrImage>> = options.pool.map(group.len(), |k| {
-            let d = &group[k];
-            let t = d.header;
-            let ctx = ctx(d);
-            let img = codec.decode_with(d.payload, &tile_options(options, t)).map_err(|e| in_chunk(&ctx, e))?;
+    let decode_group = |group: &[DataLoc], payloads: &[Cow<'_, [u8]>]| -> Result<Vec<HdrImage>> {
+        let decoded: Vec<Result<HdrImage>> = options.pool.map(group.len(), |k| {
+            let t = group[k].header;
+            let ctx = ctx(&group[k]);
+            let img = codec.decode_with(&payloads[k], &tile_options(options, t)).map_err(|e| in_chunk(&ctx, e))?;
             if (img.width(), img.height()) != (t.width, t.height) {
                 return Err(Error::invalid(format!("{ctx}: the payload decodes to {}x{}", img.width(), img.height())));
             }
@@ -556,11 +672,16 @@ pub(crate) fn decode_frame_rows(
             let img = if img.channels() == h.channels { img } else { img.with_channels(h.channels) };
             Ok(to_header_colour(img, &info.color, records_scale))
         });
-        tiles.into_iter().collect()
+        decoded.into_iter().collect()
+    };
+    // Reads and decodes the tiles at `range` of `locs`.
+    let mut read_group = |range: std::ops::Range<usize>| -> Result<Vec<HdrImage>> {
+        let (payloads, _charge) = tiles.payloads(range.clone(), &options.limits, &ctx)?;
+        decode_group(&locs[range], &payloads)
     };
     // Copies decoded tiles into the band of their row of tiles.
-    let place = |band: &mut [f32], group: &[DataRef<'_>], tiles: Vec<HdrImage>| -> Result<()> {
-        for (d, tile) in group.iter().zip(tiles) {
+    let place = |band: &mut [f32], group: &[DataLoc], decoded: Vec<HdrImage>| -> Result<()> {
+        for (d, tile) in group.iter().zip(decoded) {
             let t = d.header;
             for row in 0..t.height {
                 let at = row as usize * row_len + t.x as usize * c;
@@ -574,27 +695,30 @@ pub(crate) fn decode_frame_rows(
     };
     let mut started = false;
     let mut scratch = Scratch::new(&options.limits);
-    let mut rest = refs;
-    while let Some(first) = rest.first() {
+    let mut next = 0;
+    while let Some(first) = locs.get(next) {
         let (y, tile_height) = (first.header.y, first.header.height);
-        let in_row = rest.iter().take_while(|d| d.header.y == y).count();
-        let (row_tiles, tail) = rest.split_at(in_row);
-        rest = tail;
-        if row_tiles.iter().any(|d| d.header.height != tile_height)
+        let in_row = locs[next..].iter().take_while(|d| d.header.y == y).count();
+        let row = next..next + in_row;
+        next += in_row;
+        if locs[row.clone()].iter().any(|d| d.header.height != tile_height)
             || y.checked_add(tile_height).is_none_or(|end| end > h.height)
         {
             return Err(Error::invalid(format!("frame {f}: the tiles at row {y} do not form a row of the grid")));
         }
-        let (first_group, other_groups) = row_tiles.split_at(batch.min(row_tiles.len()));
-        let first_tiles = decode_group(first_group)?;
+        let first_end = row.start + batch.min(in_row);
+        let first_tiles = read_group(row.start..first_end)?;
         if !started {
             sink.start(info)?;
             started = true;
         }
         fill_rows(sink, y, tile_height, row_len, &mut scratch, |band| {
-            place(band, first_group, first_tiles)?;
-            for group in other_groups.chunks(batch) {
-                place(band, group, decode_group(group)?)?;
+            place(band, &locs[row.start..first_end], first_tiles)?;
+            let mut at = first_end;
+            while at < row.end {
+                let end = (at + batch).min(row.end);
+                place(band, &locs[at..end], read_group(at..end)?)?;
+                at = end;
             }
             Ok(())
         })?;
@@ -679,6 +803,16 @@ impl ImageCodec for HdrcCodec {
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         decode_image_rows(data, options, &|id| self.resolve(id), sink)
+    }
+    /// Reads the file's structure, then each DATA chunk as it is decoded, its CRC checked as it
+    /// is read ([`decode_image_rows_from`]): the file is never held whole.
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn ReadSeek,
+        options: &DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        decode_image_rows_from(input, options, &|id| self.resolve(id), sink)
     }
     fn encode_to(
         &self,
@@ -960,6 +1094,14 @@ mod tests {
         };
         let (whole, tiled) = (decode(None), decode(Some(4)));
         assert_eq!(whole.samples(), tiled.samples());
+        // From a stream, both ways (the payload read whole by its default `decode_rows_from`).
+        for tile in [None, Some(4)] {
+            let file = encode_image(&img, &Elsewhere, &EncodeSettings::default(), tile).unwrap();
+            let mut sink = ImageSink::new(&Limits::default());
+            let options = DecodeOptions::new(Limits::default());
+            decode_image_rows_from(&mut std::io::Cursor::new(file), &options, &resolve, &mut sink).unwrap();
+            assert_eq!(sink.finish().unwrap().samples(), whole.samples(), "tile {tile:?}");
+        }
         assert_eq!(whole.color, img.color);
         assert_eq!(whole.channels(), Channels::Rgba);
         // Converted: alpha set to 1, the colour brought to BT.2020 at 100 nits per unit.

@@ -5,7 +5,8 @@
 //! - [`Writer`] streams chunks to any `std::io::Write` (it never seeks); [`Reader`] validates a
 //!   whole file in memory (every length, CRC-32C, tile and index) before handing anything out;
 //!   [`SeekReader`] reads single tiles of a file on disk through the index; [`probe`] reads
-//!   only HEAD, COLR and HDRM.
+//!   only HEAD, COLR and HDRM; [`decode_image_rows_from`] decodes a file from a stream, reading
+//!   each DATA chunk (and checking its CRC) as it is decoded, never the whole file.
 //! - [`encode_image`] / [`decode_image`] and [`encode_frames`] / [`decode_frames`] code whole
 //!   images, each tile a stand-alone encoding by another codec, in parallel.
 //! - [`RawF32Codec`] and [`RawF16Codec`]: built-in payload codecs; [`HdrcCodec`]: the
@@ -37,12 +38,15 @@ mod image;
 mod raw;
 mod reader;
 mod seek;
+mod stream;
 mod video;
 mod writer;
 
 pub use crc::{crc32c, Crc32c};
 pub use format::{DataHeader, Head, IndexEntry, SIGNATURE, VERSION};
-pub use image::{decode_frames, decode_image, encode_frames, encode_image, HdrcCodec};
+pub use image::{
+    decode_frames, decode_image, decode_image_rows, decode_image_rows_from, encode_frames, encode_image, HdrcCodec,
+};
 pub use raw::{RawF16Codec, RawF32Codec};
 pub use reader::{probe, DataRef, HeadInfo, Reader};
 pub use seek::SeekReader;

@@ -17,8 +17,10 @@ use half::f16;
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
-    Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, Result,
+    Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, ReadSeek,
+    Result, StoredBytes,
 };
+use std::io::{Read, SeekFrom};
 
 const HEADER_LEN: usize = 13;
 
@@ -84,12 +86,12 @@ fn encode<S: Sample>(image: &HdrImage, settings: &EncodeSettings) -> Result<Vec<
     Ok(w.into_vec())
 }
 
-/// Parses the header, checks the size against the limits' dimensions and the payload's length
-/// against it; returns width, height, channels and the samples' bytes.
-fn header<'a, S: Sample>(data: &'a [u8], limits: &Limits) -> Result<(u32, u32, Channels, &'a [u8])> {
-    let mut r = ByteReader::le(data);
+/// Parses the 13-byte header `h` (fewer bytes: truncated) of a payload whose samples are the
+/// `body_len` bytes after it: checks the size against the limits' dimensions and the samples'
+/// length against it; returns width, height, channels and the samples' length in bytes.
+fn parse_header<S: Sample>(h: &[u8], body_len: u64, limits: &Limits) -> Result<(u32, u32, Channels, u64)> {
     // The whole header is there before any of it is judged.
-    let mut h = r.sub(HEADER_LEN as u64, format_args!("the {HEADER_LEN}-byte {} header", S::NAME))?;
+    let mut h = ByteReader::le(h).sub(HEADER_LEN as u64, format_args!("the {HEADER_LEN}-byte {} header", S::NAME))?;
     if h.array::<4>("the id")? != S::ID {
         return Err(Error::invalid(format!("not a {} payload (wrong id)", S::NAME)));
     }
@@ -99,12 +101,23 @@ fn header<'a, S: Sample>(data: &'a [u8], limits: &Limits) -> Result<(u32, u32, C
         .ok_or_else(|| Error::invalid(format!("{} header: {count} channels (expected 3 or 4)", S::NAME)))?;
     limits.check_dimensions(u64::from(width), u64::from(height))?;
     // Checked in u64 before any allocation: with `Limits::none()` the product may not fit.
-    let what = format_args!("the {} samples of a {width}x{height} image", S::NAME);
-    let need = r.check_remaining(u64::from(width) * u64::from(height), (channels.count() * S::BYTES) as u64, what)?;
-    let body = r.bytes(need, what)?;
-    if r.remaining() > 0 {
-        return Err(Error::invalid(format!("{} bytes after the {} samples", r.remaining(), S::NAME)));
+    let need = (u64::from(width) * u64::from(height)).saturating_mul((channels.count() * S::BYTES) as u64);
+    if need > body_len {
+        return Err(Error::truncated(format!(
+            "the {} samples of a {width}x{height} image ({need} bytes, {body_len} present)",
+            S::NAME
+        )));
     }
+    if body_len > need {
+        return Err(Error::invalid(format!("{} bytes after the {} samples", body_len - need, S::NAME)));
+    }
+    Ok((width, height, channels, need))
+}
+
+/// [`parse_header`] on a payload held in memory; returns the samples' bytes.
+fn header<'a, S: Sample>(data: &'a [u8], limits: &Limits) -> Result<(u32, u32, Channels, &'a [u8])> {
+    let body = data.get(HEADER_LEN..).unwrap_or_default();
+    let (width, height, channels, _) = parse_header::<S>(data, body.len() as u64, limits)?;
     Ok((width, height, channels, body))
 }
 
@@ -123,14 +136,44 @@ fn probe<S: Sample>(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
 /// the image's size is held besides the sink's storage.
 fn decode_rows<S: Sample>(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
     let (width, height, channels, body) = header::<S>(data, limits)?;
-    crate::format::check_image(limits, width, height, channels)?;
+    decode_bands::<S>(width, height, channels, StoredBytes::memory(body, S::NAME), limits, sink)
+}
+
+/// [`decode_rows`] from a source that reads and seeks: the header is read, the source's length
+/// checked against the samples it declares, then each band of about 1 MB is read as it is
+/// converted, so that the payload is never held whole.
+fn decode_rows_from<S: Sample>(input: &mut dyn ReadSeek, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
+    let at = input.stream_position()?;
+    let end = input.seek(SeekFrom::End(0))?;
+    input.seek(SeekFrom::Start(at))?;
+    let mut head = Vec::with_capacity(HEADER_LEN);
+    input.take(HEADER_LEN as u64).read_to_end(&mut head)?;
+    let body_len = end.saturating_sub(at + HEADER_LEN as u64);
+    let (width, height, channels, _) = parse_header::<S>(&head, body_len, limits)?;
+    let samples = StoredBytes::file(input, at + HEADER_LEN as u64, limits, S::NAME);
+    decode_bands::<S>(width, height, channels, samples, limits, sink)
+}
+
+/// Delivers the rows of a `width` × `height` image stored as `samples`, a band at a time. The
+/// image's bytes are the sink's to charge (a sink that converts rows as they come holds none of
+/// them); the header's dimensions were checked against the limits, and the samples' length
+/// against the payload's, so the image is at most twice the payload.
+fn decode_bands<S: Sample>(
+    width: u32,
+    height: u32,
+    channels: Channels,
+    mut samples: StoredBytes<'_>,
+    limits: &Limits,
+    sink: &mut dyn RowSink,
+) -> Result<()> {
     sink.start(&ImageInfo::new(width, height, channels, raw_color()).with_format(S::FORMAT))?;
     let row_len = width as usize * channels.count();
     let band = band_rows(row_len, 1 << 20);
     let mut scratch = Scratch::new(limits);
     let mut y = 0;
-    for rows in body.chunks(band as usize * row_len * S::BYTES) {
-        let n = (rows.len() / (row_len * S::BYTES)) as u32;
+    while y < height {
+        let n = band.min(height - y);
+        let rows = samples.band(y as usize * row_len * S::BYTES, n as usize * row_len * S::BYTES)?;
         fill_rows(sink, y, n, row_len, &mut scratch, |out| {
             out.iter_mut().zip(rows.chunks_exact(S::BYTES)).for_each(|(o, b)| *o = S::get(b));
             Ok(())
@@ -174,6 +217,15 @@ macro_rules! raw_codec {
                 sink: &mut dyn RowSink,
             ) -> Result<()> {
                 decode_rows::<$t>(data, &options.limits, sink)
+            }
+            /// A band of rows at a time, read from the source as it is converted.
+            fn decode_rows_from(
+                &self,
+                input: &mut dyn hdrcodec_core::ReadSeek,
+                options: &hdrcodec_core::DecodeOptions,
+                sink: &mut dyn RowSink,
+            ) -> Result<()> {
+                decode_rows_from::<$t>(input, &options.limits, sink)
             }
             fn encode_to(
                 &self,

@@ -26,14 +26,194 @@ pub struct DataRef<'a> {
 /// from 0).
 #[derive(Clone, Debug)]
 pub struct Reader<'a> {
-    head: Head,
+    layout: Layout,
+    data: Vec<DataRef<'a>>,
+}
+
+/// Where a DATA chunk is: its tile, the offset of the chunk (its length field) and the length
+/// of its payload (tile header included).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct DataLoc {
+    pub(crate) header: DataHeader,
+    pub(crate) offset: u64,
+    pub(crate) len: u32,
+}
+
+/// What the chunks of a file say, gathered as a reader walks them (in memory or from a
+/// stream) and checked once END is met ([`Layout::finish`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Layout {
+    pub(crate) head: Head,
     color: Option<ColorInfo>,
     hdr10: Option<Hdr10Metadata>,
     metadata: Vec<(String, String)>,
-    data: Vec<DataRef<'a>>,
-    /// (grid key, position in `data`), sorted by key: the random-access map.
+    /// Every DATA chunk, in file order.
+    pub(crate) data: Vec<DataLoc>,
+    /// (grid key, position in `data`), sorted by key once finished: the random-access map.
     grid: Vec<(u64, usize)>,
+    index: Option<(u64, Vec<IndexEntry>)>,
     has_index: bool,
+}
+
+/// What [`Layout::take`] found: more chunks to come, or END (with the index offset it holds).
+pub(crate) enum Step {
+    More,
+    End(Option<u64>),
+}
+
+impl Layout {
+    /// The layout of a file whose HEAD is `head`, before any other chunk.
+    pub(crate) fn new(head: Head) -> Self {
+        Layout {
+            head,
+            color: None,
+            hdr10: None,
+            metadata: Vec::new(),
+            data: Vec::new(),
+            grid: Vec::new(),
+            index: None,
+            has_index: false,
+        }
+    }
+
+    /// Takes the chunk after HEAD of type `ty` at `offset` with a payload of `len` bytes, of
+    /// which `payload` holds all, or of a DATA chunk at least its tile header (its CRC is the
+    /// caller's to check). `ctx` names the chunk in errors.
+    pub(crate) fn take(&mut self, ty: [u8; 4], payload: &[u8], offset: u64, len: u32, ctx: &str) -> Result<Step> {
+        let dup = || Error::invalid(format!("{ctx}: a second chunk of this type"));
+        let parsed = |r: Result<()>| r.map_err(|e| in_chunk(ctx, e));
+        match ty {
+            format::HEAD => return Err(dup()),
+            format::DATA => {
+                // Bounds what is kept per chunk by the HEAD's grid (and so by the file's size).
+                if self.data.len() as u64 >= self.head.total_tiles() {
+                    let tiles = self.head.total_tiles();
+                    return Err(Error::invalid(format!("{ctx}: more DATA chunks than the {tiles} tiles of the grid")));
+                }
+                let (header, _) = DataHeader::parse(payload).map_err(|e| in_chunk(ctx, e))?;
+                let key = header.grid_key(&self.head).map_err(|e| in_chunk(ctx, e))?;
+                self.grid.push((key, self.data.len()));
+                self.data.push(DataLoc { header, offset, len });
+            }
+            format::COLR if self.color.is_some() => return Err(dup()),
+            format::COLR => parsed(format::parse_color(payload).map(|c| self.color = Some(c)))?,
+            format::HDRM if self.hdr10.is_some() => return Err(dup()),
+            format::HDRM => parsed(format::parse_hdr10(payload).map(|h| self.hdr10 = Some(h)))?,
+            format::META if !self.metadata.is_empty() => return Err(dup()),
+            format::META => parsed(format::parse_meta(payload).map(|m| self.metadata = m))?,
+            format::INDX if self.index.is_some() => return Err(dup()),
+            format::INDX => parsed(format::parse_index(payload).map(|i| self.index = Some((offset, i))))?,
+            format::END => return end_index_offset_in(payload, ctx).map(Step::End),
+            t if t[0].is_ascii_lowercase() => {} // unknown ancillary chunk: skipped
+            _ => return Err(Error::unsupported(format!("{ctx}: unknown critical chunk type"))),
+        }
+        Ok(Step::More)
+    }
+
+    /// Once END is met (holding `end_index_offset`): every tile of every frame present exactly
+    /// once, and the index (if any) agreeing with the DATA chunks.
+    pub(crate) fn finish(&mut self, end_index_offset: Option<u64>) -> Result<()> {
+        self.check_tiles()?;
+        match (self.index.take(), end_index_offset) {
+            (Some((at, entries)), end) => {
+                if end.is_some_and(|e| e != at) {
+                    return Err(Error::invalid(format!(
+                        "END chunk: points at the index at offset {}, but INDX is at offset {at}",
+                        end.unwrap_or(0)
+                    )));
+                }
+                let ctx = format!("INDX chunk #0 at offset {at}");
+                if entries.len() != self.data.len() {
+                    return Err(Error::invalid(format!(
+                        "{ctx}: {} entries for {} DATA chunks",
+                        entries.len(),
+                        self.data.len()
+                    )));
+                }
+                for (i, (e, d)) in entries.iter().zip(&self.data).enumerate() {
+                    let actual = IndexEntry { offset: d.offset, frame: d.header.frame, x: d.header.x, y: d.header.y };
+                    if *e != actual {
+                        return Err(Error::invalid(format!(
+                            "{ctx}: entry {i} says {e:?}, the DATA chunk is {actual:?}"
+                        )));
+                    }
+                }
+                self.has_index = true;
+            }
+            (None, Some(e)) => {
+                return Err(Error::invalid(format!(
+                    "END chunk: points at an index at offset {e}, but there is no INDX"
+                )))
+            }
+            (None, None) => {}
+        }
+        Ok(())
+    }
+
+    /// Every tile of every frame present exactly once.
+    fn check_tiles(&mut self) -> Result<()> {
+        let h = self.head;
+        let expected = h.total_tiles();
+        self.grid.sort_unstable();
+        for w in self.grid.windows(2) {
+            if w[0].0 == w[1].0 {
+                let d = &self.data[w[1].1];
+                return Err(Error::invalid(format!(
+                    "DATA chunk at offset {}: tile ({}, {}) of frame {} appears twice",
+                    d.offset, d.header.x, d.header.y, d.header.frame
+                )));
+            }
+        }
+        if self.grid.len() as u64 != expected {
+            // Keys are unique and below `expected`, so the first gap names a missing tile.
+            let missing = self
+                .grid
+                .iter()
+                .enumerate()
+                .find(|&(i, &(k, _))| i as u64 != k)
+                .map_or(self.grid.len() as u64, |(i, _)| i as u64);
+            let per = h.tiles_per_frame();
+            let (frame, cell) = (missing / per, missing % per);
+            let cols = u64::from(h.tile_columns());
+            return Err(Error::invalid(format!(
+                "the file has {} of its {expected} tiles; tile ({}, {}) of frame {frame} is missing",
+                self.grid.len(),
+                cell % cols * u64::from(h.tile_width),
+                cell / cols * u64::from(h.tile_height)
+            )));
+        }
+        Ok(())
+    }
+
+    /// COLR (or the default: BT.709, 100 nits per unit) with HDRM merged in.
+    pub(crate) fn color_info(&self) -> ColorInfo {
+        ColorInfo { hdr10: self.hdr10, ..self.color.clone().unwrap_or_default() }
+    }
+
+    /// The META pairs.
+    pub(crate) fn metadata(&self) -> &[(String, String)] {
+        &self.metadata
+    }
+
+    /// Positions in `data` of the tiles of `frame` in grid order (row by row), once finished.
+    pub(crate) fn frame_positions(&self, frame: u32) -> impl Iterator<Item = usize> + '_ {
+        let per = self.head.tiles_per_frame() as usize;
+        let start = (frame as usize).saturating_mul(per).min(self.grid.len());
+        let end = start.saturating_add(per).min(self.grid.len());
+        self.grid[start..end].iter().map(|&(_, i)| i)
+    }
+
+    /// The position in `data` of the tile at grid position (`column`, `row`) of `frame`.
+    fn position(&self, frame: u32, column: u32, row: u32) -> Option<usize> {
+        let h = &self.head;
+        if frame >= h.frames || column >= h.tile_columns() || row >= h.tile_rows() {
+            return None;
+        }
+        let key =
+            u64::from(frame) * h.tiles_per_frame() + u64::from(row) * u64::from(h.tile_columns()) + u64::from(column);
+        let i = self.grid.binary_search_by_key(&key, |&(k, _)| k).ok()?;
+        Some(self.grid[i].1)
+    }
 }
 
 /// Prefixes an error's message with the chunk it concerns, keeping its kind.
@@ -49,13 +229,13 @@ pub(crate) fn in_chunk(ctx: &str, e: Error) -> Error {
 
 /// Chunks seen per type (a map: a file may hold many distinct ancillary types).
 #[derive(Default)]
-struct Counts {
+pub(crate) struct Counts {
     per_type: std::collections::HashMap<[u8; 4], usize>,
 }
 
 impl Counts {
     /// The 0-based number of this chunk among the chunks of its type.
-    fn next(&mut self, t: [u8; 4]) -> usize {
+    pub(crate) fn next(&mut self, t: [u8; 4]) -> usize {
         let n = self.per_type.entry(t).or_insert(0);
         *n += 1;
         *n - 1
@@ -85,21 +265,41 @@ fn next_chunk<'a>(file: &mut ByteReader<'a>, counts: &mut Counts, check_data_crc
     }
     let payload = file.bytes(len.into(), format_args!("{ctx} (its {len}-byte payload)"))?;
     let stored = file.u32(format_args!("{ctx} (its CRC)"))?;
+    let crc = (check_data_crc || ty != format::DATA).then(|| chunk_crc(ty, payload));
+    check_chunk(ty, crc, stored, &ctx)?;
+    Ok(Chunk { ty, payload, offset: at, ctx })
+}
+
+/// The CRC-32C of a chunk: over its type and payload.
+pub(crate) fn chunk_crc(ty: [u8; 4], payload: &[u8]) -> u32 {
     let mut crc = Crc32c::new();
     crc.update(&ty);
     crc.update(payload);
-    // Fuzzing builds skip the CRC so that mutations reach the parsers behind it.
-    if (check_data_crc || ty != format::DATA) && crc.finish() != stored && !cfg!(fuzzing) {
-        return Err(Error::invalid(format!("{ctx}: CRC mismatch")));
+    crc.finish()
+}
+
+/// An error unless a chunk's CRC is the `stored` one. Fuzzing builds skip the CRC so that
+/// mutations reach the parsers behind it.
+pub(crate) fn check_crc(crc: u32, stored: u32) -> Result<()> {
+    if crc != stored && !cfg!(fuzzing) {
+        return Err(Error::invalid("CRC mismatch"));
+    }
+    Ok(())
+}
+
+/// Checks a chunk's `crc` (if computed) against the `stored` one and its type's letters.
+pub(crate) fn check_chunk(ty: [u8; 4], crc: Option<u32>, stored: u32, ctx: &str) -> Result<()> {
+    if let Some(crc) = crc {
+        check_crc(crc, stored).map_err(|e| in_chunk(ctx, e))?;
     }
     if !ty.iter().all(|b| b.is_ascii_alphabetic() || *b == b' ') || !ty[0].is_ascii_alphabetic() {
         return Err(Error::invalid(format!("{ctx}: the chunk type is not ASCII letters")));
     }
-    Ok(Chunk { ty, payload, offset: at, ctx })
+    Ok(())
 }
 
 /// The index offset an END chunk's payload may hold.
-fn end_index_offset_in(payload: &[u8], ctx: &str) -> Result<Option<u64>> {
+pub(crate) fn end_index_offset_in(payload: &[u8], ctx: &str) -> Result<Option<u64>> {
     match payload.len() {
         0 => Ok(None),
         8 => ByteReader::be(payload).u64("the index offset").map(Some),
@@ -108,7 +308,7 @@ fn end_index_offset_in(payload: &[u8], ctx: &str) -> Result<Option<u64>> {
 }
 
 /// Parses the first chunk of a file, which must be HEAD.
-fn first_head(ty: [u8; 4], payload: &[u8], ctx: &str) -> Result<Head> {
+pub(crate) fn first_head(ty: [u8; 4], payload: &[u8], ctx: &str) -> Result<Head> {
     if ty != format::HEAD {
         return Err(Error::invalid(format!("{ctx}: the first chunk must be HEAD")));
     }
@@ -175,166 +375,56 @@ impl<'a> Reader<'a> {
     fn chunks(data: &'a [u8], limits: &Limits) -> Result<Self> {
         let mut file = ByteReader::be(data).at(SIGNATURE.len() as u64);
         let mut counts = Counts::default();
-        let mut head: Option<Head> = None;
-        let mut r = Reader {
-            head: Head::new([0; 4], 1, 1, hdrcodec_core::Channels::Rgb),
-            color: None,
-            hdr10: None,
-            metadata: Vec::new(),
-            data: Vec::new(),
-            grid: Vec::new(),
-            has_index: false,
-        };
-        let mut index: Option<(u64, Vec<IndexEntry>)> = None;
+        let Chunk { ty, payload, ctx, .. } = next_chunk(&mut file, &mut counts, true)?;
+        let head = first_head(ty, payload, &ctx)?;
+        // The whole image must fit the limits before anything of its size is allocated.
+        format::check_head(&head, limits, file.remaining()).map_err(|e| in_chunk(&ctx, e))?;
+        let mut layout = Layout::new(head);
+        let mut refs = Vec::new();
         let end_index_offset = loop {
-            let Chunk { ty, payload, offset: chunk_offset, ctx } = next_chunk(&mut file, &mut counts, true)?;
-            let Some(h) = head else {
-                let h = first_head(ty, payload, &ctx)?;
-                // The whole image must fit the limits before anything of its size is allocated.
-                format::check_head(&h, limits, file.remaining()).map_err(|e| in_chunk(&ctx, e))?;
-                head = Some(h);
-                r.head = h;
-                continue;
-            };
-            let dup = |ctx: &str| Error::invalid(format!("{ctx}: a second chunk of this type"));
-            match ty {
-                format::HEAD => return Err(dup(&ctx)),
-                format::DATA => {
-                    let (header, p) = DataHeader::parse(payload).map_err(|e| in_chunk(&ctx, e))?;
-                    let key = header.grid_key(&h).map_err(|e| in_chunk(&ctx, e))?;
-                    r.grid.push((key, r.data.len()));
-                    r.data.push(DataRef { header, offset: chunk_offset, payload: p });
+            let Chunk { ty, payload, offset, ctx } = next_chunk(&mut file, &mut counts, true)?;
+            let len = payload.len() as u32;
+            match layout.take(ty, payload, offset, len, &ctx)? {
+                Step::More if ty == format::DATA => {
+                    let header = layout.data[layout.data.len() - 1].header;
+                    refs.push(DataRef { header, offset, payload: &payload[format::DATA_HEADER_LEN..] });
                 }
-                format::COLR => {
-                    if r.color.is_some() {
-                        return Err(dup(&ctx));
-                    }
-                    r.color = Some(format::parse_color(payload).map_err(|e| in_chunk(&ctx, e))?);
-                }
-                format::HDRM => {
-                    if r.hdr10.is_some() {
-                        return Err(dup(&ctx));
-                    }
-                    r.hdr10 = Some(format::parse_hdr10(payload).map_err(|e| in_chunk(&ctx, e))?);
-                }
-                format::META => {
-                    if !r.metadata.is_empty() {
-                        return Err(dup(&ctx));
-                    }
-                    r.metadata = format::parse_meta(payload).map_err(|e| in_chunk(&ctx, e))?;
-                }
-                format::INDX => {
-                    if index.is_some() {
-                        return Err(dup(&ctx));
-                    }
-                    index = Some((chunk_offset, format::parse_index(payload).map_err(|e| in_chunk(&ctx, e))?));
-                }
-                format::END => {
-                    let end_index_offset = end_index_offset_in(payload, &ctx)?;
+                Step::More => {}
+                Step::End(end_index_offset) => {
                     if file.remaining() != 0 {
                         return Err(Error::invalid(format!("{ctx}: {} bytes follow the END chunk", file.remaining())));
                     }
                     break end_index_offset;
                 }
-                t if t[0].is_ascii_lowercase() => {} // unknown ancillary chunk: skipped
-                _ => return Err(Error::unsupported(format!("{ctx}: unknown critical chunk type"))),
             }
         };
-        r.check_tiles()?;
-        match (index, end_index_offset) {
-            (Some((at, entries)), end) => {
-                if end.is_some_and(|e| e != at) {
-                    return Err(Error::invalid(format!(
-                        "END chunk: points at the index at offset {}, but INDX is at offset {at}",
-                        end.unwrap_or(0)
-                    )));
-                }
-                let ctx = format!("INDX chunk #0 at offset {at}");
-                if entries.len() != r.data.len() {
-                    return Err(Error::invalid(format!(
-                        "{ctx}: {} entries for {} DATA chunks",
-                        entries.len(),
-                        r.data.len()
-                    )));
-                }
-                for (i, (e, d)) in entries.iter().zip(&r.data).enumerate() {
-                    let actual = IndexEntry { offset: d.offset, frame: d.header.frame, x: d.header.x, y: d.header.y };
-                    if *e != actual {
-                        return Err(Error::invalid(format!(
-                            "{ctx}: entry {i} says {e:?}, the DATA chunk is {actual:?}"
-                        )));
-                    }
-                }
-                r.has_index = true;
-            }
-            (None, Some(e)) => {
-                return Err(Error::invalid(format!(
-                    "END chunk: points at an index at offset {e}, but there is no INDX"
-                )))
-            }
-            (None, None) => {}
-        }
-        Ok(r)
-    }
-
-    /// Every tile of every frame present exactly once.
-    fn check_tiles(&mut self) -> Result<()> {
-        let h = self.head;
-        let expected = h.total_tiles();
-        self.grid.sort_unstable();
-        for w in self.grid.windows(2) {
-            if w[0].0 == w[1].0 {
-                let d = &self.data[w[1].1];
-                return Err(Error::invalid(format!(
-                    "DATA chunk at offset {}: tile ({}, {}) of frame {} appears twice",
-                    d.offset, d.header.x, d.header.y, d.header.frame
-                )));
-            }
-        }
-        if self.grid.len() as u64 != expected {
-            // Keys are unique and below `expected`, so the first gap names a missing tile.
-            let missing = self
-                .grid
-                .iter()
-                .enumerate()
-                .find(|&(i, &(k, _))| i as u64 != k)
-                .map_or(self.grid.len() as u64, |(i, _)| i as u64);
-            let per = h.tiles_per_frame();
-            let (frame, cell) = (missing / per, missing % per);
-            let cols = u64::from(h.tile_columns());
-            return Err(Error::invalid(format!(
-                "the file has {} of its {expected} tiles; tile ({}, {}) of frame {frame} is missing",
-                self.grid.len(),
-                cell % cols * u64::from(h.tile_width),
-                cell / cols * u64::from(h.tile_height)
-            )));
-        }
-        Ok(())
+        layout.finish(end_index_offset)?;
+        Ok(Reader { layout, data: refs })
     }
 
     /// The HEAD chunk.
     pub fn head(&self) -> &Head {
-        &self.head
+        &self.layout.head
     }
 
     /// The COLR chunk, if present (its `hdr10` is always `None`: see [`Reader::hdr10`]).
     pub fn color(&self) -> Option<&ColorInfo> {
-        self.color.as_ref()
+        self.layout.color.as_ref()
     }
 
     /// The HDRM chunk, if present.
     pub fn hdr10(&self) -> Option<&Hdr10Metadata> {
-        self.hdr10.as_ref()
+        self.layout.hdr10.as_ref()
     }
 
     /// COLR (or the default: BT.709, 100 nits per unit) with HDRM merged in.
     pub fn color_info(&self) -> ColorInfo {
-        ColorInfo { hdr10: self.hdr10, ..self.color.clone().unwrap_or_default() }
+        self.layout.color_info()
     }
 
     /// The META pairs (empty without a META chunk).
     pub fn metadata(&self) -> &[(String, String)] {
-        &self.metadata
+        self.layout.metadata()
     }
 
     /// Every DATA chunk, in file order.
@@ -344,26 +434,16 @@ impl<'a> Reader<'a> {
 
     /// True if the file had an INDX chunk (it then agreed with the DATA chunks).
     pub fn has_index(&self) -> bool {
-        self.has_index
+        self.layout.has_index
     }
 
     /// Random access: the tile at grid position (`column`, `row`) of `frame`.
     pub fn tile(&self, frame: u32, column: u32, row: u32) -> Option<&DataRef<'a>> {
-        let h = &self.head;
-        if frame >= h.frames || column >= h.tile_columns() || row >= h.tile_rows() {
-            return None;
-        }
-        let key =
-            u64::from(frame) * h.tiles_per_frame() + u64::from(row) * u64::from(h.tile_columns()) + u64::from(column);
-        let i = self.grid.binary_search_by_key(&key, |&(k, _)| k).ok()?;
-        Some(&self.data[self.grid[i].1])
+        self.layout.position(frame, column, row).map(|i| &self.data[i])
     }
 
     /// The tiles of `frame` in grid order (row by row).
     pub fn frame_tiles(&self, frame: u32) -> impl Iterator<Item = &DataRef<'a>> + '_ {
-        let per = self.head.tiles_per_frame() as usize;
-        let start = (frame as usize).saturating_mul(per).min(self.grid.len());
-        let end = start.saturating_add(per).min(self.grid.len());
-        self.grid[start..end].iter().map(|&(_, i)| &self.data[i])
+        self.layout.frame_positions(frame).map(|i| &self.data[i])
     }
 }

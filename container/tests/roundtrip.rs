@@ -1,5 +1,8 @@
 //! Round trips through the `.hdrc` container, the random-access index and the format rules.
 
+mod common;
+
+use common::pattern;
 use hdrcodec_container::{
     crc32c, decode_frames, decode_image, encode_frames, encode_image, HdrcCodec, Head, RawF16Codec, RawF32Codec,
     Reader, Writer, SIGNATURE,
@@ -15,18 +18,6 @@ fn raw(id: [u8; 4]) -> Option<&'static dyn ImageCodec> {
         b"RF16" => Some(&RawF16Codec),
         _ => None,
     }
-}
-
-/// A deterministic HDR test pattern spanning many decades, with every sample distinct.
-fn pattern(w: u32, h: u32, ch: Channels, seed: u32) -> HdrImage {
-    let n = (w * h) as usize * ch.count();
-    let samples = (0..n as u32)
-        .map(|i| {
-            let r = (i ^ seed).wrapping_mul(2_654_435_761) >> 8;
-            (r % 10_000) as f32 * 10f32.powi((r % 9) as i32 - 4) / 7.0
-        })
-        .collect();
-    HdrImage::new(w, h, ch, samples, ColorInfo::default()).unwrap()
 }
 
 fn bits(img: &HdrImage) -> Vec<u32> {

@@ -291,6 +291,69 @@ pub fn read_rest(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ChargedByt
     Ok(ChargedBytes { bytes, _charge: charge })
 }
 
+/// The stored samples of an image whose rows lie uncompressed at a known place (PFM, the raw
+/// payloads of `.hdrc`): the file's bytes in memory, or a file read a band at a time into one
+/// buffer charged to the limits while it is held, so that a decoder from a file never holds
+/// the file whole.
+pub struct StoredBytes<'a> {
+    source: Stored<'a>,
+    /// What the bytes are, for messages ("the PFM pixels").
+    what: &'static str,
+}
+
+enum Stored<'a> {
+    Memory(&'a [u8]),
+    File {
+        input: &'a mut dyn ReadSeek,
+        /// The position of the first stored byte in `input`.
+        start: u64,
+        buf: Vec<u8>,
+        charge: Option<crate::Allocation>,
+        limits: &'a Limits,
+    },
+}
+
+impl<'a> StoredBytes<'a> {
+    /// Bytes held in memory.
+    pub fn memory(bytes: &'a [u8], what: &'static str) -> Self {
+        StoredBytes { source: Stored::Memory(bytes), what }
+    }
+
+    /// Bytes of `input` from position `start`, read as they are asked for; the buffer they are
+    /// read into is charged to `limits`.
+    pub fn file(input: &'a mut dyn ReadSeek, start: u64, limits: &'a Limits, what: &'static str) -> Self {
+        StoredBytes { source: Stored::File { input, start, buf: Vec::new(), charge: None, limits }, what }
+    }
+
+    /// The `len` bytes from `offset` (counted from the first stored byte), which the caller
+    /// has checked lie inside the stored bytes: a file that ends before them is
+    /// [`Error::Truncated`].
+    pub fn band(&mut self, offset: usize, len: usize) -> Result<&[u8]> {
+        let what = self.what;
+        match &mut self.source {
+            Stored::Memory(bytes) => bytes.get(offset..offset.saturating_add(len)).ok_or_else(|| {
+                Error::truncated(format!("{what} (bytes {offset}..{} of {})", offset.saturating_add(len), bytes.len()))
+            }),
+            Stored::File { input, start, buf, charge, limits } => {
+                if len > buf.len() {
+                    *charge = None;
+                    *charge = Some(limits.charge(len as u64, "a band of rows read from the file")?);
+                    buf.resize(len, 0);
+                }
+                input.seek(std::io::SeekFrom::Start(*start + offset as u64))?;
+                input.read_exact(&mut buf[..len]).map_err(|e| match e.kind() {
+                    std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
+                        "{what} (the file ended inside bytes {offset}..{} of them)",
+                        offset + len
+                    )),
+                    _ => Error::Io(e),
+                })?;
+                Ok(&buf[..len])
+            }
+        }
+    }
+}
+
 /// Bytes read by [`read_rest`], charged to the limits they were read under until dropped.
 #[derive(Debug)]
 pub struct ChargedBytes {

@@ -36,9 +36,9 @@ use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::{band_rows, fill_rows, RowSink, Scratch};
 use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
-    ReadSeek, Result,
+    ReadSeek, Result, StoredBytes,
 };
-use std::io::{Read, Seek, SeekFrom};
+use std::io::{Read, SeekFrom};
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
 #[derive(Clone, Copy, Debug, Default)]
@@ -159,45 +159,8 @@ pub fn decode_pfm(data: &[u8], limits: &Limits) -> Result<HdrImage> {
     hdrcodec_core::decode_image(&PfmCodec, data, &DecodeOptions::new(limits.clone()))
 }
 
-/// Where the pixel bytes come from: the file's bytes in memory, or a file read a band of rows
-/// at a time into a buffer charged to the limits.
-enum Pixels<'a> {
-    Memory(&'a [u8]),
-    File {
-        input: &'a mut dyn ReadSeek,
-        /// The position of the first pixel byte in `input`.
-        start: u64,
-        buf: Vec<u8>,
-        charge: Option<hdrcodec_core::Allocation>,
-        limits: &'a Limits,
-    },
-}
-
-impl Pixels<'_> {
-    /// The `len` pixel bytes from `offset` (counted from the first pixel byte), which the
-    /// caller has checked lie inside the declared pixels.
-    fn band(&mut self, offset: usize, len: usize) -> Result<&[u8]> {
-        match self {
-            Pixels::Memory(pixels) => Ok(&pixels[offset..offset + len]),
-            Pixels::File { input, start, buf, charge, limits } => {
-                if len > buf.len() {
-                    *charge = None;
-                    *charge = Some(limits.charge(len as u64, "a band of PFM rows read from the file")?);
-                    buf.resize(len, 0);
-                }
-                input.seek(SeekFrom::Start(*start + offset as u64))?;
-                input.read_exact(&mut buf[..len]).map_err(|e| match e.kind() {
-                    std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
-                        "the PFM pixels (the file ended inside bytes {offset}..{} of its pixels)",
-                        offset + len
-                    )),
-                    _ => Error::Io(e),
-                })?;
-                Ok(&buf[..len])
-            }
-        }
-    }
-}
+/// What the pixel bytes are called in messages.
+const PIXELS: &str = "the PFM pixels";
 
 /// Decodes a PFM file into `sink`, one band of rows at a time (PFM stores rows bottom up, so
 /// the bands arrive from the bottom of the image). Holds nothing of the image's size when the
@@ -207,7 +170,7 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
     let mut r = ByteReader::le(data);
     let h = parse_header(&mut r)?;
     let pixels = pixel_bytes(&h, &mut r)?;
-    decode_bands(&h, &info, limits, sink, Pixels::Memory(pixels))
+    decode_bands(&h, &info, limits, sink, StoredBytes::memory(pixels, PIXELS))
 }
 
 /// [`decode_pfm_rows`] from a file (any source that reads and seeks, from its current
@@ -238,7 +201,7 @@ pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mu
         )));
     }
     let info = header_info(&h);
-    let pixels = Pixels::File { input, start, buf: Vec::new(), charge: None, limits };
+    let pixels = StoredBytes::file(input, start, limits, PIXELS);
     decode_bands(&h, &info, limits, sink, pixels)
 }
 
@@ -249,7 +212,7 @@ fn decode_bands(
     info: &ImageInfo,
     limits: &Limits,
     sink: &mut dyn RowSink,
-    mut pixels: Pixels<'_>,
+    mut pixels: StoredBytes<'_>,
 ) -> Result<()> {
     let w = h.width as usize;
     let per_pixel = if h.grey { 1 } else { 3 };
