@@ -454,16 +454,13 @@ fn index_symbol(ctx: &mut AdaptiveVlc, r: &mut BitReader, table: &[u32; 256], ma
 /// (8 + 1 + 8 + 8).
 const SYMBOL_BITS: u32 = 25;
 
-/// [`FIRST_INDEX_LUT`] and [`INDEX_LUT`] for MB_HP, whose contexts keep their tables for a
-/// whole macroblock and whose discriminants are summed locally ([`HpContexts`]): `deltas << 8
-/// | length << 4 | symbol`, where `deltas` is the two discriminant deltas packed into one
-/// 64-bit number, `delta + delta2 × 2^32`, so that one addition counts both.
+/// [`FIRST_INDEX_LUT`] for MB_HP, whose contexts keep their tables for a whole macroblock and
+/// whose discriminants are summed locally ([`HpContexts`]): `deltas << 8 | length << 4 |
+/// symbol`, where `deltas` is the two discriminant deltas packed into one 64-bit number,
+/// `delta + delta2 × 2^32`, so that one addition counts both.
 static HP_FIRST_LUT: [[u64; 256]; 5] = packed_luts(&FIRST_INDEX_LUT);
 
-/// See [`HP_FIRST_LUT`].
-static HP_INDEX_LUT: [[u64; 256]; 4] = packed_luts(&INDEX_LUT);
-
-/// [`HP_FIRST_LUT`] from [`FIRST_INDEX_LUT`] (or [`HP_INDEX_LUT`] from [`INDEX_LUT`]).
+/// [`HP_FIRST_LUT`] from [`FIRST_INDEX_LUT`].
 const fn packed_luts<const T: usize>(luts: &[[u32; 256]; T]) -> [[u64; 256]; T] {
     let mut t = [[0u64; 256]; T];
     let mut table = 0;
@@ -480,14 +477,118 @@ const fn packed_luts<const T: usize>(luts: &[[u32; 256]; T]) -> [[u64; 256]; T] 
     t
 }
 
-/// The two discriminant sums packed in a sum of [`HP_FIRST_LUT`] or [`HP_INDEX_LUT`] entries
-/// with their low bytes removed. Exact while each sum stays below 2^23 in magnitude: one
-/// macroblock has at most 16 × 16 × 15 symbols, each changing a sum by at most 2.
+/// The two discriminant sums packed in a sum of [`HP_FIRST_LUT`] entries with their low bytes
+/// removed. Exact while each sum stays below 2^23 in magnitude: one macroblock has at most
+/// 16 × 16 first symbols, each changing a sum by at most 2.
 #[inline]
 fn unpack_deltas(sum: i64) -> (i32, i32) {
     let packed = sum >> 8;
     let low = packed as i32;
     (low, ((packed - i64::from(low)) >> 32) as i32)
+}
+
+/// INDEX of MB_HP after a block's first symbol (T.832 Table 60), the sign bit after it and,
+/// when they fit in the same 8 bits, ABSLEVEL_INDEX and its raw bits: one lookup of the next
+/// 8 bits for a whole symbol but its run (a symbol of level 1 is INDEX and the sign alone).
+/// One table for each INDEX table, each pair of ABSLEVEL_INDEX tables (contexts 0 and 1) and
+/// the INDEX context (which, with the symbol, chooses the level's context: `context &
+/// (index >> 1)`).
+#[derive(Clone, Copy)]
+struct HpIndexTable {
+    /// `value << 16 | pending << 8 | symbol << 4 | length`: `length` the bits the entry
+    /// consumes (INDEX, sign and level), `value` the signed level, or only its sign (±1)
+    /// when the level is `pending` ([`LEVEL_PENDING`]: ABSLEVEL_INDEX follows, not within
+    /// the 8 bits, or escapes).
+    info: [u32; 256],
+    /// The discriminant deltas of the entry, as 16-bit fields of one number (see
+    /// [`unpack_fields`]): INDEX's two, then ABSLEVEL_INDEX's of context 0 and of context 1.
+    deltas: [u64; 256],
+}
+
+/// See [`HpIndexTable::info`].
+const LEVEL_PENDING: u32 = 1 << 8;
+
+/// Every [`HpIndexTable`], by INDEX context, INDEX table and the ABSLEVEL_INDEX tables of
+/// contexts 0 and 1 (the tables of context 0 do not depend on context 1's, and repeat).
+static HP_INDEX_TABLES: [[[[HpIndexTable; 2]; 2]; 4]; 2] = {
+    const EMPTY: HpIndexTable = HpIndexTable { info: [0; 256], deltas: [0; 256] };
+    let abs = [abs_level_lut(0), abs_level_lut(1)];
+    let mut t = [[[[EMPTY; 2]; 2]; 4]; 2];
+    let mut table = 0;
+    while table < 4 {
+        let index = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
+        let mut context = 0;
+        while context < 2 {
+            let mut a0 = 0;
+            while a0 < 2 {
+                let mut a1 = 0;
+                while a1 < 2 {
+                    t[context][table][a0][a1] = hp_index_table(&index, [&abs[a0], &abs[a1]], context as u32);
+                    a1 += 1;
+                }
+                a0 += 1;
+            }
+            context += 1;
+        }
+        table += 1;
+    }
+    t
+};
+
+/// One [`HpIndexTable`] from an [`INDEX_LUT`] table, the [`ABS_LEVEL_LUT`] tables of the two
+/// level contexts, and the INDEX context.
+const fn hp_index_table(index: &[u32; 256], abs: [&[u16; 256]; 2], context: u32) -> HpIndexTable {
+    let mut out = HpIndexTable { info: [0; 256], deltas: [0; 256] };
+    let mut w = 0;
+    while w < 256 {
+        let e = index[w];
+        let (symbol, len) = (e & 15, (e >> 4) & 15);
+        let mut fields = [(e >> 8) as u8 as i8 as i64, (e >> 16) as u8 as i8 as i64, 0, 0];
+        // INDEX is at most 5 bits long: its sign bit is always within the window.
+        let negative = (w << len) & 0x80 != 0;
+        let mut used = len + 1;
+        let (mut value, mut pending) = (1i32, 0u32);
+        if symbol & 1 != 0 {
+            let level_context = (context & (symbol >> 1)) as usize;
+            let a = abs[level_context][(w << used) & 0xFF];
+            let (a_symbol, a_len) = (((a >> 4) & 7) as usize, (a & 15) as u32);
+            if a_symbol < 6 && used + a_len <= 8 {
+                value = (a >> 8) as i32;
+                used += a_len;
+                fields[2 + level_context] = vlc::ABS_LEVEL_DELTA[a_symbol] as i64;
+            } else {
+                pending = LEVEL_PENDING;
+            }
+        }
+        if negative {
+            value = -value;
+        }
+        out.info[w] = ((value as u32) << 16) | pending | (symbol << 4) | used;
+        out.deltas[w] = pack_fields(fields);
+        w += 1;
+    }
+    out
+}
+
+/// Four signed numbers as 16-bit fields of one: sums of such numbers are the numbers of the
+/// sums, as long as each stays within ±2^15 ([`unpack_fields`]).
+const fn pack_fields(f: [i64; 4]) -> u64 {
+    (f[0] + (f[1] << 16) + (f[2] << 32) + (f[3] << 48)) as u64
+}
+
+/// The four sums in a (wrapping) sum of [`pack_fields`] numbers. Exact while each sum stays
+/// within ±2^15: one macroblock has at most 16 × 16 × 14 symbols after a first (16 channels),
+/// each changing a sum by at most 2.
+#[inline]
+fn unpack_fields(sum: u64) -> [i32; 4] {
+    let mut rest = sum as i64;
+    let mut out = [0; 4];
+    for f in &mut out {
+        let low = rest as i16;
+        *f = i32::from(low);
+        rest = (rest - i64::from(low)) >> 16;
+    }
+    out
 }
 
 /// The HP contexts of one MB_HP: the tables of every context (adaptation happens after the
@@ -496,60 +597,82 @@ fn unpack_deltas(sum: i64) -> (i32, i32) {
 struct HpContexts {
     /// FIRST_INDEX by luma (0) and chroma (1).
     first: [&'static [u64; 256]; 2],
-    /// INDEX by luma/chroma and context.
-    index: [[&'static [u64; 256]; 2]; 2],
+    /// INDEX, sign and level by luma/chroma and context.
+    index: [[&'static HpIndexTable; 2]; 2],
     /// ABSLEVEL_INDEX by context.
     abs: [&'static [u16; 256]; 2],
-    /// Packed sums of FIRST_INDEX luma and chroma (0, 1), INDEX (2 + 2 × chroma + context).
-    sums: [i64; 6],
-    /// Discriminant sums of ABSLEVEL_INDEX by context.
+    /// Packed sums of FIRST_INDEX luma and chroma.
+    first_sums: [i64; 2],
+    /// Packed sums of the [`HpIndexTable`]s, by 2 × chroma + context.
+    index_sums: [u64; 4],
+    /// Discriminant sums of ABSLEVEL_INDEX by context (levels outside [`HpIndexTable`]s).
     abs_sums: [i32; 2],
 }
-
-/// The contexts [`HpContexts`] stands for, in the order of its `sums`.
-const HP_INDEX_CONTEXTS: [V; 6] =
-    [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
 
 impl HpContexts {
     fn new(vlc: &[AdaptiveVlc; V_COUNT]) -> Self {
         let t = |v: V| usize::from(vlc[v as usize].table);
+        let (a0, a1) = (t(V::AbsLevelHp0) & 1, t(V::AbsLevelHp1) & 1);
+        let index = |v: V, context: usize| &HP_INDEX_TABLES[context][t(v)][a0][a1];
         HpContexts {
             first: [&HP_FIRST_LUT[t(V::FirstIndHpLum)], &HP_FIRST_LUT[t(V::FirstIndHpChr)]],
-            index: [
-                [&HP_INDEX_LUT[t(V::IndHpLum0)], &HP_INDEX_LUT[t(V::IndHpLum1)]],
-                [&HP_INDEX_LUT[t(V::IndHpChr0)], &HP_INDEX_LUT[t(V::IndHpChr1)]],
-            ],
-            abs: [&ABS_LEVEL_LUT[t(V::AbsLevelHp0) & 1], &ABS_LEVEL_LUT[t(V::AbsLevelHp1) & 1]],
-            sums: [0; 6],
+            index: [[index(V::IndHpLum0, 0), index(V::IndHpLum1, 1)], [index(V::IndHpChr0, 0), index(V::IndHpChr1, 1)]],
+            abs: [&ABS_LEVEL_LUT[a0], &ABS_LEVEL_LUT[a1]],
+            first_sums: [0; 2],
+            index_sums: [0; 4],
             abs_sums: [0; 2],
         }
     }
 
     /// Adds the sums to the contexts' discriminants.
-    fn finish(&self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
-        for (v, &sum) in HP_INDEX_CONTEXTS.iter().zip(&self.sums) {
+    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
+        for (v, sum) in [V::FirstIndHpLum, V::FirstIndHpChr].into_iter().zip(self.first_sums) {
             debug_assert!({
-                let ctx = &vlc[*v as usize];
-                let max = if matches!(v, V::FirstIndHpLum | V::FirstIndHpChr) { 4 } else { 3 };
-                (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), max)
+                let ctx = &vlc[v as usize];
+                (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), 4)
             });
             let (d, d2) = unpack_deltas(sum);
-            let ctx = &mut vlc[*v as usize];
+            let ctx = &mut vlc[v as usize];
             ctx.disc += d;
             ctx.disc2 += d2;
+        }
+        let contexts = [V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
+        for (v, sum) in contexts.into_iter().zip(self.index_sums) {
+            debug_assert!({
+                let ctx = &vlc[v as usize];
+                (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), 3)
+            });
+            let [d, d2, abs0, abs1] = unpack_fields(sum);
+            let ctx = &mut vlc[v as usize];
+            ctx.disc += d;
+            ctx.disc2 += d2;
+            vlc[V::AbsLevelHp0 as usize].disc += abs0;
+            vlc[V::AbsLevelHp1 as usize].disc += abs1;
         }
         vlc[V::AbsLevelHp0 as usize].disc += self.abs_sums[0];
         vlc[V::AbsLevelHp1 as usize].disc += self.abs_sums[1];
     }
 
-    /// One symbol of `table`, its deltas added to `sums[slot]`, with at least 8 bits buffered.
+    /// One FIRST_INDEX symbol of `table`, its deltas added to `sums[slot]`, with at least 8
+    /// bits buffered.
     #[inline(always)]
-    fn index(sums: &mut [i64; 6], slot: usize, r: &mut BitReader, table: &[u64; 256]) -> u32 {
+    fn first(sums: &mut [i64; 2], slot: usize, r: &mut BitReader, table: &[u64; 256]) -> u32 {
         let e = table[r.peek_buffered(8) as usize];
         let info = e & 0xFF;
         r.skip((info >> 4) as u32);
         sums[slot] = sums[slot].wrapping_add((e - info) as i64);
         (info & 15) as u32
+    }
+
+    /// One entry of `table` (INDEX, sign and perhaps level), its deltas added to `sum`, with
+    /// at least 8 bits buffered: [`HpIndexTable::info`].
+    #[inline(always)]
+    fn index(sum: &mut u64, r: &mut BitReader, table: &HpIndexTable) -> u32 {
+        let w = r.peek_buffered(8) as usize;
+        let info = table.info[w];
+        r.skip(info & 15);
+        *sum = sum.wrapping_add(table.deltas[w]);
+        info
     }
 
     /// ABSLEVEL_INDEX of `context` and the level it codes, with at least 8 bits buffered (as
@@ -624,7 +747,7 @@ fn hp_block(
     model_bits: u32,
 ) -> Result<i32> {
     r.ensure(SYMBOL_BITS);
-    let index = HpContexts::index(&mut t.sums, chroma, r, t.first[chroma]);
+    let index = HpContexts::first(&mut t.first_sums, chroma, r, t.first[chroma]);
     let mut srn = index >> 2;
     let mut context = ((index & 1) & srn) as usize;
     let sign = r.peek_buffered(1);
@@ -659,18 +782,30 @@ fn hp_block(
         if location > 16 {
             return Err(corrupt("a coefficient past the end of a block"));
         }
-        let index = if location >= 15 {
-            end_index(r, location)
+        let value = if location >= 15 {
+            let index = end_index(r, location);
+            srn = index >> 1;
+            context &= srn as usize;
+            let sign = r.peek_buffered(1);
+            r.skip(1);
+            let level = if index & 1 != 0 { t.abs_level(r, context) } else { 1 };
+            let s = sign.wrapping_neg() as i32;
+            (level as i32 ^ s).wrapping_sub(s)
         } else {
-            HpContexts::index(&mut t.sums, 2 + 2 * chroma + context, r, t.index[chroma][context])
+            let slot = 2 * chroma + context;
+            let info = HpContexts::index(&mut t.index_sums[slot], r, t.index[chroma][context]);
+            srn = (info >> 5) & 3;
+            context &= srn as usize;
+            // The signed level, or its sign alone when the level follows.
+            let value = info as i32 >> 16;
+            if info & LEVEL_PENDING != 0 {
+                let s = value >> 31;
+                (t.abs_level(r, context) as i32 ^ s).wrapping_sub(s)
+            } else {
+                value
+            }
         };
-        srn = index >> 1;
-        context &= srn as usize;
-        let sign = r.peek_buffered(1);
-        r.skip(1);
-        let level = if index & 1 != 0 { t.abs_level(r, context) } else { 1 };
-        let s = sign.wrapping_neg() as i32;
-        block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
+        block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
         n += 1;
     }
     Ok(n)
@@ -2347,7 +2482,7 @@ mod tests {
     }
 
     #[test]
-    fn packed_index_tables_carry_the_symbols_and_both_deltas() {
+    fn packed_first_index_tables_carry_the_symbols_and_both_deltas() {
         fn check<const T: usize>(plain: &[[u32; 256]; T], packed: &[[u64; 256]; T]) {
             for (p, q) in plain.iter().zip(packed) {
                 for (&e, &f) in p.iter().zip(q) {
@@ -2358,7 +2493,6 @@ mod tests {
             }
         }
         check(&FIRST_INDEX_LUT, &HP_FIRST_LUT);
-        check(&INDEX_LUT, &HP_INDEX_LUT);
         // Sums of many entries (more than a macroblock holds) unpack to the two sums.
         let mut rng = Rng(7);
         for table in 0..5 {
@@ -2371,6 +2505,85 @@ mod tests {
                 want.1 += i32::from((e >> 16) as u8 as i8);
                 assert_eq!(unpack_deltas(sum), want);
             }
+        }
+    }
+
+    /// ABSLEVEL_INDEX of `table` and the level it codes, read symbol by symbol
+    /// (`r_DECODE_ABS_LEVEL`): the index and the level.
+    fn read_level(r: &mut BitReader, table: usize) -> (usize, u32) {
+        let index = vlc::decode(r, &vlc::lut(&vlc::ABS_LEVEL_CODES[table]));
+        if index < 6 {
+            return (index, ABS_REMAP[index] + r.read(ABS_FIXED[index]));
+        }
+        let mut fixed = 4 + r.read(4);
+        if fixed == 19 {
+            fixed += r.read(2);
+            if fixed == 22 {
+                fixed += r.read(3);
+            }
+        }
+        (index, 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed)))
+    }
+
+    #[test]
+    fn hp_index_tables_decode_as_index_sign_and_level_do() {
+        for context in 0..2usize {
+            for table in 0..4usize {
+                let (d1, d2) = index_deltas(table, 3);
+                for a in [[0usize, 0], [0, 1], [1, 0], [1, 1]] {
+                    let entries = &HP_INDEX_TABLES[context][table][a[0]][a[1]];
+                    for w in 0..1u32 << 16 {
+                        let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
+                        // Symbol by symbol: INDEX, the sign bit, ABSLEVEL_INDEX and its bits.
+                        let mut r = BitReader::new(&bytes);
+                        let symbol = vlc::decode(&mut r, &vlc::lut(&vlc::INDEX_CODES[table]));
+                        let negative = r.bit();
+                        let level_context = context & (symbol >> 1);
+                        let mut want_fields = [vlc::INDEX_DELTA[d1][symbol], vlc::INDEX_DELTA[d2][symbol], 0, 0];
+                        let mut level = 1;
+                        if symbol & 1 != 0 {
+                            let index;
+                            (index, level) = read_level(&mut r, a[level_context]);
+                            want_fields[2 + level_context] = vlc::ABS_LEVEL_DELTA[index];
+                        }
+                        let want = if negative { (level as i32).wrapping_neg() } else { level as i32 };
+                        // One entry, and the level after it when it is pending.
+                        let mut t = BitReader::new(&bytes);
+                        t.fill();
+                        let mut sum = 0u64;
+                        let info = HpContexts::index(&mut sum, &mut t, entries);
+                        assert_eq!((info >> 4) & 15, symbol as u32, "{w:016b}");
+                        let mut value = info as i32 >> 16;
+                        let mut fields = unpack_fields(sum);
+                        if info & LEVEL_PENDING != 0 {
+                            assert_eq!(value.abs(), 1);
+                            let mut disc = 0;
+                            let level = abs_level_in(&ABS_LEVEL_LUT[a[level_context]], &mut disc, &mut t) as i32;
+                            fields[2 + level_context] += disc;
+                            value *= level;
+                        }
+                        let at = (context, table, a, w);
+                        assert_eq!(value, want, "{at:?}");
+                        assert_eq!(t.bit_pos(), r.bit_pos(), "{at:?}");
+                        assert_eq!(fields, want_fields, "{at:?}");
+                    }
+                }
+            }
+        }
+        // Sums of many entries (more than a macroblock holds) unpack to the four sums.
+        let mut rng = Rng(11);
+        let entries = &HP_INDEX_TABLES[1][3][0][1];
+        let (mut sum, mut want) = (0u64, [0i32; 4]);
+        for _ in 0..(16 * 16 * 14 * 4) {
+            let w = rng.below(256) as usize;
+            sum = sum.wrapping_add(entries.deltas[w]);
+            let e = INDEX_LUT[3][w];
+            let one = unpack_fields(entries.deltas[w]);
+            assert_eq!(one[..2], [i32::from((e >> 8) as u8 as i8), i32::from((e >> 16) as u8 as i8)]);
+            for (w, d) in want.iter_mut().zip(one) {
+                *w += d;
+            }
+            assert_eq!(unpack_fields(sum), want);
         }
     }
 
@@ -2407,19 +2620,7 @@ mod tests {
             for w in 0..1u32 << 16 {
                 let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
                 let mut r = BitReader::new(&bytes);
-                let index = vlc::decode(&mut r, &vlc::lut(&vlc::ABS_LEVEL_CODES[usize::from(table)]));
-                let want = if index < 6 {
-                    ABS_REMAP[index] + r.read(ABS_FIXED[index])
-                } else {
-                    let mut fixed = 4 + r.read(4);
-                    if fixed == 19 {
-                        fixed += r.read(2);
-                        if fixed == 22 {
-                            fixed += r.read(3);
-                        }
-                    }
-                    2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed))
-                };
+                let (index, want) = read_level(&mut r, usize::from(table));
                 let mut ctx = AdaptiveVlc { table, ..AdaptiveVlc::ONE };
                 let mut t = BitReader::new(&bytes);
                 t.fill();
