@@ -389,6 +389,19 @@ static RUN_LUT: [[u8; 256]; 15] = {
     t
 };
 
+/// [`RUN_LUT`] by the location before the run in an HP block after its first symbol (2..=16,
+/// the 1-based position after the last coefficient; the largest run is 15 − location, none
+/// from 15 on), padded to 32 so that a mask, not a comparison, keeps the index in bounds.
+static RUN_AT: [[u8; 256]; 32] = {
+    let mut t = [[0u8; 256]; 32];
+    let mut location = 1;
+    while location < 15 {
+        t[location] = RUN_LUT[15 - location];
+        location += 1;
+    }
+    t
+};
+
 /// FIRST_INDEX (5 tables) and INDEX (4 tables) with the discriminant deltas of each symbol:
 /// `symbol | length << 4 | delta << 8 | delta2 << 16` (deltas as `i8` bytes), by table. The
 /// delta tables are the ones the table selects (`AdaptiveVlc::adapt_two` sets them from the
@@ -767,14 +780,14 @@ fn hp_block(
     block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
     let mut n = 1;
     while srn != 0 {
-        if n >= 16 {
-            return Err(corrupt("more than 16 coefficients in a block"));
-        }
+        // Every symbol moves `location` on and it stays at most 16 (checked below): at most
+        // 15 symbols.
+        debug_assert!(n < 16);
         r.ensure(SYMBOL_BITS);
         if srn & 1 == 0 {
-            // At location 16 no position remains: the table of no run reads nothing, and
-            // the check below fails.
-            let e = RUN_LUT[(15 - location.min(15)) as usize][r.peek_buffered(8) as usize];
+            // From location 15 on the largest run is 0 and the table reads nothing (at 16 no
+            // position remains, and the check below fails).
+            let e = RUN_AT[location as usize & 31][r.peek_buffered(8) as usize];
             r.skip(u32::from(e & 15));
             location += u32::from(e >> 4);
         }
@@ -1314,7 +1327,7 @@ fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> us
 /// of pairs.
 #[inline(always)]
 fn scan_pairs(block: &[i32; 16], scan: &mut vlc::Scan, model_bits: u32, out: &mut [RunLevel; 16]) -> Result<usize> {
-    let order = scan.order;
+    let order = scan.order();
     let (mut mask, mut max) = (0u32, 0u32);
     for (p, &k) in order.iter().enumerate() {
         let level = block[usize::from(k) & 15].unsigned_abs() >> model_bits;
@@ -1563,7 +1576,7 @@ impl PlaneEncoder {
                 // The levels in the scan order at the start, a mask of the non-zero ones, then
                 // the hits and pairs one set bit at a time (as `scan_pairs` for HP: no branch
                 // per position on whether its level is zero).
-                let order = self.st.lp_scan.order;
+                let order = self.st.lp_scan.order();
                 let mut mask = 0u32;
                 for (p, &k) in order.iter().enumerate() {
                     levels[p] = signed_level(c[ndx * MB_COEFFS + usize::from(k)], model_bits)?;
@@ -2614,6 +2627,9 @@ mod tests {
                 assert_eq!(PlaneDecoder::run(&mut t, max_run), want, "max_run {max_run}, window {w:08b}");
                 assert_eq!(t.bit_pos(), r.bit_pos(), "max_run {max_run}, window {w:08b}");
             }
+        }
+        for location in 1..=16 {
+            assert_eq!(RUN_AT[location], RUN_LUT[15 - location.min(15)], "location {location}");
         }
         // ABSLEVEL_INDEX and its bits, escapes included, for both tables.
         for table in 0..2u8 {
