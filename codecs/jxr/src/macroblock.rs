@@ -971,7 +971,17 @@ impl PlaneDecoder {
     }
 
     /// MB_LP (`_jxr_r_MB_LP`): the LP coefficients of every channel, unpredicted.
-    pub fn lp(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
+    pub fn lp(&mut self, reader: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
+        // A local copy of the reader stays in registers (see `hp`).
+        let mut local = reader.clone();
+        let result = self.lp_from(&mut local, c, mx, tile_w);
+        *reader = local;
+        result
+    }
+
+    /// [`lp`](Self::lp) from a reader of its own.
+    #[inline(always)]
+    fn lp_from(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
         self.st.start_lp(mx);
         let fmt = self.st.fmt;
         let sub = matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
@@ -2137,15 +2147,25 @@ fn reset_context(mx: u32, tile_w: u32) -> bool {
 }
 
 /// REFINE_LP (`r_REFINE_LP`): `model_bits` raw low bits, and a sign for a value that was zero.
-#[inline]
+#[inline(always)]
 fn refine(r: &mut BitReader, coeff: i32, model_bits: u32) -> i32 {
-    let fine = r.read(model_bits) as i32;
+    debug_assert!((1..=15).contains(&model_bits));
+    // The bits and the sign bit that may follow them, with one check of the buffer.
+    r.ensure(model_bits + 1);
+    let fine = r.peek_buffered(model_bits) as i32;
+    r.skip(model_bits);
     if coeff > 0 {
         coeff.wrapping_shl(model_bits).wrapping_add(fine)
     } else if coeff < 0 {
         coeff.wrapping_shl(model_bits).wrapping_sub(fine)
-    } else if fine != 0 && r.bit() {
-        -fine
+    } else if fine != 0 {
+        let negative = r.peek_buffered(1) != 0;
+        r.skip(1);
+        if negative {
+            -fine
+        } else {
+            fine
+        }
     } else {
         fine
     }
