@@ -1194,18 +1194,22 @@ impl PlaneDecoder {
             let blocks = predict_blocks(self.st.fmt, ch);
             let model_bits = bits[chroma];
             let mut pattern = cbp[ch];
+            let chan: &mut [i32; MB_COEFFS] =
+                (&mut c[ch * MB_COEFFS..][..MB_COEFFS]).try_into().expect("a channel's coefficients");
             for block in 0..blocks {
-                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
+                // Below 16: the mask lets the compiler see that the block is in `chan`.
+                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block } & 15;
                 // Every block of the channel is written here, coded or not: the macroblock
                 // is not cleared before it is decoded (see `PlaneWork::dc`).
+                let at = hp(b, 1) - 1;
                 let block: &mut [i32; 16] =
-                    (&mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16]).try_into().expect("a block and the slot before it");
+                    (&mut chan[at..at + 16]).try_into().expect("a block and the slot before it");
                 block[1..].fill(0);
                 if pattern & 1 != 0 {
                     lap_mean[chroma] += hp_block(r, &mut t, chroma, block, scan, model_bits)?;
                 }
                 if FLEX {
-                    block_flex(r, c, ch, b, model_bits, self.trim);
+                    block_flex(r, chan, 0, b, model_bits, self.trim);
                 }
                 pattern >>= 1;
             }
