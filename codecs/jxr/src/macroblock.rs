@@ -389,6 +389,19 @@ static RUN_LUT: [[u8; 256]; 15] = {
     t
 };
 
+/// [`RUN_LUT`] by the location before the run in an HP block after its first symbol (2..=16,
+/// the 1-based position after the last coefficient; the largest run is 15 − location, none
+/// from 15 on), padded to 32 so that a mask, not a comparison, keeps the index in bounds.
+static RUN_AT: [[u8; 256]; 32] = {
+    let mut t = [[0u8; 256]; 32];
+    let mut location = 1;
+    while location < 15 {
+        t[location] = RUN_LUT[15 - location];
+        location += 1;
+    }
+    t
+};
+
 /// FIRST_INDEX (5 tables) and INDEX (4 tables) with the discriminant deltas of each symbol:
 /// `symbol | length << 4 | delta << 8 | delta2 << 16` (deltas as `i8` bytes), by table. The
 /// delta tables are the ones the table selects (`AdaptiveVlc::adapt_two` sets them from the
@@ -454,102 +467,199 @@ fn index_symbol(ctx: &mut AdaptiveVlc, r: &mut BitReader, table: &[u32; 256], ma
 /// (8 + 1 + 8 + 8).
 const SYMBOL_BITS: u32 = 25;
 
-/// [`FIRST_INDEX_LUT`] and [`INDEX_LUT`] for MB_HP, whose contexts keep their tables for a
-/// whole macroblock and whose discriminants are summed locally ([`HpContexts`]): `deltas << 8
-/// | length << 4 | symbol`, where `deltas` is the two discriminant deltas packed into one
-/// 64-bit number, `delta + delta2 × 2^32`, so that one addition counts both.
-static HP_FIRST_LUT: [[u64; 256]; 5] = packed_luts(&FIRST_INDEX_LUT);
+/// FIRST_INDEX (T.832 Table 59) or INDEX (Table 60) of MB_HP, the sign bit after it and,
+/// when they fit in the same 8 bits, ABSLEVEL_INDEX and its raw bits: one lookup of the next
+/// 8 bits for a whole symbol but its run (a symbol of level 1 is the index and the sign
+/// alone). One table for each index table, each pair of ABSLEVEL_INDEX tables (of contexts
+/// 0 and 1) and, for INDEX, the context, which with the symbol chooses the level's context
+/// (`context & (index >> 1)`; after FIRST_INDEX, `index & (index >> 2) & 1`).
+#[derive(Clone, Copy)]
+struct HpIndexTable {
+    /// `value << 16 | pending << 8 | symbol << 4 | length`: `length` the bits the entry
+    /// consumes (index, sign and level), `value` the signed level; when what follows is
+    /// `pending` ([`LEVEL_PENDING`]: the level is not within the 8 bits, or escapes), only its
+    /// sign (±1), and with [`SIGN_PENDING`] (an index of 8 bits) not even that (+1).
+    info: [u32; 256],
+    /// The discriminant deltas of the entry, as 16-bit fields of one number (see
+    /// [`unpack_fields`]): INDEX's two, then ABSLEVEL_INDEX's of context 0 and of context 1.
+    deltas: [u64; 256],
+}
 
-/// See [`HP_FIRST_LUT`].
-static HP_INDEX_LUT: [[u64; 256]; 4] = packed_luts(&INDEX_LUT);
+/// See [`HpIndexTable::info`].
+const LEVEL_PENDING: u32 = 1 << 8;
+/// See [`HpIndexTable::info`]; always with [`LEVEL_PENDING`].
+const SIGN_PENDING: u32 = 1 << 9;
 
-/// [`HP_FIRST_LUT`] from [`FIRST_INDEX_LUT`] (or [`HP_INDEX_LUT`] from [`INDEX_LUT`]).
-const fn packed_luts<const T: usize>(luts: &[[u32; 256]; T]) -> [[u64; 256]; T] {
-    let mut t = [[0u64; 256]; T];
+/// An [`HpIndexTable`] that [`hp_index_tables`] overwrites.
+const EMPTY_INDEX_TABLE: HpIndexTable = HpIndexTable { info: [0; 256], deltas: [0; 256] };
+
+/// [`HpIndexTable`]s of FIRST_INDEX, by table and the ABSLEVEL_INDEX tables of contexts 0
+/// and 1.
+static HP_FIRST_TABLES: [[[HpIndexTable; 2]; 2]; 5] = {
+    let mut t = [[[EMPTY_INDEX_TABLE; 2]; 2]; 5];
     let mut table = 0;
-    while table < T {
-        let mut w = 0;
-        while w < 256 {
-            let e = luts[table][w];
-            let (a, b) = ((e >> 8) as u8 as i8 as i64, (e >> 16) as u8 as i8 as i64);
-            t[table][w] = (((a + (b << 32)) << 8) as u64) | (e & 0xFF) as u64;
-            w += 1;
-        }
+    while table < 5 {
+        let index = index_lut(&vlc::FIRST_INDEX_CODES[table], &vlc::FIRST_INDEX_DELTA, table, 4);
+        t[table] = hp_index_tables(&index, None);
         table += 1;
+    }
+    t
+};
+
+/// Every [`HpIndexTable`] of INDEX, by context, INDEX table and the ABSLEVEL_INDEX tables of
+/// contexts 0 and 1 (the tables of context 0 do not depend on context 1's, and repeat).
+static HP_INDEX_TABLES: [[[[HpIndexTable; 2]; 2]; 4]; 2] = {
+    let mut t = [[[[EMPTY_INDEX_TABLE; 2]; 2]; 4]; 2];
+    let mut table = 0;
+    while table < 4 {
+        let index = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
+        t[0][table] = hp_index_tables(&index, Some(0));
+        t[1][table] = hp_index_tables(&index, Some(1));
+        table += 1;
+    }
+    t
+};
+
+/// [`hp_index_table`] for each pair of ABSLEVEL_INDEX tables.
+const fn hp_index_tables(index: &[u32; 256], context: Option<u32>) -> [[HpIndexTable; 2]; 2] {
+    let abs = [abs_level_lut(0), abs_level_lut(1)];
+    let mut t = [[EMPTY_INDEX_TABLE; 2]; 2];
+    let mut a0 = 0;
+    while a0 < 2 {
+        let mut a1 = 0;
+        while a1 < 2 {
+            t[a0][a1] = hp_index_table(index, [&abs[a0], &abs[a1]], context);
+            a1 += 1;
+        }
+        a0 += 1;
     }
     t
 }
 
-/// The two discriminant sums packed in a sum of [`HP_FIRST_LUT`] or [`HP_INDEX_LUT`] entries
-/// with their low bytes removed. Exact while each sum stays below 2^23 in magnitude: one
-/// macroblock has at most 16 × 16 × 15 symbols, each changing a sum by at most 2.
+/// One [`HpIndexTable`] from a [`FIRST_INDEX_LUT`] table (`context` `None`) or an
+/// [`INDEX_LUT`] table and its context, with the [`ABS_LEVEL_LUT`] tables of the two level
+/// contexts.
+const fn hp_index_table(index: &[u32; 256], abs: [&[u16; 256]; 2], context: Option<u32>) -> HpIndexTable {
+    let mut out = HpIndexTable { info: [0; 256], deltas: [0; 256] };
+    let mut w = 0;
+    while w < 256 {
+        let e = index[w];
+        let (symbol, len) = (e & 15, (e >> 4) & 15);
+        let mut fields = [(e >> 8) as u8 as i8 as i64, (e >> 16) as u8 as i8 as i64, 0, 0];
+        let (has_level, level_context) = match context {
+            None => (symbol & 2 != 0, (symbol & (symbol >> 2) & 1) as usize),
+            Some(c) => (symbol & 1 != 0, (c & (symbol >> 1)) as usize),
+        };
+        let (mut value, mut used, mut pending) = (1i32, len, 0u32);
+        if len < 8 {
+            if (w << len) & 0x80 != 0 {
+                value = -1;
+            }
+            used += 1;
+        } else {
+            pending = LEVEL_PENDING | SIGN_PENDING;
+        }
+        if has_level && pending == 0 {
+            let a = abs[level_context][(w << used) & 0xFF];
+            let (a_symbol, a_len) = (((a >> 4) & 7) as usize, (a & 15) as u32);
+            if a_symbol < 6 && used + a_len <= 8 {
+                value *= (a >> 8) as i32;
+                used += a_len;
+                fields[2 + level_context] = vlc::ABS_LEVEL_DELTA[a_symbol] as i64;
+            } else {
+                pending = LEVEL_PENDING;
+            }
+        }
+        out.info[w] = ((value as u32) << 16) | pending | (symbol << 4) | used;
+        out.deltas[w] = pack_fields(fields);
+        w += 1;
+    }
+    out
+}
+
+/// Four signed numbers as 16-bit fields of one: sums of such numbers are the numbers of the
+/// sums, as long as each stays within ±2^15 ([`unpack_fields`]).
+const fn pack_fields(f: [i64; 4]) -> u64 {
+    (f[0] + (f[1] << 16) + (f[2] << 32) + (f[3] << 48)) as u64
+}
+
+/// The four sums in a (wrapping) sum of [`pack_fields`] numbers. Exact while each sum stays
+/// within ±2^15: one macroblock has at most 16 × 16 × 14 symbols after a first (16 channels),
+/// each changing a sum by at most 2.
 #[inline]
-fn unpack_deltas(sum: i64) -> (i32, i32) {
-    let packed = sum >> 8;
-    let low = packed as i32;
-    (low, ((packed - i64::from(low)) >> 32) as i32)
+fn unpack_fields(sum: u64) -> [i32; 4] {
+    let mut rest = sum as i64;
+    let mut out = [0; 4];
+    for f in &mut out {
+        let low = rest as i16;
+        *f = i32::from(low);
+        rest = (rest - i64::from(low)) >> 16;
+    }
+    out
 }
 
 /// The HP contexts of one MB_HP: the tables of every context (adaptation happens after the
 /// macroblock, so they stay fixed through it) and the discriminant sums since its start,
 /// written back by [`HpContexts::finish`].
 struct HpContexts {
-    /// FIRST_INDEX by luma (0) and chroma (1).
-    first: [&'static [u64; 256]; 2],
-    /// INDEX by luma/chroma and context.
-    index: [[&'static [u64; 256]; 2]; 2],
+    /// FIRST_INDEX, sign and level by luma (0) and chroma (1).
+    first: [&'static HpIndexTable; 2],
+    /// INDEX, sign and level by luma/chroma and context.
+    index: [[&'static HpIndexTable; 2]; 2],
     /// ABSLEVEL_INDEX by context.
     abs: [&'static [u16; 256]; 2],
-    /// Packed sums of FIRST_INDEX luma and chroma (0, 1), INDEX (2 + 2 × chroma + context).
-    sums: [i64; 6],
-    /// Discriminant sums of ABSLEVEL_INDEX by context.
+    /// Packed sums of the FIRST_INDEX [`HpIndexTable`]s, luma and chroma.
+    first_sums: [u64; 2],
+    /// Packed sums of the [`HpIndexTable`]s, by 2 × chroma + context.
+    index_sums: [u64; 4],
+    /// Discriminant sums of ABSLEVEL_INDEX by context (levels outside [`HpIndexTable`]s).
     abs_sums: [i32; 2],
 }
-
-/// The contexts [`HpContexts`] stands for, in the order of its `sums`.
-const HP_INDEX_CONTEXTS: [V; 6] =
-    [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
 
 impl HpContexts {
     fn new(vlc: &[AdaptiveVlc; V_COUNT]) -> Self {
         let t = |v: V| usize::from(vlc[v as usize].table);
+        let (a0, a1) = (t(V::AbsLevelHp0) & 1, t(V::AbsLevelHp1) & 1);
+        let index = |v: V, context: usize| &HP_INDEX_TABLES[context][t(v)][a0][a1];
         HpContexts {
-            first: [&HP_FIRST_LUT[t(V::FirstIndHpLum)], &HP_FIRST_LUT[t(V::FirstIndHpChr)]],
-            index: [
-                [&HP_INDEX_LUT[t(V::IndHpLum0)], &HP_INDEX_LUT[t(V::IndHpLum1)]],
-                [&HP_INDEX_LUT[t(V::IndHpChr0)], &HP_INDEX_LUT[t(V::IndHpChr1)]],
-            ],
-            abs: [&ABS_LEVEL_LUT[t(V::AbsLevelHp0) & 1], &ABS_LEVEL_LUT[t(V::AbsLevelHp1) & 1]],
-            sums: [0; 6],
+            first: [&HP_FIRST_TABLES[t(V::FirstIndHpLum)][a0][a1], &HP_FIRST_TABLES[t(V::FirstIndHpChr)][a0][a1]],
+            index: [[index(V::IndHpLum0, 0), index(V::IndHpLum1, 1)], [index(V::IndHpChr0, 0), index(V::IndHpChr1, 1)]],
+            abs: [&ABS_LEVEL_LUT[a0], &ABS_LEVEL_LUT[a1]],
+            first_sums: [0; 2],
+            index_sums: [0; 4],
             abs_sums: [0; 2],
         }
     }
 
     /// Adds the sums to the contexts' discriminants.
-    fn finish(&self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
-        for (v, &sum) in HP_INDEX_CONTEXTS.iter().zip(&self.sums) {
+    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
+        let contexts = [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
+        for (i, (v, sum)) in contexts.into_iter().zip(self.first_sums.into_iter().chain(self.index_sums)).enumerate() {
             debug_assert!({
-                let ctx = &vlc[*v as usize];
-                let max = if matches!(v, V::FirstIndHpLum | V::FirstIndHpChr) { 4 } else { 3 };
+                let ctx = &vlc[v as usize];
+                let max = if i < 2 { 4 } else { 3 };
                 (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), max)
             });
-            let (d, d2) = unpack_deltas(sum);
-            let ctx = &mut vlc[*v as usize];
+            let [d, d2, abs0, abs1] = unpack_fields(sum);
+            let ctx = &mut vlc[v as usize];
             ctx.disc += d;
             ctx.disc2 += d2;
+            vlc[V::AbsLevelHp0 as usize].disc += abs0;
+            vlc[V::AbsLevelHp1 as usize].disc += abs1;
         }
         vlc[V::AbsLevelHp0 as usize].disc += self.abs_sums[0];
         vlc[V::AbsLevelHp1 as usize].disc += self.abs_sums[1];
     }
 
-    /// One symbol of `table`, its deltas added to `sums[slot]`, with at least 8 bits buffered.
+    /// One entry of `table` (index, sign and perhaps level), its deltas added to `sum`, with
+    /// at least 8 bits buffered: [`HpIndexTable::info`].
     #[inline(always)]
-    fn index(sums: &mut [i64; 6], slot: usize, r: &mut BitReader, table: &[u64; 256]) -> u32 {
-        let e = table[r.peek_buffered(8) as usize];
-        let info = e & 0xFF;
-        r.skip((info >> 4) as u32);
-        sums[slot] = sums[slot].wrapping_add((e - info) as i64);
-        (info & 15) as u32
+    fn index(sum: &mut u64, r: &mut BitReader, table: &HpIndexTable) -> u32 {
+        let w = r.peek_buffered(8) as usize;
+        let info = table.info[w];
+        r.skip(info & 15);
+        *sum = sum.wrapping_add(table.deltas[w]);
+        info
     }
 
     /// ABSLEVEL_INDEX of `context` and the level it codes, with at least 8 bits buffered (as
@@ -557,6 +667,21 @@ impl HpContexts {
     #[inline(always)]
     fn abs_level(&mut self, r: &mut BitReader, context: usize) -> u32 {
         abs_level_in(self.abs[context], &mut self.abs_sums[context], r)
+    }
+
+    /// The signed level of an entry whose `info` has [`LEVEL_PENDING`]: the sign bit when it
+    /// is pending too, then the level of `context` when the symbol has one.
+    #[inline(always)]
+    fn pending(&mut self, r: &mut BitReader, info: u32, has_level: bool, context: usize) -> i32 {
+        let s = if info & SIGN_PENDING != 0 {
+            let bit = r.peek_buffered(1);
+            r.skip(1);
+            bit.wrapping_neg() as i32
+        } else {
+            info as i32 >> 31
+        };
+        let level = if has_level { self.abs_level(r, context) } else { 1 };
+        (level as i32 ^ s).wrapping_sub(s)
     }
 }
 
@@ -624,12 +749,14 @@ fn hp_block(
     model_bits: u32,
 ) -> Result<i32> {
     r.ensure(SYMBOL_BITS);
-    let index = HpContexts::index(&mut t.sums, chroma, r, t.first[chroma]);
+    let info = HpContexts::index(&mut t.first_sums[chroma], r, t.first[chroma]);
+    let index = (info >> 4) & 15;
     let mut srn = index >> 2;
     let mut context = ((index & 1) & srn) as usize;
-    let sign = r.peek_buffered(1);
-    r.skip(1);
-    let level = if index & 2 != 0 { t.abs_level(r, context) } else { 1 };
+    let mut value = info as i32 >> 16;
+    if info & LEVEL_PENDING != 0 {
+        value = t.pending(r, info, index & 2 != 0, context);
+    }
     // location: the 1-based position after the coefficient; the run is at most 14 here.
     let mut location = 2 + if index & 1 != 0 {
         0
@@ -638,20 +765,18 @@ fn hp_block(
         r.skip(u32::from(e & 15));
         u32::from(e >> 4)
     };
-    // −level when the sign bit is set, without a branch.
-    let s = sign.wrapping_neg() as i32;
     // Scan entries are 1..=15: the mask only spares a bounds check.
-    block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
+    block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
     let mut n = 1;
     while srn != 0 {
-        if n >= 16 {
-            return Err(corrupt("more than 16 coefficients in a block"));
-        }
+        // Every symbol moves `location` on and it stays at most 16 (checked below): at most
+        // 15 symbols.
+        debug_assert!(n < 16);
         r.ensure(SYMBOL_BITS);
         if srn & 1 == 0 {
-            // At location 16 no position remains: the table of no run reads nothing, and
-            // the check below fails.
-            let e = RUN_LUT[(15 - location.min(15)) as usize][r.peek_buffered(8) as usize];
+            // From location 15 on the largest run is 0 and the table reads nothing (at 16 no
+            // position remains, and the check below fails).
+            let e = RUN_AT[location as usize & 31][r.peek_buffered(8) as usize];
             r.skip(u32::from(e & 15));
             location += u32::from(e >> 4);
         }
@@ -659,18 +784,28 @@ fn hp_block(
         if location > 16 {
             return Err(corrupt("a coefficient past the end of a block"));
         }
-        let index = if location >= 15 {
-            end_index(r, location)
+        let value = if location >= 15 {
+            let index = end_index(r, location);
+            srn = index >> 1;
+            context &= srn as usize;
+            let sign = r.peek_buffered(1);
+            r.skip(1);
+            let level = if index & 1 != 0 { t.abs_level(r, context) } else { 1 };
+            let s = sign.wrapping_neg() as i32;
+            (level as i32 ^ s).wrapping_sub(s)
         } else {
-            HpContexts::index(&mut t.sums, 2 + 2 * chroma + context, r, t.index[chroma][context])
+            let slot = 2 * chroma + context;
+            let info = HpContexts::index(&mut t.index_sums[slot], r, t.index[chroma][context]);
+            srn = (info >> 5) & 3;
+            context &= srn as usize;
+            // The signed level, or its sign alone when the level follows.
+            if info & LEVEL_PENDING != 0 {
+                t.pending(r, info, true, context)
+            } else {
+                info as i32 >> 16
+            }
         };
-        srn = index >> 1;
-        context &= srn as usize;
-        let sign = r.peek_buffered(1);
-        r.skip(1);
-        let level = if index & 1 != 0 { t.abs_level(r, context) } else { 1 };
-        let s = sign.wrapping_neg() as i32;
-        block[scan.hit(location as usize - 2) & 15] = ((level as i32 ^ s).wrapping_sub(s)).wrapping_shl(model_bits);
+        block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
         n += 1;
     }
     Ok(n)
@@ -823,7 +958,17 @@ impl PlaneDecoder {
     }
 
     /// MB_LP (`_jxr_r_MB_LP`): the LP coefficients of every channel, unpredicted.
-    pub fn lp(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
+    pub fn lp(&mut self, reader: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
+        // A local copy of the reader stays in registers (see `hp`).
+        let mut local = reader.clone();
+        let result = self.lp_from(&mut local, c, mx, tile_w);
+        *reader = local;
+        result
+    }
+
+    /// [`lp`](Self::lp) from a reader of its own.
+    #[inline(always)]
+    fn lp_from(&mut self, r: &mut BitReader, c: &mut [i32], mx: u32, tile_w: u32) -> Result<()> {
         self.st.start_lp(mx);
         let fmt = self.st.fmt;
         let sub = matches!(fmt, ClrFmt::Yuv420 | ClrFmt::Yuv422);
@@ -1049,18 +1194,22 @@ impl PlaneDecoder {
             let blocks = predict_blocks(self.st.fmt, ch);
             let model_bits = bits[chroma];
             let mut pattern = cbp[ch];
+            let chan: &mut [i32; MB_COEFFS] =
+                (&mut c[ch * MB_COEFFS..][..MB_COEFFS]).try_into().expect("a channel's coefficients");
             for block in 0..blocks {
-                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block };
+                // Below 16: the mask lets the compiler see that the block is in `chan`.
+                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block } & 15;
                 // Every block of the channel is written here, coded or not: the macroblock
                 // is not cleared before it is decoded (see `PlaneWork::dc`).
+                let at = hp(b, 1) - 1;
                 let block: &mut [i32; 16] =
-                    (&mut c[ch * MB_COEFFS + hp(b, 1) - 1..][..16]).try_into().expect("a block and the slot before it");
+                    (&mut chan[at..at + 16]).try_into().expect("a block and the slot before it");
                 block[1..].fill(0);
                 if pattern & 1 != 0 {
                     lap_mean[chroma] += hp_block(r, &mut t, chroma, block, scan, model_bits)?;
                 }
                 if FLEX {
-                    block_flex(r, c, ch, b, model_bits, self.trim);
+                    block_flex(r, chan, 0, b, model_bits, self.trim);
                 }
                 pattern >>= 1;
             }
@@ -1179,7 +1328,7 @@ fn run_levels(levels: impl Iterator<Item = i32>, out: &mut [RunLevel; 16]) -> us
 /// of pairs.
 #[inline(always)]
 fn scan_pairs(block: &[i32; 16], scan: &mut vlc::Scan, model_bits: u32, out: &mut [RunLevel; 16]) -> Result<usize> {
-    let order = scan.order;
+    let order = scan.order();
     let (mut mask, mut max) = (0u32, 0u32);
     for (p, &k) in order.iter().enumerate() {
         let level = block[usize::from(k) & 15].unsigned_abs() >> model_bits;
@@ -1428,7 +1577,7 @@ impl PlaneEncoder {
                 // The levels in the scan order at the start, a mask of the non-zero ones, then
                 // the hits and pairs one set bit at a time (as `scan_pairs` for HP: no branch
                 // per position on whether its level is zero).
-                let order = self.st.lp_scan.order;
+                let order = self.st.lp_scan.order();
                 let mut mask = 0u32;
                 for (p, &k) in order.iter().enumerate() {
                     levels[p] = signed_level(c[ndx * MB_COEFFS + usize::from(k)], model_bits)?;
@@ -1989,15 +2138,25 @@ fn reset_context(mx: u32, tile_w: u32) -> bool {
 }
 
 /// REFINE_LP (`r_REFINE_LP`): `model_bits` raw low bits, and a sign for a value that was zero.
-#[inline]
+#[inline(always)]
 fn refine(r: &mut BitReader, coeff: i32, model_bits: u32) -> i32 {
-    let fine = r.read(model_bits) as i32;
+    debug_assert!((1..=15).contains(&model_bits));
+    // The bits and the sign bit that may follow them, with one check of the buffer.
+    r.ensure(model_bits + 1);
+    let fine = r.peek_buffered(model_bits) as i32;
+    r.skip(model_bits);
     if coeff > 0 {
         coeff.wrapping_shl(model_bits).wrapping_add(fine)
     } else if coeff < 0 {
         coeff.wrapping_shl(model_bits).wrapping_sub(fine)
-    } else if fine != 0 && r.bit() {
-        -fine
+    } else if fine != 0 {
+        let negative = r.peek_buffered(1) != 0;
+        r.skip(1);
+        if negative {
+            -fine
+        } else {
+            fine
+        }
     } else {
         fine
     }
@@ -2346,31 +2505,106 @@ mod tests {
         assert_eq!(dec.st.vlc, enc.st.vlc);
     }
 
-    #[test]
-    fn packed_index_tables_carry_the_symbols_and_both_deltas() {
-        fn check<const T: usize>(plain: &[[u32; 256]; T], packed: &[[u64; 256]; T]) {
-            for (p, q) in plain.iter().zip(packed) {
-                for (&e, &f) in p.iter().zip(q) {
-                    assert_eq!(f & 0xFF, u64::from(e & 0xFF));
-                    let want = (i32::from((e >> 8) as u8 as i8), i32::from((e >> 16) as u8 as i8));
-                    assert_eq!(unpack_deltas((f - (f & 0xFF)) as i64), want);
-                }
+    /// ABSLEVEL_INDEX of `table` and the level it codes, read symbol by symbol
+    /// (`r_DECODE_ABS_LEVEL`): the index and the level.
+    fn read_level(r: &mut BitReader, table: usize) -> (usize, u32) {
+        let index = vlc::decode(r, &vlc::lut(&vlc::ABS_LEVEL_CODES[table]));
+        if index < 6 {
+            return (index, ABS_REMAP[index] + r.read(ABS_FIXED[index]));
+        }
+        let mut fixed = 4 + r.read(4);
+        if fixed == 19 {
+            fixed += r.read(2);
+            if fixed == 22 {
+                fixed += r.read(3);
             }
         }
-        check(&FIRST_INDEX_LUT, &HP_FIRST_LUT);
-        check(&INDEX_LUT, &HP_INDEX_LUT);
-        // Sums of many entries (more than a macroblock holds) unpack to the two sums.
-        let mut rng = Rng(7);
-        for table in 0..5 {
-            let (mut sum, mut want) = (0i64, (0i32, 0i32));
-            for _ in 0..(16 * 16 * 15 * 4) {
-                let w = rng.below(256) as usize;
-                let (e, f) = (FIRST_INDEX_LUT[table][w], HP_FIRST_LUT[table][w]);
-                sum = sum.wrapping_add((f - (f & 0xFF)) as i64);
-                want.0 += i32::from((e >> 8) as u8 as i8);
-                want.1 += i32::from((e >> 16) as u8 as i8);
-                assert_eq!(unpack_deltas(sum), want);
+        (index, 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed)))
+    }
+
+    #[test]
+    fn hp_index_tables_decode_as_index_sign_and_level_do() {
+        // (codes, their delta tables, INDEX context or None for FIRST_INDEX, the entries).
+        type Case<'a> = (&'a [&'a str], [&'a [i32]; 2], Option<usize>, &'a HpIndexTable);
+        let mut cases: Vec<Case> = Vec::new();
+        for a in [[0usize, 0], [0, 1], [1, 0], [1, 1]] {
+            for table in 0..5 {
+                let (d1, d2) = index_deltas(table, 4);
+                let deltas = [&vlc::FIRST_INDEX_DELTA[d1][..], &vlc::FIRST_INDEX_DELTA[d2][..]];
+                cases.push((&vlc::FIRST_INDEX_CODES[table], deltas, None, &HP_FIRST_TABLES[table][a[0]][a[1]]));
             }
+            for table in 0..4 {
+                let (d1, d2) = index_deltas(table, 3);
+                let deltas = [&vlc::INDEX_DELTA[d1][..], &vlc::INDEX_DELTA[d2][..]];
+                for context in 0..2 {
+                    let entries = &HP_INDEX_TABLES[context][table][a[0]][a[1]];
+                    cases.push((&vlc::INDEX_CODES[table], deltas, Some(context), entries));
+                }
+            }
+            for (i, &(codes, deltas, context, entries)) in cases.iter().enumerate() {
+                for w in 0..1u32 << 16 {
+                    let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
+                    // Symbol by symbol: the index, the sign bit, ABSLEVEL_INDEX and its bits.
+                    let mut r = BitReader::new(&bytes);
+                    let symbol = vlc::decode(&mut r, &vlc::lut(codes));
+                    let negative = r.bit();
+                    let (has_level, level_context) = match context {
+                        None => (symbol & 2 != 0, symbol & (symbol >> 2) & 1),
+                        Some(c) => (symbol & 1 != 0, c & (symbol >> 1)),
+                    };
+                    let mut want_fields = [deltas[0][symbol], deltas[1][symbol], 0, 0];
+                    let mut level = 1;
+                    if has_level {
+                        let index;
+                        (index, level) = read_level(&mut r, a[level_context]);
+                        want_fields[2 + level_context] = vlc::ABS_LEVEL_DELTA[index];
+                    }
+                    let want = if negative { (level as i32).wrapping_neg() } else { level as i32 };
+                    // One entry, and what follows it when that is pending.
+                    let mut t = BitReader::new(&bytes);
+                    t.fill();
+                    let mut contexts = HpContexts {
+                        first: [entries; 2],
+                        index: [[entries; 2]; 2],
+                        abs: [&ABS_LEVEL_LUT[a[0]], &ABS_LEVEL_LUT[a[1]]],
+                        first_sums: [0; 2],
+                        index_sums: [0; 4],
+                        abs_sums: [0; 2],
+                    };
+                    let info = HpContexts::index(&mut contexts.index_sums[0], &mut t, entries);
+                    let at = (i, a, w);
+                    assert_eq!((info >> 4) & 15, symbol as u32, "{at:?}");
+                    let mut value = info as i32 >> 16;
+                    if info & LEVEL_PENDING != 0 {
+                        assert_eq!(value, if info & SIGN_PENDING != 0 { 1 } else { value.signum() }, "{at:?}");
+                        value = contexts.pending(&mut t, info, has_level, level_context);
+                    } else {
+                        assert_eq!(info & SIGN_PENDING, 0);
+                    }
+                    let mut fields = unpack_fields(contexts.index_sums[0]);
+                    fields[2] += contexts.abs_sums[0];
+                    fields[3] += contexts.abs_sums[1];
+                    assert_eq!(value, want, "{at:?}");
+                    assert_eq!(t.bit_pos(), r.bit_pos(), "{at:?}");
+                    assert_eq!(fields, want_fields, "{at:?}");
+                }
+            }
+            cases.clear();
+        }
+        // Sums of many entries (more than a macroblock holds) unpack to the four sums.
+        let mut rng = Rng(11);
+        let entries = &HP_INDEX_TABLES[1][3][0][1];
+        let (mut sum, mut want) = (0u64, [0i32; 4]);
+        for _ in 0..(16 * 16 * 14 * 4) {
+            let w = rng.below(256) as usize;
+            sum = sum.wrapping_add(entries.deltas[w]);
+            let e = INDEX_LUT[3][w];
+            let one = unpack_fields(entries.deltas[w]);
+            assert_eq!(one[..2], [i32::from((e >> 8) as u8 as i8), i32::from((e >> 16) as u8 as i8)]);
+            for (w, d) in want.iter_mut().zip(one) {
+                *w += d;
+            }
+            assert_eq!(unpack_fields(sum), want);
         }
     }
 
@@ -2402,24 +2636,15 @@ mod tests {
                 assert_eq!(t.bit_pos(), r.bit_pos(), "max_run {max_run}, window {w:08b}");
             }
         }
+        for location in 1..=16 {
+            assert_eq!(RUN_AT[location], RUN_LUT[15 - location.min(15)], "location {location}");
+        }
         // ABSLEVEL_INDEX and its bits, escapes included, for both tables.
         for table in 0..2u8 {
             for w in 0..1u32 << 16 {
                 let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
                 let mut r = BitReader::new(&bytes);
-                let index = vlc::decode(&mut r, &vlc::lut(&vlc::ABS_LEVEL_CODES[usize::from(table)]));
-                let want = if index < 6 {
-                    ABS_REMAP[index] + r.read(ABS_FIXED[index])
-                } else {
-                    let mut fixed = 4 + r.read(4);
-                    if fixed == 19 {
-                        fixed += r.read(2);
-                        if fixed == 22 {
-                            fixed += r.read(3);
-                        }
-                    }
-                    2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed))
-                };
+                let (index, want) = read_level(&mut r, usize::from(table));
                 let mut ctx = AdaptiveVlc { table, ..AdaptiveVlc::ONE };
                 let mut t = BitReader::new(&bytes);
                 t.fill();

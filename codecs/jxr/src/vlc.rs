@@ -403,33 +403,50 @@ pub const SCAN_VERTICAL: [u8; 15] = [1, 2, 5, 4, 3, 6, 9, 8, 7, 12, 15, 13, 10, 
 /// An adaptive scan order (T.832 5.7).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Scan {
-    /// Coefficient index at each scan position.
-    pub order: [u8; 15],
-    totals: [u32; 15],
+    /// Scan position `i` at `i + 1`: its total (the count that orders positions) times 16
+    /// plus its coefficient index (1..=15), so that one load gives both. Entry 0 is a
+    /// sentinel larger than any total: position 0 has no predecessor to swap with, without a
+    /// test of the position.
+    entries: [u32; 16],
 }
 
 impl Scan {
     /// A scan starting from `order`.
     pub fn new(order: [u8; 15]) -> Self {
-        Scan { order, totals: SCAN_TOTALS }
+        let mut entries = [u32::MAX; 16];
+        for (e, (&k, &total)) in entries[1..].iter_mut().zip(order.iter().zip(&SCAN_TOTALS)) {
+            *e = total << 4 | u32::from(k);
+        }
+        Scan { entries }
     }
 
-    /// Resets the totals (every 16 macroblocks from a tile's left edge).
+    /// The coefficient index at each scan position.
+    pub fn order(&self) -> [u8; 15] {
+        std::array::from_fn(|i| (self.entries[i + 1] & 15) as u8)
+    }
+
+    /// Resets the totals (every 16 macroblocks from a tile's left edge). Totals stay far
+    /// below 2^28 between resets (16 macroblocks of 16 channels of 16 blocks hit 61 440
+    /// times at most).
     pub fn reset_totals(&mut self) {
-        self.totals = SCAN_TOTALS;
+        for (e, &total) in self.entries[1..].iter_mut().zip(&SCAN_TOTALS) {
+            *e = total << 4 | (*e & 15);
+        }
     }
 
     /// The coefficient at scan position `i` (0-based) receives a value: returns its index and
-    /// adapts the order.
+    /// adapts the order (a position whose total exceeds its predecessor's swaps with it).
     #[inline]
     pub fn hit(&mut self, i: usize) -> usize {
-        let k = self.order[i] as usize;
-        self.totals[i] += 1;
-        if i > 0 && self.totals[i] > self.totals[i - 1] {
-            self.totals.swap(i, i - 1);
-            self.order.swap(i, i - 1);
+        let e = self.entries[i + 1] + 16;
+        self.entries[i + 1] = e;
+        let before = self.entries[i];
+        // Totals compare as the entries with the predecessor's index bits all set.
+        if e > before | 15 {
+            self.entries[i] = e;
+            self.entries[i + 1] = before;
         }
-        k
+        (e & 15) as usize
     }
 }
 
@@ -545,10 +562,37 @@ mod tests {
         let mut s = Scan::new(SCAN_HORIZONTAL);
         // Position 1 (coefficient 1) hit twice: 30 -> 32 ties, 33 > 32 swaps.
         assert_eq!(s.hit(1), 1);
-        assert_eq!(s.order[..2], [4, 1]);
+        assert_eq!(s.order()[..2], [4, 1]);
         assert_eq!(s.hit(1), 1);
         assert_eq!(s.hit(1), 1);
-        assert_eq!(s.order[..2], [1, 4]);
+        assert_eq!(s.order()[..2], [1, 4]);
+    }
+
+    #[test]
+    fn packed_scan_adapts_as_orders_and_totals_do() {
+        // T.832 5.7 as written: an order and its totals, side by side.
+        let (mut order, mut totals) = (SCAN_VERTICAL, SCAN_TOTALS);
+        let mut s = Scan::new(SCAN_VERTICAL);
+        let mut x = 0x9E37_79B9u32;
+        for step in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            if x % 5000 == 0 {
+                totals = SCAN_TOTALS;
+                s.reset_totals();
+            }
+            // Early positions more often, as in coded blocks.
+            let i = ((x >> 8) % 15).min((x >> 16) % 15) as usize;
+            let k = order[i] as usize;
+            totals[i] += 1;
+            if i > 0 && totals[i] > totals[i - 1] {
+                totals.swap(i, i - 1);
+                order.swap(i, i - 1);
+            }
+            assert_eq!(s.hit(i), k, "step {step}");
+            assert_eq!(s.order(), order, "step {step}");
+        }
     }
 
     #[test]
