@@ -250,7 +250,10 @@ fn decode_impl(
     let [top, left, _, _] = img.margins.map(|m| m as usize);
     let ext_w = 16 * mb_w;
     let row_len = width * channels.count();
-    let mut full = vec![vec![0i32; ext_w]; primary.channels];
+    let mut full = [vec![vec![0i32; ext_w]; primary.channels], Vec::new()];
+    if parallel {
+        full[1] = full[0].clone();
+    }
     // Rows in the pixel format's bytes: a band's (two threads: formatted on thread A while
     // thread B transforms the next band, handed out here), or a few rows at a time.
     let raw_row = out.row_bytes(width);
@@ -262,7 +265,7 @@ fn decode_impl(
     // In frequency order with flexbits, the FLEXBITS packet is decoded with the transform
     // (thread B), a band behind the DC, LP and HP packets (thread A).
     let deferred = RowDecoder::can_defer_flex(&cs);
-    let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image));
+    let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image, options.pool.clone()));
     // Row and sample buffers go back to these once used, so that a band reuses the memory of
     // the band before (fresh allocations of this size cost page faults and zeroing).
     let mut spare_rows: Vec<Fetched> = Vec::new();
@@ -277,27 +280,42 @@ fn decode_impl(
     // upsampled into a row of its own (4:2:0: from the band's chroma rows and the next band's
     // first macroblock row).
     let out = &out;
-    let format_band =
-        |t: &Transformed, part: Range<usize>, full: &mut [Vec<i32>], raw_band: &mut Vec<u8>| -> Result<()> {
-            let (y_start, _) = band_rows(t.r0);
-            raw_band.resize(part.len() * raw_row, 0);
-            let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
-            for (i, raw) in part.zip(raw_band.chunks_exact_mut(raw_row.max(1))) {
-                let local = y_start + i - t.r0 * 16;
-                for (ch, p) in t.planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
-                    upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
-                }
-                let channels: Vec<&[i32]> = t
-                    .planes
-                    .iter()
-                    .zip(full.iter())
-                    .enumerate()
-                    .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
-                    .collect();
-                let a = t.alpha.as_ref().map(|p| &p.row(local)[left..]);
-                out.format_row(&channels, a, width, raw)?;
+    let format_rows = |t: &Transformed, part: Range<usize>, full: &mut [Vec<i32>], raw_band: &mut [u8]| -> Result<()> {
+        let (y_start, _) = band_rows(t.r0);
+        let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
+        for (i, raw) in part.zip(raw_band.chunks_exact_mut(raw_row.max(1))) {
+            let local = y_start + i - t.r0 * 16;
+            for (ch, p) in t.planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
+                upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
             }
-            Ok(())
+            let channels: Vec<&[i32]> = t
+                .planes
+                .iter()
+                .zip(full.iter())
+                .enumerate()
+                .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
+                .collect();
+            let a = t.alpha.as_ref().map(|p| &p.row(local)[left..]);
+            out.format_row(&channels, a, width, raw)?;
+        }
+        Ok(())
+    };
+    // Rows `part` of a band into `raw_band`; on two threads in two halves, each a job of the
+    // pool, so that a thread done with its own work formats half of them.
+    let format_band =
+        |t: &Transformed, part: Range<usize>, full: &mut [Vec<Vec<i32>>; 2], raw_band: &mut Vec<u8>| -> Result<()> {
+            raw_band.resize(part.len() * raw_row, 0);
+            let [full_a, full_b] = full;
+            if !parallel || part.len() < 2 {
+                return format_rows(t, part, full_a, raw_band);
+            }
+            let mid = part.start + part.len() / 2;
+            let (raw_a, raw_b) = raw_band.split_at_mut((mid - part.start) * raw_row);
+            let (a, b) = options.pool.join(
+                || format_rows(t, part.start..mid, full_a, raw_a),
+                || format_rows(t, mid..part.end, full_b, raw_b),
+            );
+            a.and(b)
         };
     // Hands rows `part` of a formatted band to the caller: raw rows, and linear f32 rows to
     // the sink.
@@ -329,6 +347,7 @@ fn decode_impl(
         let mut sample_bufs = std::mem::take(&mut spare_samples);
         let (win_ref, completer_ref) = (&mut win, &mut completer);
         let (prim_params, alpha_params) = (&prim_params, &alpha_params);
+        let pool = &options.pool;
         let transform_all = move || -> Result<Transformed> {
             // The rows this band needs: completed (flexbits) and appended to the window.
             for mut row in rows_in {
@@ -342,21 +361,54 @@ fn decode_impl(
             let prim_src = |ch: usize| {
                 MbRows::new(&prim_rows, win.first, primary.channels * crate::mb::MB_COEFFS, ch * crate::mb::MB_COEFFS)
             };
-            let planes: Vec<BandPlane> = (0..primary.channels)
+            // Each channel's transform is a job of its own: on two threads, the channels of a
+            // band share both cores with the other thread's work (entropy decoding of tile
+            // columns, formatting).
+            let mut jobs: Vec<BandJob> = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
-                    let buf = sample_bufs.pop().unwrap_or_default();
-                    transform_band(&prim_src(ch), prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end, buf)
+                    let scratch = sample_bufs.pop().unwrap_or_default();
+                    BandJob {
+                        src: prim_src(ch),
+                        params: prim_params,
+                        fmt: primary.clr_fmt,
+                        ch,
+                        rows: r0..end,
+                        scratch,
+                        done: None,
+                    }
                 })
-                .collect::<Result<_>>()?;
-            let alpha = if with_alpha {
-                let rows = win.plane_rows(WindowPlane::Alpha)?;
-                let src = MbRows::new(&rows, win.first, crate::mb::MB_COEFFS, 0);
-                let buf = sample_bufs.pop().unwrap_or_default();
-                Some(transform_band(&src, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1, buf)?)
-            } else {
-                None
+                .collect();
+            let alpha_rows = if with_alpha { Some(win.plane_rows(WindowPlane::Alpha)?) } else { None };
+            if let Some(rows) = &alpha_rows {
+                let src = MbRows::new(rows, win.first, crate::mb::MB_COEFFS, 0);
+                let scratch = sample_bufs.pop().unwrap_or_default();
+                jobs.push(BandJob {
+                    src,
+                    params: alpha_params,
+                    fmt: alpha_fmt,
+                    ch: 0,
+                    rows: r0..r1,
+                    scratch,
+                    done: None,
+                });
+            }
+            let run = |job: &mut BandJob| -> Result<()> {
+                let scratch = std::mem::take(&mut job.scratch);
+                job.done =
+                    Some(transform_band(&job.src, job.params, job.fmt, job.ch, mb_w, mb_h, job.rows.clone(), scratch)?);
+                Ok(())
             };
+            if parallel {
+                pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| run(&mut j[0]))?;
+            } else {
+                jobs.iter_mut().try_for_each(run)?;
+            }
+            let mut planes = Vec::with_capacity(jobs.len());
+            for job in jobs {
+                planes.push(job.done.ok_or_else(|| Error::invalid("JPEG XR: a channel not transformed (a bug)"))?);
+            }
+            let alpha = if with_alpha { planes.pop() } else { None };
             Ok(Transformed { r0, planes, alpha, spare: sample_bufs })
         };
         let count = next - decoded;
@@ -408,6 +460,18 @@ fn decode_impl(
 
 /// Image rows formatted and handed out at a time on one thread.
 const FORMAT_CHUNK: usize = 8;
+
+/// The inverse transform of one channel of a band: its coefficients, parameters, channel and
+/// macroblock rows, the buffers to write into, and what it gave.
+struct BandJob<'w> {
+    src: MbRows<'w>,
+    params: &'w TransformParams,
+    fmt: ClrFmt,
+    ch: usize,
+    rows: Range<usize>,
+    scratch: BandScratch,
+    done: Option<BandPlane>,
+}
 
 /// A band after the inverse transform: its first macroblock row, each channel's samples, and
 /// the sample buffers it did not use.
