@@ -608,6 +608,39 @@ mod tests {
         }
     }
 
+    /// Damaged files (truncated, bits flipped) give the same result on one thread and on two
+    /// (where the band pipeline, the tile columns and the transform's channels run as jobs of
+    /// the pool): the same samples, or an error on both, never a panic.
+    #[test]
+    fn damaged_files_decode_alike_on_one_and_two_threads() {
+        let two = hdrcodec_core::ThreadPool::new(2).unwrap();
+        for name in ["tiny_tiles.jxr", "tiny_420_sp.jxr", "t835_hard_2x2.jxr", "tiny_alpha_sp.jxr"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
+            let file = std::fs::read(path).unwrap();
+            let decode = |bytes: &[u8], pool: &hdrcodec_core::ThreadPool| {
+                decode_raw(bytes, &DecodeOptions::new(Limits::default()).with_pool(pool.clone())).ok()
+            };
+            let mut next = crate::testing::rng(file.len() as u64);
+            let mut bad = file.clone();
+            let mut outcomes = [0; 2];
+            for i in 0..120 {
+                let damaged: &[u8] = if i % 3 == 0 {
+                    &file[..(next() % file.len() as u64) as usize]
+                } else {
+                    bad.copy_from_slice(&file);
+                    let at = (next() % file.len() as u64) as usize;
+                    bad[at] ^= 1 << (next() % 8);
+                    &bad
+                };
+                let one = decode(damaged, &hdrcodec_core::ThreadPool::single());
+                outcomes[usize::from(one.is_some())] += 1;
+                assert_eq!(one, decode(damaged, &two), "{name}, case {i}");
+            }
+            // Both kinds of outcome occur: samples from damaged data, and errors.
+            assert!(outcomes[0] > 0 && outcomes[1] > 0, "{name}: {outcomes:?}");
+        }
+    }
+
     /// jxrlib's samples (imagecodecs `jpegxr_decode`) of streams T.835 wrote, hashed
     /// (testdata/README.md): hard tiles, a non-square hard grid, windowing.
     #[test]
