@@ -274,19 +274,26 @@ impl<'a> RowDecoder<'a> {
 type TileJob<'t, 'a> = (Option<&'t mut TileDecoder<'a>>, Vec<&'t mut [i32]>, Option<Vec<&'t mut [MbSide]>>);
 
 /// The FLEXBITS half of a deferred [`RowDecoder`]: completes its rows (flexbits, HP
-/// prediction, dequantization), in order, tile column by tile column.
+/// prediction, dequantization), in order, the tile columns of a row in parallel on the pool
+/// (each has its own FLEXBITS packet).
 pub(crate) struct RowCompleter<'a> {
     cs: &'a Codestream,
     data: &'a [u8],
+    pool: ThreadPool,
     ty: usize,
     left: u32,
     stages: Vec<FlexStage<'a>>,
 }
 
+/// One tile column's share of a row in [`RowCompleter::complete`]: its stage, its part of each
+/// plane's row and of each plane's side information.
+type FlexJob<'t, 'a> = (&'t mut FlexStage<'a>, Vec<&'t mut [i32]>, Vec<&'t [MbSide]>);
+
 impl<'a> RowCompleter<'a> {
-    /// The completer of the rows a deferred [`RowDecoder`] of the same codestream gives.
-    pub fn new(cs: &'a Codestream, data: &'a [u8]) -> Self {
-        RowCompleter { cs, data, ty: 0, left: 0, stages: Vec::new() }
+    /// The completer of the rows a deferred [`RowDecoder`] of the same codestream gives, on
+    /// `pool`'s threads.
+    pub fn new(cs: &'a Codestream, data: &'a [u8], pool: ThreadPool) -> Self {
+        RowCompleter { cs, data, pool, ty: 0, left: 0, stages: Vec::new() }
     }
 
     /// Completes the next row (`out` and `side` as [`RowDecoder::next_row_deferred`] gave them).
@@ -304,17 +311,31 @@ impl<'a> RowCompleter<'a> {
         }
         let strides: Vec<usize> =
             std::iter::once(&self.cs.primary).chain(self.cs.alpha.as_ref()).map(|p| p.channels * MB_COEFFS).collect();
-        let mut x0 = 0usize;
-        for (stage, &w) in self.stages.iter_mut().zip(&img.tile_widths) {
-            let w = w as usize;
-            let mut rows: Vec<&mut [i32]> = out
-                .iter_mut()
-                .zip(&strides)
-                .map(|(o, &stride)| o.get_mut(x0 * stride..(x0 + w) * stride).unwrap_or_default())
-                .collect();
-            let sides: Vec<&[MbSide]> = side.iter().map(|s| s.get(x0..x0 + w).unwrap_or_default()).collect();
-            stage.complete_row(&mut rows, &sides)?;
-            x0 += w;
+        let mut jobs: Vec<FlexJob<'_, 'a>> =
+            self.stages.iter_mut().map(|stage| (stage, Vec::new(), Vec::new())).collect();
+        // Each plane's row (and side information) cut into the tile columns' parts.
+        for (o, &stride) in out.iter_mut().zip(&strides) {
+            let mut rest = &mut o[..];
+            for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                let (part, tail) =
+                    std::mem::take(&mut rest).split_at_mut_checked(w as usize * stride).unwrap_or_default();
+                job.1.push(part);
+                rest = tail;
+            }
+        }
+        for s in side.iter().take(strides.len()) {
+            let mut rest = &s[..];
+            for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                let (part, tail) = rest.split_at_checked(w as usize).unwrap_or_default();
+                job.2.push(part);
+                rest = tail;
+            }
+        }
+        let complete = |job: &mut FlexJob<'_, 'a>| job.0.complete_row(&mut job.1, &job.2);
+        if jobs.len() > 1 && self.pool.is_parallel() {
+            self.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| complete(&mut j[0]))?;
+        } else {
+            jobs.iter_mut().try_for_each(complete)?;
         }
         self.left -= 1;
         Ok(())
@@ -499,25 +520,28 @@ mod tests {
         }
     }
 
-    /// The flexbits decoded apart (a deferred row decoder and its completer) give the same
-    /// rows as the decoder that does everything.
+    /// The flexbits decoded apart (a deferred row decoder and its completer, whose tile columns
+    /// run in parallel on two threads) give the same rows as the decoder that does everything.
     #[test]
     fn deferred_flexbits_give_the_same_rows() {
         let file = testdata("tiny_tiles.jxr");
         let bytes = crate::container::parse_container(&file).unwrap().image;
         let cs = header::parse(bytes).unwrap();
         assert!(RowDecoder::can_defer_flex(&cs));
+        assert_eq!(cs.image.tile_widths.len(), 2);
         let options = DecodeOptions::new(Limits::default());
-        let mut whole = RowDecoder::new(&cs, bytes, &options).unwrap();
-        let mut first = RowDecoder::new(&cs, bytes, &options).unwrap();
-        let mut completer = RowCompleter::new(&cs, bytes);
-        let (mut a, mut b, mut side) = (vec![Vec::new()], vec![Vec::new()], vec![Vec::new()]);
-        while let Some(y) = whole.next_row(&mut a).unwrap() {
-            assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), Some(y));
-            completer.complete(&mut b, &side).unwrap();
-            assert_eq!(a, b, "row {y}");
+        for pool in [hdrcodec_core::ThreadPool::single(), hdrcodec_core::ThreadPool::new(2).unwrap()] {
+            let mut whole = RowDecoder::new(&cs, bytes, &options).unwrap();
+            let mut first = RowDecoder::new(&cs, bytes, &options).unwrap();
+            let mut completer = RowCompleter::new(&cs, bytes, pool);
+            let (mut a, mut b, mut side) = (vec![Vec::new()], vec![Vec::new()], vec![Vec::new()]);
+            while let Some(y) = whole.next_row(&mut a).unwrap() {
+                assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), Some(y));
+                completer.complete(&mut b, &side).unwrap();
+                assert_eq!(a, b, "row {y}");
+            }
+            assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), None);
         }
-        assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), None);
     }
 
     /// Every truncation and a few hundred byte changes of each stream: an error or

@@ -14,6 +14,7 @@ use crate::transform::{
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
 use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, Result};
 use std::collections::VecDeque;
+use std::ops::Range;
 
 /// INTERNAL_CLR_FMT's code.
 pub(crate) fn clr_code(fmt: ClrFmt) -> u8 {
@@ -226,16 +227,20 @@ fn decode_impl(
         _ => OperatorSet::JpegXr,
     };
     let alpha_params = params(alpha_scaled, alpha_ops, (alpha_overlap, &alpha_hard));
-    // Working memory: the window (band + halo of coefficient rows), the next band's rows
-    // being decoded meanwhile, the samples of two bands (one being transformed, the one
-    // before it being formatted) and a band of formatted rows.
+    // Working memory. One thread: the window (the band and its halo of coefficient rows),
+    // one band of samples and a few formatted rows; every step of a band runs after the one
+    // before, so nothing else is held. Two threads: the next band's rows being decoded and
+    // the samples of the band before (being formatted, into a band of formatted rows) too.
     // (A small image has fewer rows than that.)
+    let parallel = options.pool.is_parallel();
     let band = transform::BAND_MB_ROWS.min(mb_h);
-    let coeff_rows = (2 * band + 5).min(mb_h + 2);
+    let halo_below = if primary.clr_fmt == ClrFmt::Yuv420 { 3 } else { 2 };
+    let coeff_rows = (if parallel { 2 * band } else { band } + 2 + halo_below).min(mb_h + 2);
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
-    let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8);
+    let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8) * if parallel { 2 } else { 1 };
+    let raw_rows_held = if parallel { band * 16 } else { FORMAT_CHUNK };
     let sample_bytes =
-        (sample_rows * mb_w * 16 * 4 * (primary.channels + 2)) as u64 + (band * 16 * out.row_bytes(width)) as u64;
+        (sample_rows * mb_w * 16 * 4 * (primary.channels + 1)) as u64 + (raw_rows_held * out.row_bytes(width)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     let mut sink = sink;
@@ -245,19 +250,22 @@ fn decode_impl(
     let [top, left, _, _] = img.margins.map(|m| m as usize);
     let ext_w = 16 * mb_w;
     let row_len = width * channels.count();
-    let mut full = vec![vec![0i32; ext_w]; primary.channels];
-    // The band's rows in the pixel format's bytes: formatted where the band is transformed
-    // (thread B), handed out here.
+    let mut full = [vec![vec![0i32; ext_w]; primary.channels], Vec::new()];
+    if parallel {
+        full[1] = full[0].clone();
+    }
+    // Rows in the pixel format's bytes: a band's (two threads: formatted on thread A while
+    // thread B transforms the next band, handed out here), or a few rows at a time.
     let raw_row = out.row_bytes(width);
     let mut raw_band: Vec<u8> = Vec::new();
     let mut scratch = Scratch::new(&options.limits);
-    // Coefficients of rows up to r1 + 3 for the band r0..r1 (the halo, and one more row for
-    // 4:2:0 chroma). The next band's rows are entropy-decoded while this band transforms.
-    let need = |r1: usize| (r1 + 3).min(mb_h);
+    // Coefficients of rows up to r1 + 2 for the band r0..r1 (the transform's halo), 4:2:0
+    // one more (its chroma bands end a row lower).
+    let need = |r1: usize| (r1 + halo_below).min(mb_h);
     // In frequency order with flexbits, the FLEXBITS packet is decoded with the transform
     // (thread B), a band behind the DC, LP and HP packets (thread A).
     let deferred = RowDecoder::can_defer_flex(&cs);
-    let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image));
+    let mut completer = deferred.then(|| RowCompleter::new(&cs, container.image, options.pool.clone()));
     // Row and sample buffers go back to these once used, so that a band reuses the memory of
     // the band before (fresh allocations of this size cost page faults and zeroing).
     let mut spare_rows: Vec<Fetched> = Vec::new();
@@ -267,15 +275,15 @@ fn decode_impl(
         let (y_start, y_end) = ((r0 * 16).max(top), ((r0 + band).min(mb_h) * 16).min(top + height));
         (y_start, y_end.saturating_sub(y_start))
     };
-    // A band's rows in the pixel format's bytes. Full-resolution channels are read where the
-    // transform left them; subsampled chroma is upsampled into a row of its own (4:2:0: from
-    // the band's chroma rows and the next band's first macroblock row).
+    // Rows `part` of a band (counted from its first image row) in the pixel format's bytes.
+    // Full-resolution channels are read where the transform left them; subsampled chroma is
+    // upsampled into a row of its own (4:2:0: from the band's chroma rows and the next band's
+    // first macroblock row).
     let out = &out;
-    let format_band = |t: &Transformed, full: &mut [Vec<i32>], raw_band: &mut Vec<u8>| -> Result<()> {
-        let (y_start, rows) = band_rows(t.r0);
-        raw_band.resize(rows * raw_row, 0);
+    let format_rows = |t: &Transformed, part: Range<usize>, full: &mut [Vec<i32>], raw_band: &mut [u8]| -> Result<()> {
+        let (y_start, _) = band_rows(t.r0);
         let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
-        for (i, raw) in raw_band.chunks_exact_mut(raw_row.max(1)).enumerate().take(rows) {
+        for (i, raw) in part.zip(raw_band.chunks_exact_mut(raw_row.max(1))) {
             let local = y_start + i - t.r0 * 16;
             for (ch, p) in t.planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
                 upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
@@ -292,19 +300,36 @@ fn decode_impl(
         }
         Ok(())
     };
-    // Hands a formatted band to the caller: raw rows, and linear f32 rows to the sink.
-    let mut deliver = |t: &Transformed, raw_band: &[u8]| -> Result<()> {
-        let (y_start, rows) = band_rows(t.r0);
-        if rows == 0 {
+    // Rows `part` of a band into `raw_band`; on two threads in two halves, each a job of the
+    // pool, so that a thread done with its own work formats half of them.
+    let format_band =
+        |t: &Transformed, part: Range<usize>, full: &mut [Vec<Vec<i32>>; 2], raw_band: &mut Vec<u8>| -> Result<()> {
+            raw_band.resize(part.len() * raw_row, 0);
+            let [full_a, full_b] = full;
+            if !parallel || part.len() < 2 {
+                return format_rows(t, part, full_a, raw_band);
+            }
+            let mid = part.start + part.len() / 2;
+            let (raw_a, raw_b) = raw_band.split_at_mut((mid - part.start) * raw_row);
+            let (a, b) = options.pool.join(
+                || format_rows(t, part.start..mid, full_a, raw_a),
+                || format_rows(t, mid..part.end, full_b, raw_b),
+            );
+            a.and(b)
+        };
+    // Hands rows `part` of a formatted band to the caller: raw rows, and linear f32 rows to
+    // the sink.
+    let mut deliver = |t: &Transformed, part: Range<usize>, raw_band: &[u8]| -> Result<()> {
+        if part.is_empty() {
             return Ok(());
         }
-        let y0 = (y_start - top) as u32;
-        let raws = raw_band.chunks_exact(raw_row.max(1)).take(rows);
+        let y0 = band_rows(t.r0).0 - top + part.start;
+        let raws = raw_band.chunks_exact(raw_row.max(1)).take(part.len());
         for (i, raw) in raws.clone().enumerate() {
-            raw_rows(y0 as usize + i, raw)?;
+            raw_rows(y0 + i, raw)?;
         }
         if let Some(s) = sink.as_deref_mut() {
-            fill_rows(s, y0, rows as u32, row_len, &mut scratch, |dst: &mut [f32]| {
+            fill_rows(s, y0 as u32, part.len() as u32, row_len, &mut scratch, |dst: &mut [f32]| {
                 raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
             })?;
         }
@@ -316,14 +341,15 @@ fn decode_impl(
     for r0 in (0..mb_h).step_by(band) {
         let r1 = (r0 + band).min(mb_h);
         let next = need((r1 + band).min(mb_h));
+        // The rows before r0 − 2 are no band's any more: their buffers take the next rows.
+        win.drop_before(r0.saturating_sub(2), &mut spare_rows);
         let rows_in = std::mem::take(&mut pending);
         let mut sample_bufs = std::mem::take(&mut spare_samples);
         let (win_ref, completer_ref) = (&mut win, &mut completer);
         let (prim_params, alpha_params) = (&prim_params, &alpha_params);
-        let transform_all = move || -> Result<(Transformed, Vec<Fetched>)> {
+        let pool = &options.pool;
+        let transform_all = move || -> Result<Transformed> {
             // The rows this band needs: completed (flexbits) and appended to the window.
-            let mut dropped = Vec::new();
-            win_ref.drop_before(r0.saturating_sub(2), &mut dropped);
             for mut row in rows_in {
                 if let Some(c) = completer_ref.as_mut() {
                     c.complete(&mut row.planes, &row.side)?;
@@ -335,53 +361,116 @@ fn decode_impl(
             let prim_src = |ch: usize| {
                 MbRows::new(&prim_rows, win.first, primary.channels * crate::mb::MB_COEFFS, ch * crate::mb::MB_COEFFS)
             };
-            let planes: Vec<BandPlane> = (0..primary.channels)
+            // Each channel's transform is a job of its own: on two threads, the channels of a
+            // band share both cores with the other thread's work (entropy decoding of tile
+            // columns, formatting).
+            let mut jobs: Vec<BandJob> = (0..primary.channels)
                 .map(|ch| {
                     let end = if ch > 0 && primary.clr_fmt == ClrFmt::Yuv420 { (r1 + 1).min(mb_h) } else { r1 };
-                    let buf = sample_bufs.pop().unwrap_or_default();
-                    transform_band(&prim_src(ch), prim_params, primary.clr_fmt, ch, mb_w, mb_h, r0..end, buf)
+                    let scratch = sample_bufs.pop().unwrap_or_default();
+                    BandJob {
+                        src: prim_src(ch),
+                        params: prim_params,
+                        fmt: primary.clr_fmt,
+                        ch,
+                        rows: r0..end,
+                        scratch,
+                        done: None,
+                    }
                 })
-                .collect::<Result<_>>()?;
-            let alpha = if with_alpha {
-                let rows = win.plane_rows(WindowPlane::Alpha)?;
-                let src = MbRows::new(&rows, win.first, crate::mb::MB_COEFFS, 0);
-                let buf = sample_bufs.pop().unwrap_or_default();
-                Some(transform_band(&src, alpha_params, alpha_fmt, 0, mb_w, mb_h, r0..r1, buf)?)
-            } else {
-                None
+                .collect();
+            let alpha_rows = if with_alpha { Some(win.plane_rows(WindowPlane::Alpha)?) } else { None };
+            if let Some(rows) = &alpha_rows {
+                let src = MbRows::new(rows, win.first, crate::mb::MB_COEFFS, 0);
+                let scratch = sample_bufs.pop().unwrap_or_default();
+                jobs.push(BandJob {
+                    src,
+                    params: alpha_params,
+                    fmt: alpha_fmt,
+                    ch: 0,
+                    rows: r0..r1,
+                    scratch,
+                    done: None,
+                });
+            }
+            let run = |job: &mut BandJob| -> Result<()> {
+                let scratch = std::mem::take(&mut job.scratch);
+                job.done =
+                    Some(transform_band(&job.src, job.params, job.fmt, job.ch, mb_w, mb_h, job.rows.clone(), scratch)?);
+                Ok(())
             };
-            Ok((Transformed { r0, planes, alpha, spare: sample_bufs }, dropped))
+            if parallel {
+                pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| run(&mut j[0]))?;
+            } else {
+                jobs.iter_mut().try_for_each(run)?;
+            }
+            let mut planes = Vec::with_capacity(jobs.len());
+            for job in jobs {
+                planes.push(job.done.ok_or_else(|| Error::invalid("JPEG XR: a channel not transformed (a bug)"))?);
+            }
+            let alpha = if with_alpha { planes.pop() } else { None };
+            Ok(Transformed { r0, planes, alpha, spare: sample_bufs })
         };
+        let count = next - decoded;
+        decoded = next;
+        if !parallel {
+            // One thread: transform the band, hand out its rows a few at a time, then decode
+            // the next band's rows into the buffers of the rows it no longer needs.
+            let t = transform_all()?;
+            let rows = band_rows(r0).1;
+            for start in (0..rows).step_by(FORMAT_CHUNK) {
+                let part = start..(start + FORMAT_CHUNK).min(rows);
+                format_band(&t, part.clone(), &mut full, &mut raw_band)?;
+                deliver(&t, part, &raw_band)?;
+            }
+            spare_samples.extend(t.into_buffers());
+            win.drop_before(r1.saturating_sub(2), &mut spare_rows);
+            pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, &mut spare_rows)?;
+            continue;
+        }
         // Thread A entropy-decodes the next band's rows and formats the band before this one
         // (thread B transforms this one meanwhile): the two halves of the work about even.
-        let count = next - decoded;
         let spare = &mut spare_rows;
         let previous = transformed.take();
         let (full_ref, raw_ref) = (&mut full, &mut raw_band);
         let fetch_next = || -> Result<(Vec<Fetched>, Option<Transformed>)> {
             let rows = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare)?;
             if let Some(t) = &previous {
-                format_band(t, full_ref, raw_ref)?;
+                format_band(t, 0..band_rows(t.r0).1, full_ref, raw_ref)?;
             }
             Ok((rows, previous))
         };
         let (fetched, this_band) = options.pool.join(fetch_next, transform_all);
         let (rows, previous) = fetched?;
         pending = rows;
-        decoded = next;
-        let (this_band, dropped) = this_band?;
-        spare_rows.extend(dropped);
+        let this_band = this_band?;
         if let Some(t) = previous {
-            deliver(&t, &raw_band)?;
+            deliver(&t, 0..band_rows(t.r0).1, &raw_band)?;
             spare_samples.extend(t.into_buffers());
         }
         transformed = Some(this_band);
     }
     if let Some(t) = transformed.take() {
-        format_band(&t, &mut full, &mut raw_band)?;
-        deliver(&t, &raw_band)?;
+        let part = 0..band_rows(t.r0).1;
+        format_band(&t, part.clone(), &mut full, &mut raw_band)?;
+        deliver(&t, part, &raw_band)?;
     }
     Ok(())
+}
+
+/// Image rows formatted and handed out at a time on one thread.
+const FORMAT_CHUNK: usize = 8;
+
+/// The inverse transform of one channel of a band: its coefficients, parameters, channel and
+/// macroblock rows, the buffers to write into, and what it gave.
+struct BandJob<'w> {
+    src: MbRows<'w>,
+    params: &'w TransformParams,
+    fmt: ClrFmt,
+    ch: usize,
+    rows: Range<usize>,
+    scratch: BandScratch,
+    done: Option<BandPlane>,
 }
 
 /// A band after the inverse transform: its first macroblock row, each channel's samples, and
@@ -516,6 +605,39 @@ mod tests {
         for y in 0..24 {
             assert_eq!(&buf[y * stride..y * stride + 160], image.row(y as u32));
             assert_eq!(&buf[y * stride + 160..(y + 1) * stride], &[-1.0; 3]);
+        }
+    }
+
+    /// Damaged files (truncated, bits flipped) give the same result on one thread and on two
+    /// (where the band pipeline, the tile columns and the transform's channels run as jobs of
+    /// the pool): the same samples, or an error on both, never a panic.
+    #[test]
+    fn damaged_files_decode_alike_on_one_and_two_threads() {
+        let two = hdrcodec_core::ThreadPool::new(2).unwrap();
+        for name in ["tiny_tiles.jxr", "tiny_420_sp.jxr", "t835_hard_2x2.jxr", "tiny_alpha_sp.jxr"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("testdata").join(name);
+            let file = std::fs::read(path).unwrap();
+            let decode = |bytes: &[u8], pool: &hdrcodec_core::ThreadPool| {
+                decode_raw(bytes, &DecodeOptions::new(Limits::default()).with_pool(pool.clone())).ok()
+            };
+            let mut next = crate::testing::rng(file.len() as u64);
+            let mut bad = file.clone();
+            let mut outcomes = [0; 2];
+            for i in 0..120 {
+                let damaged: &[u8] = if i % 3 == 0 {
+                    &file[..(next() % file.len() as u64) as usize]
+                } else {
+                    bad.copy_from_slice(&file);
+                    let at = (next() % file.len() as u64) as usize;
+                    bad[at] ^= 1 << (next() % 8);
+                    &bad
+                };
+                let one = decode(damaged, &hdrcodec_core::ThreadPool::single());
+                outcomes[usize::from(one.is_some())] += 1;
+                assert_eq!(one, decode(damaged, &two), "{name}, case {i}");
+            }
+            // Both kinds of outcome occur: samples from damaged data, and errors.
+            assert!(outcomes[0] > 0 && outcomes[1] > 0, "{name}: {outcomes:?}");
         }
     }
 
