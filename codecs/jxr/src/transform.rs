@@ -47,6 +47,8 @@ macro_rules! ap {
     }};
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 mod legacy;
 pub use legacy::DcLeakage;
 
@@ -894,7 +896,7 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
     pot4_interior_row_portable(p, r, y, dir, cm)
 }
 
-/// [`pot4_interior_row_portable`] compiled for AVX2.
+/// [`pot4_interior_row_portable`] with AVX2 intrinsics (the `avx2` module's).
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -902,7 +904,8 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
 #[target_feature(enable = "avx2")]
 #[allow(unsafe_code)]
 unsafe fn pot4_interior_row_avx2(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
-    pot4_interior_row_portable(p, r, y, dir, cm)
+    // SAFETY: the caller guarantees AVX2.
+    unsafe { avx2::pot4_interior_row(p, r, y, dir, cm) }
 }
 
 #[inline(always)]
@@ -1361,12 +1364,19 @@ fn hd_photo_band(request: &BandRequest, leak: &DcLeakage, scratch: &mut BandScra
 #[target_feature(enable = "avx2")]
 #[allow(unsafe_code)]
 unsafe fn inverse_band_rows_avx2(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
-    inverse_band_rows_portable(request, scratch)
+    inverse_band_rows_body::<true>(request, scratch)
 }
 
 /// The portable body of [`inverse_band_rows`].
-#[inline(always)]
 fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
+    inverse_band_rows_body::<false>(request, scratch)
+}
+
+/// The body of [`inverse_band_rows`]; with `AVX2` (only in [`inverse_band_rows_avx2`]) the
+/// stage-1 PCT of full planes runs the `avx2` module's intrinsics.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn inverse_band_rows_body<const AVX2: bool>(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
     let BandRequest { params, kind, mb_w, mb_h, coeffs, ref rows, .. } = *request;
     let BandScratch { dc, cm, data } = scratch;
     let StageTwo { width, s0 } = stage2_band(request, 2, dc)?;
@@ -1414,6 +1424,18 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     };
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && bx == 4 {
+            let rows = &mut data[(y - b0) * 4 * width..][..4 * width];
+            let mut rows = rows.chunks_exact_mut(width);
+            let rows: [&mut [i32]; 4] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+            let dc_row = &dc[(y - by * s0) * dw..][..dw];
+            // SAFETY: `AVX2` is true only in `inverse_band_rows_avx2`, which runs only when
+            // the CPU has AVX2.
+            unsafe { avx2::stage1_full_row(dc_row, coeffs, my, jy, mb_w, rows) };
+            pot_seams(data, cm, 4 * y);
+            continue;
+        }
         cm.resize(16 * n, 0);
         {
             // The 16 rows of the scratch, each cut to the block row's width, so that the
