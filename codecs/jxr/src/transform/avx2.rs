@@ -159,6 +159,59 @@ pub(super) unsafe fn stage1_full_row(
     }
 }
 
+/// The stage-2 inverse PCT of macroblock row `my` of a full plane ([`stage2_inverse`]'s
+/// `PlaneKind::Full` case), eight macroblocks at a time: their DC and LP coefficients
+/// transposed into the operator's sixteen registers (two 8×8 transposes), the block DCs
+/// (doubled with `double`) transposed back into the four DC rows `out` (`4·mb_w` each).
+/// Returns how many macroblocks it did (whole groups of eight); the caller does the rest.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+pub(super) unsafe fn stage2_full_row(
+    coeffs: &MbRows,
+    my: usize,
+    mb_w: usize,
+    double: bool,
+    mut out: [&mut [i32]; 4],
+) -> usize {
+    for g in 0..mb_w / 8 {
+        let mut c = [W(_mm256_setzero_si256()); 16];
+        for half in 0..2 {
+            let mut m = [_mm256_setzero_si256(); 8];
+            for (i, m) in m.iter_mut().enumerate() {
+                let mb: &[i32; 8] = coeffs.mb(8 * g + i, my)[8 * half..][..8].try_into().expect("8 coefficients");
+                // SAFETY: `mb` holds the 8 values the unaligned load reads.
+                *m = unsafe { _mm256_loadu_si256(mb.as_ptr().cast()) };
+            }
+            // An 8×8 transpose: 4×4 ones in each lane of macroblocks i and i + 4, then the
+            // lanes exchanged.
+            let lo = transpose([m[0], m[1], m[2], m[3]]);
+            let hi = transpose([m[4], m[5], m[6], m[7]]);
+            for k in 0..4 {
+                c[8 * half + k] = W(_mm256_permute2x128_si256::<0x20>(lo[k], hi[k]));
+                c[8 * half + 4 + k] = W(_mm256_permute2x128_si256::<0x31>(lo[k], hi[k]));
+            }
+        }
+        let mut t = ipct4x4_g(c);
+        if double {
+            for x in &mut t {
+                *x = *x + *x;
+            }
+        }
+        // Row j of the block DCs: the transpose gives lanes (i, i + 4) of column i.
+        for (j, row) in out.iter_mut().enumerate() {
+            let [x0, x1, x2, x3] = transpose([t[4 * j].0, t[4 * j + 1].0, t[4 * j + 2].0, t[4 * j + 3].0]);
+            store8(row, 32 * g, _mm256_permute2x128_si256::<0x20>(x0, x1));
+            store8(row, 32 * g + 8, _mm256_permute2x128_si256::<0x20>(x2, x3));
+            store8(row, 32 * g + 16, _mm256_permute2x128_si256::<0x31>(x0, x1));
+            store8(row, 32 * g + 24, _mm256_permute2x128_si256::<0x31>(x2, x3));
+        }
+    }
+    mb_w / 8 * 8
+}
+
 /// The POT's interior 4×4 windows of the seam row `y` of `r` ([`pot4_interior_row_portable`]'s
 /// windows), eight at a time straight from the rows: the 32 samples of a window row of eight
 /// windows are four registers of two windows each, whose transpose gives each of the row's
