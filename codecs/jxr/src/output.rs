@@ -20,6 +20,9 @@ use hdrcodec_core::transfer::{PqTransfer, SrgbTransfer};
 use hdrcodec_core::{Error, Result};
 use std::sync::OnceLock;
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
 /// INTERNAL_CLR_FMT of the image plane header (T.832 Table 31): how the coded channels are
 /// laid out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -722,12 +725,19 @@ impl OutputParams {
     #[target_feature(enable = "avx2")]
     #[allow(unsafe_code)]
     unsafe fn format_row_avx2(&self, rows: RowSources, width: usize, out: &mut [u8]) -> Result<()> {
-        self.format_row_portable(rows, width, out)
+        self.format_row_body(rows, width, out, true)
     }
 
     /// The portable body of [`format_row`](Self::format_row).
+    fn format_row_portable(&self, rows: RowSources, width: usize, out: &mut [u8]) -> Result<()> {
+        self.format_row_body(rows, width, out, false)
+    }
+
+    /// The body of [`format_row`](Self::format_row); `avx2` (true only in
+    /// [`format_row_avx2`](Self::format_row_avx2)) interleaves the RGB formats' samples with
+    /// the `avx2` module's shuffles.
     #[inline(always)]
-    fn format_row_portable(&self, (channels, alpha): RowSources, width: usize, out: &mut [u8]) -> Result<()> {
+    fn format_row_body(&self, (channels, alpha): RowSources, width: usize, out: &mut [u8], avx2: bool) -> Result<()> {
         let n = self.internal.channels();
         let short = || Error::invalid("output row shorter than the image width");
         if channels.len() < n || channels[..n].iter().any(|c| c.len() < width) {
@@ -764,7 +774,10 @@ impl OutputParams {
         let (red, blue) = if self.format.bgr { (2, 0) } else { (0, 2) };
         let nl = u32::from(self.shift);
         let padded = self.format.padded;
-        let layout = RgbLayout { spp, padded, red, blue };
+        // The kernels write a pixel's fourth sample too: only where it is padding or alpha
+        // (written after), as the portable code leaves it otherwise.
+        let avx2 = avx2 && (spp == 3 || padded || alpha.is_some());
+        let layout = RgbLayout { spp, padded, red, blue, avx2 };
         let yuv = [y, u, v];
 
         match (self.color, self.bit_depth) {
@@ -945,13 +958,61 @@ impl OutputParams {
 type RowSources<'a> = (&'a [&'a [i32]], Option<&'a [i32]>);
 
 /// Where R, G and B go in a pixel of `spp` samples: R at sample `red`, G at 1, B at `blue`,
-/// a padding sample after them zeroed when `padded`.
+/// a padding sample after them zeroed when `padded`; `avx2` when the `avx2` module's
+/// interleaving may run (only in `format_row_avx2`).
 #[derive(Clone, Copy)]
 struct RgbLayout {
     spp: usize,
     padded: bool,
     red: usize,
     blue: usize,
+    avx2: bool,
+}
+
+/// A sample type of [`write_rgb_runs`], with the AVX2 interleaving of its runs where the
+/// `avx2` module has one.
+trait RunSample: Copy + Default {
+    /// Writes the first of the `n` pixels of `out` (`spp` samples each; a fourth sample 0, or
+    /// alpha's place, which `format_alpha` fills after) from the samples `c` in the pixel's
+    /// order, as many as the kernel takes at once; returns how many pixels it wrote (none
+    /// without a kernel for this sample type and layout). Call only when the CPU has AVX2.
+    #[inline(always)]
+    fn interleave_avx2(_out: &mut [u8], _spp: usize, _c: [&[Self]; 3], _n: usize) -> usize {
+        0
+    }
+}
+
+impl RunSample for u8 {}
+
+impl RunSample for u16 {
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn interleave_avx2(out: &mut [u8], spp: usize, c: [&[u16]; 3], n: usize) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        match spp {
+            // SAFETY: the caller runs only when the CPU has AVX2 (`RgbLayout::avx2`).
+            3 => return unsafe { avx2::interleave3x16(out, c, n) },
+            // SAFETY: as above.
+            4 => return unsafe { avx2::interleave4x16(out, c, n) },
+            _ => {}
+        }
+        let _ = (out, spp, c, n);
+        0
+    }
+}
+
+impl RunSample for u32 {
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn interleave_avx2(out: &mut [u8], spp: usize, c: [&[u32]; 3], n: usize) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if spp == 4 {
+            // SAFETY: the caller runs only when the CPU has AVX2 (`RgbLayout::avx2`).
+            return unsafe { avx2::interleave4x32(out, c, n) };
+        }
+        let _ = (out, spp, c, n);
+        0
+    }
 }
 
 /// Writes the R, G, B samples of every pixel of `out` from the rows `yuv` (Y, U, V; with
@@ -960,7 +1021,7 @@ struct RgbLayout {
 /// of pixels, then `f` over each channel's run, then the bytes; the first two are lane-wise
 /// loops without bounds checks, which the compiler vectorises when `f` has no branches.
 #[inline(always)]
-fn write_rgb_runs<T: Copy + Default, const B: usize>(
+fn write_rgb_runs<T: RunSample, const B: usize>(
     out: &mut [u8],
     layout: RgbLayout,
     yuv: [&[i32]; 3],
@@ -969,7 +1030,7 @@ fn write_rgb_runs<T: Copy + Default, const B: usize>(
     f: impl Fn(i32) -> T,
     bytes: impl Fn(T) -> [u8; B],
 ) {
-    let RgbLayout { spp, padded, red, blue } = layout;
+    let RgbLayout { spp, padded, red, blue, avx2 } = layout;
     let mut ints = [[0i32; RUN]; 3];
     let mut converted = [[T::default(); RUN]; 3];
     for (run, chunk) in out.chunks_mut(B * spp * RUN).enumerate() {
@@ -980,7 +1041,14 @@ fn write_rgb_runs<T: Copy + Default, const B: usize>(
             }
         }
         let [rs, gs, bs] = &converted;
-        for (p, ((&r, &g), &b)) in chunk.chunks_exact_mut(B * spp).zip(rs.iter().zip(gs).zip(bs)) {
+        let done = if avx2 && B == size_of::<T>() {
+            let by_place: [&[T]; 3] = if red == 0 { [rs, gs, bs] } else { [bs, gs, rs] };
+            T::interleave_avx2(chunk, spp, by_place, chunk.len() / (B * spp))
+        } else {
+            0
+        };
+        let pixels = chunk.chunks_exact_mut(B * spp).zip(rs.iter().zip(gs).zip(bs));
+        for (p, ((&r, &g), &b)) in pixels.skip(done) {
             p[red * B..red * B + B].copy_from_slice(&bytes(r));
             p[B..2 * B].copy_from_slice(&bytes(g));
             p[blue * B..blue * B + B].copy_from_slice(&bytes(b));

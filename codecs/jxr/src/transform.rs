@@ -47,6 +47,8 @@ macro_rules! ap {
     }};
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 mod legacy;
 pub use legacy::DcLeakage;
 
@@ -894,7 +896,7 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
     pot4_interior_row_portable(p, r, y, dir, cm)
 }
 
-/// [`pot4_interior_row_portable`] compiled for AVX2.
+/// [`pot4_interior_row_portable`] with AVX2 intrinsics (the `avx2` module's).
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -902,7 +904,8 @@ fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32
 #[target_feature(enable = "avx2")]
 #[allow(unsafe_code)]
 unsafe fn pot4_interior_row_avx2(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
-    pot4_interior_row_portable(p, r, y, dir, cm)
+    // SAFETY: the caller guarantees AVX2.
+    unsafe { avx2::pot4_interior_row(p, r, y, dir, cm) }
 }
 
 #[inline(always)]
@@ -1313,6 +1316,14 @@ pub(super) struct StageTwo {
 /// no clearing.
 #[inline(always)]
 pub(super) fn stage2_band(request: &BandRequest, halo: usize, dc: &mut Vec<i32>) -> Result<StageTwo> {
+    stage2_band_with::<false>(request, halo, dc)
+}
+
+/// [`stage2_band`]; with `AVX2` (only in [`inverse_band_rows_avx2`]) full planes run eight
+/// macroblocks at a time in the `avx2` module.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn stage2_band_with<const AVX2: bool>(request: &BandRequest, halo: usize, dc: &mut Vec<i32>) -> Result<StageTwo> {
     let BandRequest { params, kind, channel, mb_w, mb_h, coeffs, ref rows } = *request;
     let (width, _) = plane_size(kind, mb_w, mb_h)?;
     let (bx, by) = kind.blocks();
@@ -1333,7 +1344,17 @@ pub(super) fn stage2_band(request: &BandRequest, halo: usize, dc: &mut Vec<i32>)
     grow(dc, dw * by * (s1 - s0));
     let mut v = [0i32; 16];
     for my in s0..s1 {
-        for mx in 0..mb_w {
+        let mut done = 0;
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && kind == PlaneKind::Full {
+            let rows = &mut dc[(my - s0) * 4 * dw..][..4 * dw];
+            let mut rows = rows.chunks_exact_mut(dw);
+            let rows: [&mut [i32]; 4] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+            // SAFETY: `AVX2` is true only in `inverse_band_rows_avx2`, which runs only when
+            // the CPU has AVX2.
+            done = unsafe { avx2::stage2_full_row(coeffs, my, mb_w, double, rows) };
+        }
+        for mx in done..mb_w {
             stage2_inverse(kind, double, coeffs.mb(mx, my), &mut v);
             for j in 0..by {
                 let row = ((my - s0) * by + j) * dw + mx * bx;
@@ -1361,15 +1382,22 @@ fn hd_photo_band(request: &BandRequest, leak: &DcLeakage, scratch: &mut BandScra
 #[target_feature(enable = "avx2")]
 #[allow(unsafe_code)]
 unsafe fn inverse_band_rows_avx2(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
-    inverse_band_rows_portable(request, scratch)
+    inverse_band_rows_body::<true>(request, scratch)
 }
 
 /// The portable body of [`inverse_band_rows`].
-#[inline(always)]
 fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
+    inverse_band_rows_body::<false>(request, scratch)
+}
+
+/// The body of [`inverse_band_rows`]; with `AVX2` (only in [`inverse_band_rows_avx2`]) the
+/// stage-1 PCT of full planes runs the `avx2` module's intrinsics.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn inverse_band_rows_body<const AVX2: bool>(request: &BandRequest, scratch: &mut BandScratch) -> Result<usize> {
     let BandRequest { params, kind, mb_w, mb_h, coeffs, ref rows, .. } = *request;
     let BandScratch { dc, cm, data } = scratch;
-    let StageTwo { width, s0 } = stage2_band(request, 2, dc)?;
+    let StageTwo { width, s0 } = stage2_band_with::<AVX2>(request, 2, dc)?;
     let mb = |mx: usize, my: usize| coeffs.mb(mx, my);
     let (bx, by) = kind.blocks();
     let (r0, r1) = (rows.start, rows.end);
@@ -1414,6 +1442,18 @@ fn inverse_band_rows_portable(request: &BandRequest, scratch: &mut BandScratch) 
     };
     for y in b0..b1 {
         let (my, jy) = (y / by, y % by);
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && bx == 4 {
+            let rows = &mut data[(y - b0) * 4 * width..][..4 * width];
+            let mut rows = rows.chunks_exact_mut(width);
+            let rows: [&mut [i32]; 4] = std::array::from_fn(|_| rows.next().unwrap_or_default());
+            let dc_row = &dc[(y - by * s0) * dw..][..dw];
+            // SAFETY: `AVX2` is true only in `inverse_band_rows_avx2`, which runs only when
+            // the CPU has AVX2.
+            unsafe { avx2::stage1_full_row(dc_row, coeffs, my, jy, mb_w, rows) };
+            pot_seams(data, cm, 4 * y);
+            continue;
+        }
         cm.resize(16 * n, 0);
         {
             // The 16 rows of the scratch, each cut to the block row's width, so that the
@@ -1893,34 +1933,12 @@ mod tests {
             return;
         }
         let mut r = rng(31);
-        let (mb_w, mb_h) = (7, 5);
-        let coeffs: Vec<MbCoeffs> = (0..mb_w * mb_h).map(|_| std::array::from_fn(|_| sample(&mut r, 14))).collect();
-        let rows: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|c| c.as_flattened()).collect();
-        let source = MbRows::new(&rows, 0, MB_COEFFS, 0);
-        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
-            for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
-                for hard in [None, Some(HardEdges::from_tiles(&[3], &[2], true))] {
-                    let params = TransformParams { overlap, scaled: true, hard, operators: OperatorSet::JpegXr };
-                    for band in [0..mb_h, 1..3, 4..5] {
-                        let (mut a, mut b) = (BandScratch::default(), BandScratch::default());
-                        let request = BandRequest {
-                            params: &params,
-                            kind,
-                            channel: 1,
-                            mb_w,
-                            mb_h,
-                            coeffs: &source,
-                            rows: band.clone(),
-                        };
-                        let sa = inverse_band_rows_portable(&request, &mut a);
-                        // SAFETY: the CPU has AVX2 (checked above).
-                        let sb = unsafe { inverse_band_rows_avx2(&request, &mut b) };
-                        assert_eq!(sa.unwrap(), sb.unwrap());
-                        assert_eq!(a.data, b.data, "{kind:?} {overlap:?} {band:?}");
-                    }
-                }
-            }
+        // 7 macroblocks across: an odd last one in stage 1; 19: two groups of eight in stage
+        // 2 and three left over.
+        for (mb_w, mb_h) in [(7, 5), (19, 5)] {
+            band_twins_agree(&mut r, mb_w, mb_h);
         }
+        let (mb_w, mb_h) = (7, 5);
         // The forward stage-1 PCT's twin, on planes of random samples of every kind.
         for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
             let (bx, by) = kind.blocks();
@@ -1948,6 +1966,40 @@ mod tests {
                 };
             }
             assert_eq!(a, b, "{dir:?}");
+        }
+    }
+
+    /// [`inverse_band_rows_avx2`] gives [`inverse_band_rows_portable`]'s samples on random
+    /// coefficients of `mb_w × mb_h` macroblocks, every plane kind, overlap mode and tiling.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn band_twins_agree(r: &mut impl FnMut() -> u64, mb_w: usize, mb_h: usize) {
+        let coeffs: Vec<MbCoeffs> = (0..mb_w * mb_h).map(|_| std::array::from_fn(|_| sample(r, 14))).collect();
+        let rows: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|c| c.as_flattened()).collect();
+        let source = MbRows::new(&rows, 0, MB_COEFFS, 0);
+        for kind in [PlaneKind::Full, PlaneKind::Chroma420, PlaneKind::Chroma422] {
+            for overlap in [OverlapMode::None, OverlapMode::One, OverlapMode::Two] {
+                for hard in [None, Some(HardEdges::from_tiles(&[3], &[2], true))] {
+                    let params = TransformParams { overlap, scaled: true, hard, operators: OperatorSet::JpegXr };
+                    for (band, channel) in [0..mb_h, 1..3, 4..5].into_iter().zip([1, 0, 1]) {
+                        let (mut a, mut b) = (BandScratch::default(), BandScratch::default());
+                        let request = BandRequest {
+                            params: &params,
+                            kind,
+                            channel,
+                            mb_w,
+                            mb_h,
+                            coeffs: &source,
+                            rows: band.clone(),
+                        };
+                        let sa = inverse_band_rows_portable(&request, &mut a);
+                        // SAFETY: the CPU has AVX2 (the caller checked).
+                        let sb = unsafe { inverse_band_rows_avx2(&request, &mut b) };
+                        assert_eq!(sa.unwrap(), sb.unwrap());
+                        assert_eq!(a.data, b.data, "{kind:?} {overlap:?} {band:?}");
+                    }
+                }
+            }
         }
     }
 
