@@ -1894,6 +1894,8 @@ fn flex_raw_blocks(r: &mut BitReader, limit: &[u32], raw: &mut [u32], blocks: &[
     debug_assert!((1..=15).contains(&n));
     // A coefficient takes at most 16 bits (15 and a sign).
     let n = n.clamp(1, 15);
+    // The groups read the stream at their own bit position, handed back at the end.
+    let mut bit = r.bit_pos();
     macro_rules! each_block {
         ($group:literal) => {
             for &b in blocks {
@@ -1903,7 +1905,7 @@ fn flex_raw_blocks(r: &mut BitReader, limit: &[u32], raw: &mut [u32], blocks: &[
                 };
                 let block: &[u32; 15] = block.try_into().expect("15");
                 let out: &mut [u32; 15] = out.try_into().expect("15");
-                flex_raw::<$group>(r, block, out, n);
+                bit = flex_raw::<$group>(r, bit, block, out, n);
             }
         };
     }
@@ -1913,6 +1915,7 @@ fn flex_raw_blocks(r: &mut BitReader, limit: &[u32], raw: &mut [u32], blocks: &[
         7..=10 => each_block!(5),
         _ => each_block!(3),
     }
+    r.seek(bit);
 }
 
 /// [`flex_raw_blocks`] of one block, the bit buffer topped up before every `GROUP`
@@ -1922,11 +1925,13 @@ fn flex_raw_blocks(r: &mut BitReader, limit: &[u32], raw: &mut [u32], blocks: &[
 /// 32 bits (what goes to `raw`) are compared with the coefficient's limit ([`flex_limits`])
 /// while the buffer is shifted by `n`, and it is shifted once more by the compare's result.
 /// From one coefficient's buffer to the next: a shift, a compare, a flag to a register and a
-/// shift (`shrx`/`shlx`, no `cl` juggling, where the twin has BMI2). The group works on a copy
-/// of the buffer's first 56 bits followed by a marker bit, whose position at the end tells how
-/// many bits the group consumed, so that nothing else is counted per coefficient.
+/// shift (`shrx`/`shlx`, no `cl` juggling, where the twin has BMI2). Each group reads the 64
+/// bits at its bit position `bit` straight from the data ([`BitReader::bits_at`]) and works
+/// on their first 56 followed by a marker bit, whose position at the end tells how many bits
+/// the group consumed, so that nothing else is counted per coefficient. Returns the bit
+/// position after the block.
 #[inline(always)]
-fn flex_raw<const GROUP: usize>(r: &mut BitReader, limit: &[u32; 15], raw: &mut [u32; 15], n: u32) {
+fn flex_raw<const GROUP: usize>(r: &BitReader, mut bit: u64, limit: &[u32; 15], raw: &mut [u32; 15], n: u32) -> u64 {
     debug_assert!(GROUP * (n as usize + 1) <= 56 && (1..=15).contains(&n));
     const MARKER: u64 = 0x80;
     let mut buf = 0u64;
@@ -1934,10 +1939,9 @@ fn flex_raw<const GROUP: usize>(r: &mut BitReader, limit: &[u32; 15], raw: &mut 
         ($($k:literal $i:literal),*) => {$({
             if $k % GROUP == 0 {
                 if $k != 0 {
-                    flex_consume(r, buf);
+                    bit += flex_used(buf);
                 }
-                r.fill();
-                buf = (r.window() & !0xFF) | MARKER;
+                buf = (r.bits_at(bit) & !0xFF) | MARKER;
             }
             let top = (buf >> 32) as u32;
             raw[$i] = top;
@@ -1948,16 +1952,14 @@ fn flex_raw<const GROUP: usize>(r: &mut BitReader, limit: &[u32; 15], raw: &mut 
     }
     // Position in refinement order, and FLEX_ORDER_FLAT's index there.
     coefficients!(0 3, 1 7, 2 11, 3 0, 4 4, 5 8, 6 12, 7 1, 8 5, 9 9, 10 13, 11 2, 12 6, 13 10, 14 14);
-    flex_consume(r, buf);
+    bit + flex_used(buf)
 }
 
-/// The end of a group of [`flex_raw`]: consumes as many bits as the marker bit of the group's
-/// buffer `buf` moved.
+/// The bits a group of [`flex_raw`] consumed: how far the marker bit of its buffer `buf` moved.
 #[inline(always)]
-fn flex_consume(r: &mut BitReader, buf: u64) {
+fn flex_used(buf: u64) -> u64 {
     // The marker started at bit 7 and moved at most 56 places.
-    let used = (buf.trailing_zeros() & 63).saturating_sub(7);
-    r.consume(r.window() << used, used);
+    u64::from((buf.trailing_zeros() & 63).saturating_sub(7))
 }
 
 /// The other half of BLOCK_FLEXBITS: each coefficient of `c` refined by its `n` (1..=15) raw
