@@ -1851,21 +1851,31 @@ fn flex_width(model_bits: u32, trim: u32) -> u32 {
 /// The flexbits of one channel of a macroblock (`c`: its coefficients from HP block 0 on, as
 /// many blocks as `blocks` names, read in that order), with the channel's model bits: the
 /// sign-bit limits of every coefficient ([`flex_limits`]), the raw bits of every block
-/// ([`flex_raw_blocks`]), then all of them applied at once ([`flex_apply`]).
+/// ([`flex_raw_blocks`]), then all of them applied at once ([`flex_apply`]). `scratch` holds
+/// the limits and the raw bits (every entry the channel uses is written before it is read).
 #[inline(always)]
-fn flex_channel(r: &mut BitReader, c: &mut [i32], blocks: &[u8], model_bits: u32, trim: u32) {
+fn flex_channel(
+    r: &mut BitReader,
+    c: &mut [i32],
+    blocks: &[u8],
+    model_bits: u32,
+    trim: u32,
+    scratch: &mut FlexScratch,
+) {
     if trim >= model_bits {
         return;
     }
     let len = 15 * blocks.len();
     debug_assert!(blocks.iter().all(|&b| usize::from(b) < blocks.len()));
     let n = flex_width(model_bits, trim);
-    let mut limit = [0u32; 15 * 16];
+    let (limit, raw) = scratch;
     flex_limits(&c[..len], &mut limit[..len], n);
-    let mut raw = [0u32; 15 * 16];
     flex_raw_blocks(r, &limit[..len], &mut raw[..len], blocks, n);
     flex_apply(&mut c[..len], &raw[..len], n, trim);
 }
+
+/// [`flex_channel`]'s limits and raw bits, for a macroblock's channels in turn (zeroed once).
+type FlexScratch = ([u32; 15 * 16], [u32; 15 * 16]);
 
 /// For each coefficient of `c`, what the top 32 bits of [`flex_raw`]'s bit buffer, as an
 /// unsigned number, must exceed for the coefficient to take a sign bit after its `n` (1..=15)
@@ -2029,10 +2039,11 @@ fn flex_mb_portable(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels
     // A local copy of the reader stays in registers.
     let mut local = reader.clone();
     let r = &mut local;
+    let mut scratch = ([0; 15 * 16], [0; 15 * 16]);
     for (ch, cc) in c.chunks_exact_mut(MB_COEFFS).take(channels).enumerate() {
         let blocks = predict_blocks(fmt, ch);
         let order = &FLEX_BLOCKS[usize::from(blocks != 16)][..blocks];
-        flex_channel(r, &mut cc[hp(0, 1)..], order, bits[usize::from(ch > 0)], trim);
+        flex_channel(r, &mut cc[hp(0, 1)..], order, bits[usize::from(ch > 0)], trim, &mut scratch);
     }
     *reader = local;
 }
