@@ -2036,6 +2036,10 @@ unsafe fn flex_mb_bmi2(r: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: 
 /// [`flex_mb`]'s portable twin, also the body compiled into the BMI2 one.
 #[inline(always)]
 fn flex_mb_portable(reader: &mut BitReader, c: &mut [i32], fmt: ClrFmt, channels: usize, trim: u32, bits: [u32; 2]) {
+    if trim >= bits[0].max(bits[1]) {
+        // No flexbits in any channel (and no scratch to clear).
+        return;
+    }
     // A local copy of the reader stays in registers.
     let mut local = reader.clone();
     let r = &mut local;
