@@ -111,24 +111,6 @@ impl<'a> BitReader<'a> {
         (self.buf >> ((64 - n) & 63)) as u32
     }
 
-    /// The buffered bits, left-aligned (bit 63 is the stream's next bit), for a serial loop
-    /// that shifts a copy of them itself and hands the result to [`consume`](Self::consume).
-    /// After [`fill`](Self::fill) at least 56 are valid; the bits past them read as zeros or as
-    /// the stream's next bits.
-    #[inline(always)]
-    pub fn window(&self) -> u64 {
-        self.buf
-    }
-
-    /// Consumes `n` bits (no more than are buffered) given `rest`, the
-    /// [`window`](Self::window) shifted left by `n`, which the caller has computed.
-    #[inline(always)]
-    pub fn consume(&mut self, rest: u64, n: u32) {
-        debug_assert!(n <= self.avail && n < 64 && rest == self.buf << n);
-        self.buf = rest;
-        self.avail -= n;
-    }
-
     /// The bits of the stream from bit `bit` on (counted from the start of the data, as
     /// [`bit_pos`](Self::bit_pos) counts), left-aligned, most significant first, without moving
     /// the reader: at least the first 57 are the stream's (zeros past the end of the data), the
