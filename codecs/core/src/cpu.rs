@@ -1,10 +1,11 @@
 //! CPU features, detected once for the whole family.
 //!
 //! Every SIMD site asks this module, never `is_x86_feature_detected!` itself, so that one
-//! switch selects the portable code everywhere: `HDRCODEC_CPU=scalar` (the portable twins only)
-//! or `HDRCODEC_CPU=avx2` (at most AVX2; the same as the machine's best today). The variable
-//! can only lower the level the hardware has, so a kernel chosen through [`level`] is always
-//! safe to run. CI runs the codec tests once more with `HDRCODEC_CPU=scalar`.
+//! switch selects the portable code everywhere: `HDRCODEC_CPU=scalar` (the portable twins only),
+//! `HDRCODEC_CPU=avx2` (the AVX2 kernels, not the BMI2 ones) or `HDRCODEC_CPU=bmi2` (everything;
+//! the machine's best today). The variable can only lower the level the hardware has, so a
+//! kernel chosen through [`level`] is always safe to run. CI runs the codec tests once more
+//! with `HDRCODEC_CPU=scalar`.
 
 use std::sync::OnceLock;
 
@@ -16,6 +17,12 @@ pub enum CpuLevel {
     Scalar,
     /// x86-64 with AVX2, FMA and F16C (Haswell and later, Zen and later).
     Avx2,
+    /// [`Avx2`](CpuLevel::Avx2) and the scalar bit-manipulation extensions BMI1, BMI2 and
+    /// LZCNT (`shlx`/`shrx`, `bzhi`, `pext`: shifts by any register, which the entropy decoders'
+    /// serial loops use). Every CPU with AVX2 that x86-64-v3 names has them (Haswell and
+    /// later, Zen and later); the level is separate so that `HDRCODEC_CPU=avx2` can leave
+    /// them out.
+    Bmi2,
 }
 
 impl CpuLevel {
@@ -24,14 +31,17 @@ impl CpuLevel {
         match self {
             CpuLevel::Scalar => "scalar",
             CpuLevel::Avx2 => "avx2",
+            CpuLevel::Bmi2 => "bmi2",
         }
     }
 
-    /// The level called `name` in `HDRCODEC_CPU` (`scalar`/`portable`/`none`, `avx2`).
+    /// The level called `name` in `HDRCODEC_CPU` (`scalar`/`portable`/`none`, `avx2`,
+    /// `bmi2`/`x86-64-v3`/`native`/`best`).
     pub fn from_name(name: &str) -> Option<Self> {
         match name.trim().to_ascii_lowercase().as_str() {
             "scalar" | "portable" | "none" | "generic" => Some(CpuLevel::Scalar),
-            "avx2" | "native" | "best" => Some(CpuLevel::Avx2),
+            "avx2" => Some(CpuLevel::Avx2),
+            "bmi2" | "x86-64-v3" | "native" | "best" => Some(CpuLevel::Bmi2),
             _ => None,
         }
     }
@@ -52,7 +62,14 @@ fn detect() -> CpuLevel {
         && std::arch::is_x86_feature_detected!("fma")
         && std::arch::is_x86_feature_detected!("f16c")
     {
-        CpuLevel::Avx2
+        if std::arch::is_x86_feature_detected!("bmi1")
+            && std::arch::is_x86_feature_detected!("bmi2")
+            && std::arch::is_x86_feature_detected!("lzcnt")
+        {
+            CpuLevel::Bmi2
+        } else {
+            CpuLevel::Avx2
+        }
     } else {
         CpuLevel::Scalar
     }
@@ -75,7 +92,7 @@ pub fn level() -> CpuLevel {
             Ok(v) => match CpuLevel::from_name(&v) {
                 Some(cap) => hw.min(cap),
                 None => {
-                    eprintln!("hdrcodec: ignoring {ENV_VAR}={v} (known: scalar, avx2)");
+                    eprintln!("hdrcodec: ignoring {ENV_VAR}={v} (known: scalar, avx2, bmi2)");
                     hw
                 }
             },
@@ -88,6 +105,13 @@ pub fn level() -> CpuLevel {
 #[inline]
 pub fn avx2() -> bool {
     level() >= CpuLevel::Avx2
+}
+
+/// True when the BMI2 kernels may run: the hardware has AVX2 (+FMA, F16C), BMI1, BMI2 and
+/// LZCNT, and `HDRCODEC_CPU` does not forbid them.
+#[inline]
+pub fn bmi2() -> bool {
+    level() >= CpuLevel::Bmi2
 }
 
 /// For a test that compares a SIMD kernel with its portable twin: true when the hardware can
@@ -144,10 +168,16 @@ mod tests {
         assert!(level() <= detected());
         assert_eq!(CpuLevel::from_name(" Scalar "), Some(CpuLevel::Scalar));
         assert_eq!(CpuLevel::from_name("avx2"), Some(CpuLevel::Avx2));
+        assert_eq!(CpuLevel::from_name("BMI2"), Some(CpuLevel::Bmi2));
+        assert_eq!(CpuLevel::from_name("native"), Some(CpuLevel::Bmi2));
         assert_eq!(CpuLevel::from_name("avx512"), None);
-        assert!(CpuLevel::Scalar < CpuLevel::Avx2);
+        assert!(CpuLevel::Scalar < CpuLevel::Avx2 && CpuLevel::Avx2 < CpuLevel::Bmi2);
+        for level in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Bmi2] {
+            assert_eq!(CpuLevel::from_name(level.name()), Some(level));
+        }
         match std::env::var(ENV_VAR).ok().and_then(|v| CpuLevel::from_name(&v)) {
-            Some(CpuLevel::Scalar) => assert!(!avx2()),
+            Some(CpuLevel::Scalar) => assert!(!avx2() && !bmi2()),
+            Some(CpuLevel::Avx2) => assert!(!bmi2()),
             _ => assert_eq!(level(), detected()),
         }
     }
@@ -162,6 +192,7 @@ mod tests {
             ("scalar", CpuLevel::Scalar),
             ("portable", CpuLevel::Scalar),
             ("avx2", hw.min(CpuLevel::Avx2)),
+            ("bmi2", hw.min(CpuLevel::Bmi2)),
             ("avx512", hw), // unknown: ignored (with a message on stderr)
         ] {
             let out = std::process::Command::new(&exe)
@@ -187,7 +218,8 @@ mod tests {
     fn child_reports_its_level() {
         let Ok(want) = std::env::var(CHILD_WANTS) else { return };
         assert_eq!(level().name(), want);
-        assert_eq!(avx2(), want == "avx2");
+        assert_eq!(avx2(), want == "avx2" || want == "bmi2");
+        assert_eq!(bmi2(), want == "bmi2");
         assert!(level() <= detected());
     }
 }

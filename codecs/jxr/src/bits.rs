@@ -111,6 +111,58 @@ impl<'a> BitReader<'a> {
         (self.buf >> ((64 - n) & 63)) as u32
     }
 
+    /// The bits of the stream from bit `bit` on (counted from the start of the data, as
+    /// [`bit_pos`](Self::bit_pos) counts), left-aligned, most significant first, without moving
+    /// the reader: at least the first 57 are the stream's (zeros past the end of the data), the
+    /// others may read as zeros. For a serial loop that keeps its own bit position and hands it
+    /// back with [`seek`](Self::seek).
+    #[inline(always)]
+    pub fn bits_at(&self, bit: u64) -> u64 {
+        let byte = (bit >> 3) as usize;
+        match self.data.get(byte..byte.wrapping_add(8)) {
+            Some(chunk) => {
+                let mut word = [0u8; 8];
+                word.copy_from_slice(chunk);
+                // bit & 7 < 64: the shift is defined.
+                u64::from_be_bytes(word) << (bit & 7)
+            }
+            None => Self::bits_at_tail(self.data, bit),
+        }
+    }
+
+    /// [`bits_at`](Self::bits_at) within 8 bytes of the end of the data, or past it.
+    #[cold]
+    #[inline(never)]
+    fn bits_at_tail(data: &[u8], bit: u64) -> u64 {
+        let mut word = [0u8; 8];
+        let byte = bit >> 3;
+        for (i, w) in word.iter_mut().enumerate() {
+            if let Some(&b) = usize::try_from(byte + i as u64).ok().and_then(|at| data.get(at)) {
+                *w = b;
+            }
+        }
+        u64::from_be_bytes(word) << (bit & 7)
+    }
+
+    /// Moves the reader to bit `bit` of the stream (as [`bit_pos`](Self::bit_pos) counts;
+    /// past the end of the data the bits read as zeros and [`overrun`](Self::overrun) is
+    /// true).
+    pub fn seek(&mut self, bit: u64) {
+        let len = self.data.len() as u64;
+        let byte = bit >> 3;
+        self.buf = 0;
+        self.avail = 0;
+        if byte <= len {
+            self.pos = byte as usize;
+            self.padded = 0;
+        } else {
+            self.pos = self.data.len();
+            self.padded = (byte - len) * 8;
+        }
+        self.refill();
+        self.skip((bit & 7) as u32);
+    }
+
     /// Consumes `n` bits (`n` ≤ 32) that were peeked.
     #[inline]
     pub fn skip(&mut self, n: u32) {
@@ -310,6 +362,29 @@ mod tests {
                 }
             }
             assert!(!r.overrun());
+        }
+    }
+
+    #[test]
+    fn bits_at_and_seek_agree_with_reading() {
+        let data: Vec<u8> = (0..40u8).map(|i| i.wrapping_mul(91).wrapping_add(7)).collect();
+        for bit in 0..(data.len() as u64 * 8 + 80) {
+            let mut r = BitReader::new(&data);
+            let _ = r.read_u64(0);
+            let mut at = bit;
+            while at > 0 {
+                let n = at.min(32) as u32;
+                r.read(n);
+                at -= u64::from(n);
+            }
+            let want = r.clone().read_u64(64);
+            assert_eq!(r.bits_at(bit) >> 7, want >> 7, "bit {bit}");
+            let mut s = BitReader::new(&data);
+            s.read(5);
+            s.seek(bit);
+            assert_eq!((s.bit_pos(), s.overrun()), (r.bit_pos(), r.overrun()), "bit {bit}");
+            assert_eq!(s.read_u64(64), want, "bit {bit}");
+            assert_eq!((s.bit_pos(), s.overrun()), (bit + 64, bit + 64 > data.len() as u64 * 8), "bit {bit}");
         }
     }
 
