@@ -20,7 +20,7 @@ use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits, ReadSeek,
     Result, StoredBytes,
 };
-use std::io::{Read, SeekFrom};
+use std::io::Read;
 
 const HEADER_LEN: usize = 13;
 
@@ -143,12 +143,10 @@ fn decode_rows<S: Sample>(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) 
 /// checked against the samples it declares, then each band of about 1 MB is read as it is
 /// converted, so that the payload is never held whole.
 fn decode_rows_from<S: Sample>(input: &mut dyn ReadSeek, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
-    let at = input.stream_position()?;
-    let end = input.seek(SeekFrom::End(0))?;
-    input.seek(SeekFrom::Start(at))?;
+    let (at, rest) = hdrcodec_core::remaining_len(input)?;
     let mut head = Vec::with_capacity(HEADER_LEN);
     input.take(HEADER_LEN as u64).read_to_end(&mut head)?;
-    let body_len = end.saturating_sub(at + HEADER_LEN as u64);
+    let body_len = rest.saturating_sub(HEADER_LEN as u64);
     let (width, height, channels, _) = parse_header::<S>(&head, body_len, limits)?;
     let samples = StoredBytes::file(input, at + HEADER_LEN as u64, limits, S::NAME);
     decode_bands::<S>(width, height, channels, samples, limits, sink)

@@ -46,8 +46,7 @@ impl<'r> StreamFile<'r> {
     /// does. What it does not check is the DATA chunks' CRCs: [`StreamFile::read_tile`] and
     /// [`StreamFile::decode_tile_rows`] check each as they read it.
     pub(crate) fn open(input: &'r mut dyn ReadSeek, limits: &Limits) -> Result<Self> {
-        let base = input.stream_position()?;
-        let len = input.seek(SeekFrom::End(0))?.saturating_sub(base);
+        let (base, len) = hdrcodec_core::remaining_len(input)?;
         let mut src = Source { input, base, len };
         let mut sig = vec![0; SIGNATURE.len().min(len as usize)];
         src.read_at(0, &mut sig)?;

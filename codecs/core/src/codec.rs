@@ -274,14 +274,21 @@ pub trait ReadSeek: std::io::Read + std::io::Seek {}
 
 impl<T: std::io::Read + std::io::Seek + ?Sized> ReadSeek for T {}
 
+/// Where `input` is and how many bytes it has from there to its end (0 if its end is before
+/// its position), leaving it where it was: what a decoder reading a file piece by piece
+/// checks its offsets against.
+pub fn remaining_len(input: &mut dyn ReadSeek) -> Result<(u64, u64)> {
+    let at = input.stream_position()?;
+    let end = input.seek(std::io::SeekFrom::End(0))?;
+    input.seek(std::io::SeekFrom::Start(at))?;
+    Ok((at, end.saturating_sub(at)))
+}
+
 /// The bytes of `input` from its position to its end, their size charged to `limits` (checked
 /// before anything is allocated) while the returned buffer lives. A source that ends before
 /// the size it reported is [`Error::Truncated`].
 pub fn read_rest(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ChargedBytes> {
-    let at = input.stream_position()?;
-    let end = input.seek(std::io::SeekFrom::End(0))?;
-    input.seek(std::io::SeekFrom::Start(at))?;
-    let len = end.saturating_sub(at);
+    let (_, len) = remaining_len(input)?;
     let charge = limits.charge(len, "the encoded file")?;
     let mut bytes = vec![0; usize::try_from(len).map_err(|_| Error::limit("the encoded file is too large"))?];
     input.read_exact(&mut bytes).map_err(|e| match e.kind() {
@@ -762,6 +769,17 @@ mod tests {
                 p => self.0.seek(p),
             }
         }
+    }
+
+    #[test]
+    fn remaining_len_gives_position_and_rest_and_leaves_the_position() {
+        let mut c = std::io::Cursor::new(vec![0u8; 100]);
+        c.set_position(30);
+        assert_eq!(remaining_len(&mut c).unwrap(), (30, 70));
+        assert_eq!(c.position(), 30);
+        c.set_position(120);
+        assert_eq!(remaining_len(&mut c).unwrap(), (120, 0));
+        assert_eq!(c.position(), 120);
     }
 
     #[test]

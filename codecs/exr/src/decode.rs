@@ -70,8 +70,7 @@ pub fn decode_exr_rows_from(input: &mut dyn ReadSeek, options: &DecodeOptions, s
         let data = hdrcodec_core::read_rest(input, &options.limits)?;
         return decode_exr_rows(&data, options, sink);
     }
-    let len = input.seek(SeekFrom::End(0))?;
-    input.seek(SeekFrom::Start(0))?;
+    let (_, len) = hdrcodec_core::remaining_len(input)?;
     guarded("reading the OpenEXR file", || {
         decode_inner(std::io::BufReader::new(input), len, &options.limits, &options.pool, sink)
     })

@@ -332,8 +332,7 @@ impl<'a> StripRows<'a> {
     /// then each strip when its first row is decoded, into a buffer charged to `limits` (the
     /// largest strip), so that the file is never held whole.
     pub fn from_reader(input: &'a mut dyn ReadSeek, limits: &Limits) -> Result<Self> {
-        let base = input.stream_position()?;
-        let len = input.seek(SeekFrom::End(0))?.saturating_sub(base);
+        let (base, len) = hdrcodec_core::remaining_len(input)?;
         let structure = read_structure(input, base, len, limits)?;
         let (info, rows_per_strip, offsets, counts) = strip_tables(&structure)?;
         let source = StripSource::File { input, base, len, strip: Vec::new(), charge: None, limits: limits.clone() };

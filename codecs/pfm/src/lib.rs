@@ -38,7 +38,7 @@ use hdrcodec_core::{
     Channels, ColorInfo, ColorPrimaries, DecodeOptions, EncodeSettings, Error, HdrImage, ImageCodec, ImageInfo, Limits,
     ReadSeek, Result, StoredBytes,
 };
-use std::io::{Read, SeekFrom};
+use std::io::Read;
 
 /// The PFM codec of the family (`pfm`, id `PFM `).
 #[derive(Clone, Copy, Debug, Default)]
@@ -179,9 +179,7 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
 /// whole (at most a band of about 1 MB of its bytes, charged to `limits`). Same rows and the
 /// same kinds of errors as [`decode_pfm_rows`] on the file's bytes.
 pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
-    let at = input.stream_position()?;
-    let end = input.seek(SeekFrom::End(0))?;
-    input.seek(SeekFrom::Start(at))?;
+    let (at, rest) = hdrcodec_core::remaining_len(input)?;
     // The header with a byte to spare past its longest accepted length (the parser looks at
     // the byte after the last token), or the whole file when it is shorter.
     let mut head = Vec::with_capacity(MAX_HEADER + 2);
@@ -192,12 +190,12 @@ pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mu
     let start = at + r.position();
     let per_pixel = if h.grey { 1u64 } else { 3 };
     let need = (u64::from(h.width) * u64::from(h.height)).saturating_mul(per_pixel * 4);
-    if need > end.saturating_sub(start) {
+    if need > rest.saturating_sub(start - at) {
         return Err(Error::truncated(format!(
             "the PFM pixels (bytes {}..{} of a {}-byte input)",
             start - at,
             (start - at).saturating_add(need),
-            end.saturating_sub(at)
+            rest
         )));
     }
     let info = header_info(&h);
