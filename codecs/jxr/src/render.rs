@@ -254,11 +254,11 @@ fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> 
     };
     let alpha_params = params(alpha_scaled, alpha_ops, (alpha_overlap, &alpha_hard));
     // Working memory. One thread: the window (the band and its halo of coefficient rows),
-    // one band of samples and a few formatted rows; every step of a band runs after the one
-    // before, so nothing else is held. Two threads: the next band's rows being decoded and
-    // the samples of the band before (being formatted straight into the caller's rows, or a
-    // band of formatted rows for a sink that takes copies) and each formatting job's rows too.
-    // (A small image has fewer rows than that.)
+    // one band of samples and, for a sink that takes copies, a few formatted rows; every step
+    // of a band runs after the one before, so nothing else is held. Two threads: the next
+    // band's rows being decoded and the samples of the band before (formatted straight into
+    // the caller's rows, or for a sink that takes copies into a band of formatted rows) and
+    // each formatting job's rows too. (A small image has fewer rows than that.)
     let parallel = options.pool.is_parallel();
     let band = transform::BAND_MB_ROWS.min(mb_h);
     let halo_below = if primary.clr_fmt == ClrFmt::Yuv420 { 3 } else { 2 };
@@ -274,8 +274,8 @@ fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> 
     if let Output::Sink(s) = &mut output {
         s.start(&info)?;
     }
-    // Two threads format a band straight into the caller's rows where it can take them in
-    // place (a raw buffer, or a sink of contiguous f32 rows).
+    // Rows are formatted straight into the caller's rows where it can take them in place (a
+    // raw buffer, or a sink of contiguous f32 rows).
     let in_place = match &mut output {
         Output::Raw { .. } => true,
         Output::Sink(s) => s.rows_mut(0, img.height).is_some(),
@@ -291,8 +291,8 @@ fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> 
     };
     let mut job_bufs: Vec<FormatBufs> = Vec::new();
     let mut full = format_bufs();
-    // Rows in the pixel format's bytes, a few at a time (one thread) or a band's (two threads,
-    // for a sink that takes copies: formatted in the pipeline step, handed out after it).
+    // For a sink that takes copies, rows in the pixel format's bytes: a few at a time (one
+    // thread), or a band's (two threads: formatted in the pipeline step, handed out after it).
     let raw_row = out.row_bytes(width);
     let mut raw_band: Vec<u8> = Vec::new();
     let mut scratch = Scratch::new(&options.limits);
@@ -373,7 +373,7 @@ fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> 
             format_rows(t, start..(start + FORMAT_JOB_ROWS).min(rows), bufs, dst)
         })
     };
-    // Where two threads format band `t`.
+    // The image rows of band `t`.
     let row_sizes = (raw_row, row_len);
     let band_dst = |t: &Transformed| {
         let (y_start, rows) = band_rows(t.r0);
@@ -486,6 +486,13 @@ fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> 
             let rows = band_rows(r0).1;
             for start in (0..rows).step_by(FORMAT_CHUNK) {
                 let part = start..(start + FORMAT_CHUNK).min(rows);
+                if in_place {
+                    // Straight into the caller's rows.
+                    let y0 = band_dst(&t).start + start;
+                    let mut dst = rows_out(&mut output, y0..y0 + part.len(), row_sizes, true, &mut raw_band)?;
+                    format_rows(&t, part, &mut full, &mut dst)?;
+                    continue;
+                }
                 format_band(&t, part.clone(), &mut full, &mut raw_band)?;
                 deliver(&t, part, &raw_band, &mut output, &mut scratch)?;
             }
