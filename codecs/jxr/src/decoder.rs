@@ -188,90 +188,119 @@ impl<'a> RowDecoder<'a> {
     }
 
     /// True when the codestream's flexbits are in packets of their own (frequency order with
-    /// flexbits): [`next_row_deferred`](Self::next_row_deferred) and a [`RowCompleter`] can
+    /// flexbits): [`next_rows`](Self::next_rows) can leave them out and a [`RowCompleter`]
     /// then decode them on another thread, a row behind.
     pub(crate) fn can_defer_flex(cs: &Codestream) -> bool {
         cs.image.frequency_mode && cs.primary.bands.has_flex()
     }
 
-    /// The next row without its flexbits: quantized, before HP prediction, with the side
-    /// information (one per plane, `mb_width` long) that [`RowCompleter::complete`] needs.
-    pub(crate) fn next_row_deferred(&mut self, out: &mut [Vec<i32>], side: &mut [Vec<MbSide>]) -> Result<Option<u32>> {
-        self.advance(out, Some(side))
-    }
-
     fn advance(&mut self, out: &mut [Vec<i32>], side: Option<&mut [Vec<MbSide>]>) -> Result<Option<u32>> {
-        let (cs, data) = (self.cs, self.data);
-        let img = &cs.image;
-        if self.my >= img.mb_height {
+        if self.my >= self.cs.image.mb_height {
             return Ok(None);
         }
+        self.next_rows(&mut [out], side.map(|s| vec![s]))?;
+        Ok(Some(self.my - 1))
+    }
+
+    /// The next `outs.len()` rows at once, each as [`next_row`](Self::next_row) gives it; with
+    /// `sides` (one per row), without their flexbits: quantized, before HP prediction, with
+    /// the side information (one per plane, `mb_width` long) that [`RowCompleter::complete`]
+    /// needs. Each tile column decodes its part of the rows of a tile row as one job of the
+    /// pool: no join per row. An error past the last row.
+    pub(crate) fn next_rows(
+        &mut self,
+        outs: &mut [&mut [Vec<i32>]],
+        sides: Option<Vec<&mut [Vec<MbSide>]>>,
+    ) -> Result<()> {
+        let (cs, data) = (self.cs, self.data);
+        let img = &cs.image;
+        if sides.as_ref().is_some_and(|s| s.len() != outs.len())
+            || self.my as usize + outs.len() > img.mb_height as usize
+        {
+            return Err(Error::invalid("JPEG XR: rows past the image (a bug in the decoder)"));
+        }
         let planes: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
-        if self.left == 0 {
-            let ty = self.ty;
-            let keep = |tx: usize| self.columns.as_ref().is_none_or(|k| k.get(tx).copied().unwrap_or(true));
-            self.tiles = (0..img.tile_widths.len())
-                .map(|tx| keep(tx).then(|| TileDecoder::with_bands(cs, data, tx, ty, self.max_bands)).transpose())
-                .collect::<Result<_>>()?;
-            self.left = img.tile_heights[ty];
-            self.ty += 1;
-        }
-        // Every tile column decodes straight into its part of the row (a tile column's
-        // macroblocks are contiguous in it): no row buffers per tile to copy from.
         let mb_w = img.mb_width as usize;
-        let mut jobs: Vec<TileJob<'_, 'a>> =
-            self.tiles.iter_mut().map(|t| (t.as_mut(), Vec::new(), side.is_some().then(Vec::new))).collect();
         let short = || Error::invalid("JPEG XR: the tile widths exceed the image width");
-        for (o, hdr) in out.iter_mut().zip(&planes) {
-            let stride = hdr.channels * MB_COEFFS;
-            if o.capacity() < mb_w * stride {
-                // A fresh allocation, zeroed by the allocator (fresh pages need no clearing).
-                *o = vec![0; mb_w * stride];
-            } else {
-                o.resize(mb_w * stride, 0);
+        let mut sides = sides.map(|s| s.into_iter());
+        let mut outs = outs.iter_mut();
+        while outs.len() > 0 {
+            if self.left == 0 {
+                let ty = self.ty;
+                let keep = |tx: usize| self.columns.as_ref().is_none_or(|k| k.get(tx).copied().unwrap_or(true));
+                self.tiles = (0..img.tile_widths.len())
+                    .map(|tx| keep(tx).then(|| TileDecoder::with_bands(cs, data, tx, ty, self.max_bands)).transpose())
+                    .collect::<Result<_>>()?;
+                self.left = img.tile_heights[ty];
+                self.ty += 1;
             }
-            let mut rest = &mut o[..];
-            for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
-                let (part, tail) =
-                    std::mem::take(&mut rest).split_at_mut_checked(w as usize * stride).ok_or_else(short)?;
-                job.1.push(part);
-                rest = tail;
-            }
-        }
-        if let Some(side) = side {
-            for s in side.iter_mut().take(planes.len()) {
-                s.resize(mb_w, MbSide::default());
-                let mut rest = &mut s[..];
-                for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
-                    let (part, tail) = std::mem::take(&mut rest).split_at_mut_checked(w as usize).ok_or_else(short)?;
-                    job.2.as_mut().ok_or_else(short)?.push(part);
-                    rest = tail;
+            let seg = (self.left as usize).min(outs.len());
+            // Every tile column decodes straight into its part of each row (a tile column's
+            // macroblocks are contiguous in it): no row buffers per tile to copy from.
+            let mut jobs: Vec<TileJob<'_, 'a>> =
+                self.tiles.iter_mut().map(|t| (t.as_mut(), Vec::new(), Vec::new())).collect();
+            for _ in 0..seg {
+                let (out, side) = (outs.next().ok_or_else(short)?, sides.as_mut().and_then(|s| s.next()));
+                for job in jobs.iter_mut() {
+                    job.1.push(Vec::new());
+                    job.2.push(side.is_some().then(Vec::new));
+                }
+                for (o, hdr) in out.iter_mut().zip(&planes) {
+                    let stride = hdr.channels * MB_COEFFS;
+                    if o.capacity() < mb_w * stride {
+                        // A fresh allocation, zeroed by the allocator (fresh pages need no clearing).
+                        *o = vec![0; mb_w * stride];
+                    } else {
+                        o.resize(mb_w * stride, 0);
+                    }
+                    let mut rest = &mut o[..];
+                    for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                        let (part, tail) =
+                            std::mem::take(&mut rest).split_at_mut_checked(w as usize * stride).ok_or_else(short)?;
+                        job.1.last_mut().ok_or_else(short)?.push(part);
+                        rest = tail;
+                    }
+                }
+                if let Some(side) = side {
+                    for s in side.iter_mut().take(planes.len()) {
+                        s.resize(mb_w, MbSide::default());
+                        let mut rest = &mut s[..];
+                        for (job, &w) in jobs.iter_mut().zip(&img.tile_widths) {
+                            let (part, tail) =
+                                std::mem::take(&mut rest).split_at_mut_checked(w as usize).ok_or_else(short)?;
+                            job.2.last_mut().and_then(Option::as_mut).ok_or_else(short)?.push(part);
+                            rest = tail;
+                        }
+                    }
                 }
             }
-        }
-        let decode = |job: &mut TileJob<'_, 'a>| match (&mut job.0, &mut job.2) {
-            (Some(t), Some(sides)) => t.next_row_deferred(&mut job.1, sides),
-            (Some(t), None) => t.next_row(&mut job.1),
-            (None, sides) => {
-                job.1.iter_mut().for_each(|p| p.fill(0));
-                sides.iter_mut().flatten().for_each(|s| s.fill(MbSide::default()));
-                Ok(())
+            let decode = |job: &mut TileJob<'_, 'a>| {
+                job.1.iter_mut().zip(job.2.iter_mut()).try_for_each(|(row, sides)| match (&mut job.0, sides) {
+                    (Some(t), Some(sides)) => t.next_row_deferred(row, sides),
+                    (Some(t), None) => t.next_row(row),
+                    (None, sides) => {
+                        row.iter_mut().for_each(|p| p.fill(0));
+                        sides.iter_mut().flatten().for_each(|s| s.fill(MbSide::default()));
+                        Ok(())
+                    }
+                })
+            };
+            if jobs.len() > 1 && self.pool.is_parallel() {
+                self.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| decode(&mut j[0]))?;
+            } else {
+                jobs.iter_mut().try_for_each(decode)?;
             }
-        };
-        if jobs.len() > 1 && self.pool.is_parallel() {
-            self.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| decode(&mut j[0]))?;
-        } else {
-            jobs.iter_mut().try_for_each(decode)?;
+            self.left -= seg as u32;
+            self.my += seg as u32;
         }
-        self.left -= 1;
-        self.my += 1;
-        Ok(Some(self.my - 1))
+        Ok(())
     }
 }
 
-/// One tile column's share of a row in [`RowDecoder::advance`]: its decoder, its part of each
-/// plane's row and (deferred flexbits) of each plane's side information.
-type TileJob<'t, 'a> = (Option<&'t mut TileDecoder<'a>>, Vec<&'t mut [i32]>, Option<Vec<&'t mut [MbSide]>>);
+/// One tile column's share of rows in [`RowDecoder::next_rows`]: its decoder and, for each row,
+/// its part of each plane's row and (deferred flexbits) of each plane's side information.
+#[allow(clippy::type_complexity)]
+type TileJob<'t, 'a> = (Option<&'t mut TileDecoder<'a>>, Vec<Vec<&'t mut [i32]>>, Vec<Option<Vec<&'t mut [MbSide]>>>);
 
 /// The FLEXBITS half of a deferred [`RowDecoder`]: completes its rows (flexbits, HP
 /// prediction, dequantization), in order, the tile columns of a row in parallel on the pool
@@ -520,8 +549,9 @@ mod tests {
         }
     }
 
-    /// The flexbits decoded apart (a deferred row decoder and its completer, whose tile columns
-    /// run in parallel on two threads) give the same rows as the decoder that does everything.
+    /// Rows decoded a few at a time (each tile column's share of them one job, on one thread
+    /// and on two), with the flexbits decoded apart (a deferred row decoder and its completer)
+    /// or not, give the same rows as the decoder that does one row at a time.
     #[test]
     fn deferred_flexbits_give_the_same_rows() {
         let file = testdata("tiny_tiles.jxr");
@@ -529,18 +559,36 @@ mod tests {
         let cs = header::parse(bytes).unwrap();
         assert!(RowDecoder::can_defer_flex(&cs));
         assert_eq!(cs.image.tile_widths.len(), 2);
-        let options = DecodeOptions::new(Limits::default());
+        // Groups of three rows cross the tile rows' boundaries.
+        assert!(cs.image.tile_heights.len() > 1 && cs.image.tile_heights.iter().any(|&h| h % 3 != 0));
+        let mut whole = RowDecoder::new(&cs, bytes, &DecodeOptions::new(Limits::default())).unwrap();
+        let mut rows = Vec::new();
+        let mut a = vec![Vec::new()];
+        while whole.next_row(&mut a).unwrap().is_some() {
+            rows.push(a.clone());
+        }
+        assert_eq!(rows.len(), cs.image.mb_height as usize);
         for pool in [hdrcodec_core::ThreadPool::single(), hdrcodec_core::ThreadPool::new(2).unwrap()] {
-            let mut whole = RowDecoder::new(&cs, bytes, &options).unwrap();
+            let options = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
             let mut first = RowDecoder::new(&cs, bytes, &options).unwrap();
+            let mut plain = RowDecoder::new(&cs, bytes, &options).unwrap();
             let mut completer = RowCompleter::new(&cs, bytes, pool);
-            let (mut a, mut b, mut side) = (vec![Vec::new()], vec![Vec::new()], vec![Vec::new()]);
-            while let Some(y) = whole.next_row(&mut a).unwrap() {
-                assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), Some(y));
-                completer.complete(&mut b, &side).unwrap();
-                assert_eq!(a, b, "row {y}");
+            for (g, group) in rows.chunks(3).enumerate() {
+                let n = group.len();
+                let (mut b, mut c) = (vec![vec![Vec::new()]; n], vec![vec![Vec::new()]; n]);
+                let mut side = vec![vec![Vec::new()]; n];
+                let mut outs: Vec<&mut [Vec<i32>]> = b.iter_mut().map(|r| &mut r[..]).collect();
+                first.next_rows(&mut outs, Some(side.iter_mut().map(|s| &mut s[..]).collect())).unwrap();
+                let mut outs: Vec<&mut [Vec<i32>]> = c.iter_mut().map(|r| &mut r[..]).collect();
+                plain.next_rows(&mut outs, None).unwrap();
+                for (i, want) in group.iter().enumerate() {
+                    completer.complete(&mut b[i], &side[i]).unwrap();
+                    assert_eq!((&b[i], &c[i]), (want, want), "row {}", g * 3 + i);
+                }
             }
-            assert_eq!(first.next_row_deferred(&mut b, &mut side).unwrap(), None);
+            let mut past = [vec![Vec::new()]];
+            let mut outs: Vec<&mut [Vec<i32>]> = past.iter_mut().map(|r| &mut r[..]).collect();
+            assert!(first.next_rows(&mut outs, None).is_err());
         }
     }
 

@@ -85,10 +85,10 @@ enum WindowPlane {
 pub fn decode_rows(data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
     let o = orientation(&parse_container(data)?);
     if o.is_identity() {
-        return decode_impl(data, options, Some(sink), &mut |_, _| Ok(()));
+        return decode_impl(data, options, Output::Sink(sink));
     }
     let mut oriented = OrientSink::new(sink, o, &options.limits);
-    decode_impl(data, options, Some(&mut oriented), &mut |_, _| Ok(()))?;
+    decode_impl(data, options, Output::Sink(&mut oriented))?;
     oriented.finish()
 }
 
@@ -118,11 +118,9 @@ pub fn decode_raw(data: &[u8], options: &DecodeOptions) -> Result<Vec<u8>> {
     let (_, height, row) = raw_layout(data)?;
     let size = row as u64 * u64::from(height);
     let _charge = options.limits.charge(size, "the decoded JPEG XR samples")?;
-    let mut bytes = Vec::with_capacity(size as usize);
-    decode_impl(data, options, None, &mut |_, raw| {
-        bytes.extend_from_slice(raw);
-        Ok(())
-    })?;
+    let size = usize::try_from(size).map_err(|_| Error::limit("JPEG XR: the image's size overflows"))?;
+    let mut bytes = vec![0; size];
+    decode_impl(data, options, Output::Raw { buf: &mut bytes, stride: row })?;
     Ok(bytes)
 }
 
@@ -138,20 +136,48 @@ pub fn decode_raw_into(data: &[u8], options: &DecodeOptions, out: &mut [u8], str
             out.len()
         )));
     }
-    decode_impl(data, options, None, &mut |y, raw| {
-        out.get_mut(y * stride..y * stride + raw.len())
-            .ok_or_else(|| Error::invalid("JPEG XR: a row past the caller's buffer (a bug in the decoder)"))?
-            .copy_from_slice(raw);
-        Ok(())
-    })
+    decode_impl(data, options, Output::Raw { buf: out, stride })
 }
 
-fn decode_impl(
-    data: &[u8],
-    options: &DecodeOptions,
-    sink: Option<&mut dyn RowSink>,
-    raw_rows: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
-) -> Result<()> {
+/// Where decoded rows go.
+enum Output<'a> {
+    /// jxrlib's raw samples, row `y` at `buf[y · stride ..]` (the caller checked the size).
+    Raw { buf: &'a mut [u8], stride: usize },
+    /// Linear f32 rows.
+    Sink(&'a mut dyn RowSink),
+}
+
+/// Rows that formatting writes to (row `i` of them at `buf[i · stride ..]`): raw samples, or
+/// linear f32 samples (each row formatted into a raw row first, then converted).
+enum RowsOut<'d> {
+    Raw { buf: &'d mut [u8], stride: usize },
+    F32 { buf: &'d mut [f32], stride: usize },
+}
+
+impl<'d> RowsOut<'d> {
+    /// Cut into pieces of `rows` rows each (the last may be shorter).
+    fn split(self, rows: usize) -> Vec<RowsOut<'d>> {
+        let rows = rows.max(1);
+        match self {
+            RowsOut::Raw { buf, stride } => {
+                buf.chunks_mut((rows * stride).max(1)).map(|buf| RowsOut::Raw { buf, stride }).collect()
+            }
+            RowsOut::F32 { buf, stride } => {
+                buf.chunks_mut((rows * stride).max(1)).map(|buf| RowsOut::F32 { buf, stride }).collect()
+            }
+        }
+    }
+}
+
+/// The working buffers of one formatting job: the upsampled chroma rows (subsampled
+/// channels only) and a raw row (f32 output).
+#[derive(Default)]
+struct FormatBufs {
+    full: Vec<Vec<i32>>,
+    raw: Vec<u8>,
+}
+
+fn decode_impl(data: &[u8], options: &DecodeOptions, mut output: Output<'_>) -> Result<()> {
     let container = parse_container(data)?;
     let format = container.pixel_format;
     let cs = header::parse(container.image)?;
@@ -188,9 +214,9 @@ fn decode_impl(
         if format.alpha { alpha_params } else { None },
     )?;
     // Linear RGB(A) rows for a sink; raw samples alone (decode_raw) for any format.
-    let channels = match (&sink, out.linear_channels()) {
-        (Some(_), n) => Channels::from_count(n?).ok_or_else(|| Error::unsupported("channels"))?,
-        (None, _) => Channels::Rgb,
+    let channels = match (&output, out.linear_channels()) {
+        (Output::Sink(_), n) => Channels::from_count(n?).ok_or_else(|| Error::unsupported("channels"))?,
+        (Output::Raw { .. }, _) => Channels::Rgb,
     };
     out.transfer = colour.transfer;
     let mut info = ImageInfo::new(img.width, img.height, channels, colour.color).with_format(format.name);
@@ -228,34 +254,45 @@ fn decode_impl(
     };
     let alpha_params = params(alpha_scaled, alpha_ops, (alpha_overlap, &alpha_hard));
     // Working memory. One thread: the window (the band and its halo of coefficient rows),
-    // one band of samples and a few formatted rows; every step of a band runs after the one
-    // before, so nothing else is held. Two threads: the next band's rows being decoded and
-    // the samples of the band before (being formatted, into a band of formatted rows) too.
-    // (A small image has fewer rows than that.)
+    // one band of samples and, for a sink that takes copies, a few formatted rows; every step
+    // of a band runs after the one before, so nothing else is held. Two threads: the next
+    // band's rows being decoded and the samples of the band before (formatted straight into
+    // the caller's rows, or for a sink that takes copies into a band of formatted rows) and
+    // each formatting job's rows too. (A small image has fewer rows than that.)
     let parallel = options.pool.is_parallel();
     let band = transform::BAND_MB_ROWS.min(mb_h);
     let halo_below = if primary.clr_fmt == ClrFmt::Yuv420 { 3 } else { 2 };
     let coeff_rows = (if parallel { 2 * band } else { band } + 2 + halo_below).min(mb_h + 2);
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
     let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8) * if parallel { 2 } else { 1 };
-    let raw_rows_held = if parallel { band * 16 } else { FORMAT_CHUNK };
-    let sample_bytes =
-        (sample_rows * mb_w * 16 * 4 * (primary.channels + 1)) as u64 + (raw_rows_held * out.row_bytes(width)) as u64;
+    let raw_rows_held = if parallel { band * 16 + FORMAT_JOBS } else { FORMAT_CHUNK };
+    let full_rows = if parallel { FORMAT_JOBS } else { 1 } * primary.channels * 16 * mb_w * 4;
+    let sample_bytes = (sample_rows * mb_w * 16 * 4 * (primary.channels + 1) + full_rows) as u64
+        + (raw_rows_held * out.row_bytes(width)) as u64;
     let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
-    let mut sink = sink;
-    if let Some(s) = sink.as_deref_mut() {
+    if let Output::Sink(s) = &mut output {
         s.start(&info)?;
     }
+    // Rows are formatted straight into the caller's rows where it can take them in place (a
+    // raw buffer, or a sink of contiguous f32 rows).
+    let in_place = match &mut output {
+        Output::Raw { .. } => true,
+        Output::Sink(s) => s.rows_mut(0, img.height).is_some(),
+    };
     let [top, left, _, _] = img.margins.map(|m| m as usize);
     let ext_w = 16 * mb_w;
     let row_len = width * channels.count();
-    let mut full = [vec![vec![0i32; ext_w]; primary.channels], Vec::new()];
-    if parallel {
-        full[1] = full[0].clone();
-    }
-    // Rows in the pixel format's bytes: a band's (two threads: formatted on thread A while
-    // thread B transforms the next band, handed out here), or a few rows at a time.
+    // The formatting jobs' buffers: upsampled chroma rows only where chroma is subsampled.
+    let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
+    let format_bufs = || FormatBufs {
+        full: (0..primary.channels).map(|ch| if subsampled(ch) { vec![0i32; ext_w] } else { Vec::new() }).collect(),
+        raw: Vec::new(),
+    };
+    let mut job_bufs: Vec<FormatBufs> = Vec::new();
+    let mut full = format_bufs();
+    // For a sink that takes copies, rows in the pixel format's bytes: a few at a time (one
+    // thread), or a band's (two threads: formatted in the pipeline step, handed out after it).
     let raw_row = out.row_bytes(width);
     let mut raw_band: Vec<u8> = Vec::new();
     let mut scratch = Scratch::new(&options.limits);
@@ -280,10 +317,11 @@ fn decode_impl(
     // upsampled into a row of its own (4:2:0: from the band's chroma rows and the next band's
     // first macroblock row).
     let out = &out;
-    let format_rows = |t: &Transformed, part: Range<usize>, full: &mut [Vec<i32>], raw_band: &mut [u8]| -> Result<()> {
+    let format_rows = |t: &Transformed, part: Range<usize>, bufs: &mut FormatBufs, dst: &mut RowsOut| -> Result<()> {
         let (y_start, _) = band_rows(t.r0);
-        let subsampled = |ch: usize| ch > 0 && kind(primary.clr_fmt, ch) != PlaneKind::Full;
-        for (i, raw) in part.zip(raw_band.chunks_exact_mut(raw_row.max(1))) {
+        let FormatBufs { full, raw: raw_f32 } = bufs;
+        let bug = || Error::invalid("JPEG XR: a row past the output rows (a bug in the decoder)");
+        for (n, i) in part.enumerate() {
             let local = y_start + i - t.r0 * 16;
             for (ch, p) in t.planes.iter().enumerate().filter(|&(ch, _)| subsampled(ch)) {
                 upsample_chroma_row(internal, p.samples(), p.width, p.height, local, &mut full[ch])?;
@@ -296,44 +334,72 @@ fn decode_impl(
                 .map(|(ch, (p, f))| if subsampled(ch) { &f[left..] } else { &p.row(local)[left..] })
                 .collect();
             let a = t.alpha.as_ref().map(|p| &p.row(local)[left..]);
-            out.format_row(&channels, a, width, raw)?;
+            match dst {
+                RowsOut::Raw { buf, stride } => {
+                    let raw = buf.get_mut(n * *stride..).and_then(|b| b.get_mut(..raw_row)).ok_or_else(bug)?;
+                    out.format_row(&channels, a, width, raw)?;
+                }
+                RowsOut::F32 { buf, stride } => {
+                    raw_f32.resize(raw_row, 0);
+                    out.format_row(&channels, a, width, raw_f32)?;
+                    let d = buf.get_mut(n * *stride..).and_then(|b| b.get_mut(..row_len)).ok_or_else(bug)?;
+                    out.row_to_f32(raw_f32, width, d)?;
+                }
+            }
         }
         Ok(())
     };
-    // Rows `part` of a band into `raw_band`; on two threads in two halves, each a job of the
-    // pool, so that a thread done with its own work formats half of them.
-    let format_band =
-        |t: &Transformed, part: Range<usize>, full: &mut [Vec<Vec<i32>>; 2], raw_band: &mut Vec<u8>| -> Result<()> {
-            raw_band.resize(part.len() * raw_row, 0);
-            let [full_a, full_b] = full;
-            if !parallel || part.len() < 2 {
-                return format_rows(t, part, full_a, raw_band);
-            }
-            let mid = part.start + part.len() / 2;
-            let (raw_a, raw_b) = raw_band.split_at_mut((mid - part.start) * raw_row);
-            let (a, b) = options.pool.join(
-                || format_rows(t, part.start..mid, full_a, raw_a),
-                || format_rows(t, mid..part.end, full_b, raw_b),
-            );
-            a.and(b)
-        };
-    // Hands rows `part` of a formatted band to the caller: raw rows, and linear f32 rows to
-    // the sink.
-    let mut deliver = |t: &Transformed, part: Range<usize>, raw_band: &[u8]| -> Result<()> {
+    // Rows `part` of a band into `raw_band` (one thread).
+    let format_band = |t: &Transformed, part: Range<usize>, full: &mut FormatBufs, raw_band: &mut Vec<u8>| {
+        raw_band.resize(part.len() * raw_row, 0);
+        format_rows(t, part, full, &mut RowsOut::Raw { buf: raw_band, stride: raw_row })
+    };
+    // A whole band into `dst` (two threads): jobs of FORMAT_JOB_ROWS rows each, which ever
+    // thread is free takes.
+    let format_jobs = |t: &Transformed, dst: RowsOut, bufs: &mut Vec<FormatBufs>| -> Result<()> {
+        let rows = band_rows(t.r0).1;
+        let pieces = dst.split(FORMAT_JOB_ROWS);
+        if pieces.len() != rows.div_ceil(FORMAT_JOB_ROWS) {
+            return Err(Error::invalid("JPEG XR: the output rows do not match the band (a bug in the decoder)"));
+        }
+        if bufs.len() < pieces.len() {
+            bufs.resize_with(pieces.len(), format_bufs);
+        }
+        let mut jobs: Vec<(usize, RowsOut, &mut FormatBufs)> =
+            pieces.into_iter().zip(bufs.iter_mut()).enumerate().map(|(i, (d, b))| (i, d, b)).collect();
+        options.pool.try_for_each_chunk_mut(&mut jobs, 1, |_, j| {
+            let (i, dst, bufs) = &mut j[0];
+            let start = *i * FORMAT_JOB_ROWS;
+            format_rows(t, start..(start + FORMAT_JOB_ROWS).min(rows), bufs, dst)
+        })
+    };
+    // The image rows of band `t`.
+    let row_sizes = (raw_row, row_len);
+    let band_dst = |t: &Transformed| {
+        let (y_start, rows) = band_rows(t.r0);
+        (y_start - top)..(y_start - top + rows)
+    };
+    // Hands rows `part` of a band formatted into `raw_band` to the caller.
+    let deliver = |t: &Transformed, part: Range<usize>, raw_band: &[u8], output: &mut Output, scratch: &mut Scratch| {
         if part.is_empty() {
             return Ok(());
         }
         let y0 = band_rows(t.r0).0 - top + part.start;
         let raws = raw_band.chunks_exact(raw_row.max(1)).take(part.len());
-        for (i, raw) in raws.clone().enumerate() {
-            raw_rows(y0 + i, raw)?;
+        match output {
+            Output::Raw { buf, stride } => raws.enumerate().try_for_each(|(i, raw)| {
+                buf.get_mut((y0 + i) * *stride..)
+                    .and_then(|b| b.get_mut(..raw.len()))
+                    .ok_or_else(|| Error::invalid("JPEG XR: a row past the caller's buffer (a bug in the decoder)"))?
+                    .copy_from_slice(raw);
+                Ok(())
+            }),
+            Output::Sink(s) => {
+                fill_rows(&mut **s, y0 as u32, part.len() as u32, row_len, scratch, |dst: &mut [f32]| {
+                    raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
+                })
+            }
         }
-        if let Some(s) = sink.as_deref_mut() {
-            fill_rows(s, y0 as u32, part.len() as u32, row_len, &mut scratch, |dst: &mut [f32]| {
-                raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))
-            })?;
-        }
-        Ok(())
     };
     let mut transformed: Option<Transformed> = None;
     let mut decoded = need(band.min(mb_h));
@@ -420,46 +486,94 @@ fn decode_impl(
             let rows = band_rows(r0).1;
             for start in (0..rows).step_by(FORMAT_CHUNK) {
                 let part = start..(start + FORMAT_CHUNK).min(rows);
+                if in_place {
+                    // Straight into the caller's rows.
+                    let y0 = band_dst(&t).start + start;
+                    let mut dst = rows_out(&mut output, y0..y0 + part.len(), row_sizes, true, &mut raw_band)?;
+                    format_rows(&t, part, &mut full, &mut dst)?;
+                    continue;
+                }
                 format_band(&t, part.clone(), &mut full, &mut raw_band)?;
-                deliver(&t, part, &raw_band)?;
+                deliver(&t, part, &raw_band, &mut output, &mut scratch)?;
             }
             spare_samples.extend(t.into_buffers());
             win.drop_before(r1.saturating_sub(2), &mut spare_rows);
             pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, &mut spare_rows)?;
             continue;
         }
-        // Thread A entropy-decodes the next band's rows and formats the band before this one
-        // (thread B transforms this one meanwhile): the two halves of the work about even.
+        // One thread entropy-decodes the next band's rows; the other transforms this band and
+        // formats the band before it, in jobs (channels, pieces of rows) that the first takes
+        // once it is done.
         let spare = &mut spare_rows;
         let previous = transformed.take();
-        let (full_ref, raw_ref) = (&mut full, &mut raw_band);
-        let fetch_next = || -> Result<(Vec<Fetched>, Option<Transformed>)> {
-            let rows = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare)?;
-            if let Some(t) = &previous {
-                format_band(t, 0..band_rows(t.r0).1, full_ref, raw_ref)?;
-            }
-            Ok((rows, previous))
+        let dst = previous.as_ref().map(|t| rows_out(&mut output, band_dst(t), row_sizes, in_place, &mut raw_band));
+        let dst = dst.transpose()?;
+        let bufs = &mut job_bufs;
+        let format_previous = || match (&previous, dst) {
+            (Some(t), Some(dst)) => format_jobs(t, dst, bufs),
+            _ => Ok(()),
         };
-        let (fetched, this_band) = options.pool.join(fetch_next, transform_all);
-        let (rows, previous) = fetched?;
-        pending = rows;
+        let fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare);
+        let (fetched, (this_band, formatted)) =
+            options.pool.join(fetch_next, || options.pool.join(transform_all, format_previous));
+        formatted?;
+        pending = fetched?;
         let this_band = this_band?;
         if let Some(t) = previous {
-            deliver(&t, 0..band_rows(t.r0).1, &raw_band)?;
+            if !in_place {
+                deliver(&t, 0..band_rows(t.r0).1, &raw_band, &mut output, &mut scratch)?;
+            }
             spare_samples.extend(t.into_buffers());
         }
         transformed = Some(this_band);
     }
     if let Some(t) = transformed.take() {
-        let part = 0..band_rows(t.r0).1;
-        format_band(&t, part.clone(), &mut full, &mut raw_band)?;
-        deliver(&t, part, &raw_band)?;
+        let dst = rows_out(&mut output, band_dst(&t), row_sizes, in_place, &mut raw_band)?;
+        format_jobs(&t, dst, &mut job_bufs)?;
+        if !in_place {
+            deliver(&t, 0..band_rows(t.r0).1, &raw_band, &mut output, &mut scratch)?;
+        }
     }
     Ok(())
 }
 
+/// Where two threads format image rows `rows`: the caller's rows when they can be written in
+/// place (`in_place`), else `raw_band` (handed out after the pipeline step). `sizes`: the bytes
+/// of a raw row and the samples of a linear row.
+fn rows_out<'d>(
+    output: &'d mut Output,
+    rows: Range<usize>,
+    (raw_row, row_len): (usize, usize),
+    in_place: bool,
+    raw_band: &'d mut Vec<u8>,
+) -> Result<RowsOut<'d>> {
+    let bug = || Error::invalid("JPEG XR: a band past the caller's buffer (a bug in the decoder)");
+    let n = rows.len();
+    Ok(match output {
+        _ if n == 0 => RowsOut::Raw { buf: &mut [], stride: raw_row },
+        Output::Raw { buf, stride } => {
+            let range = rows.start * *stride..(rows.end - 1) * *stride + raw_row;
+            RowsOut::Raw { buf: buf.get_mut(range).ok_or_else(bug)?, stride: *stride }
+        }
+        Output::Sink(s) if in_place => RowsOut::F32 {
+            buf: s.rows_mut(rows.start as u32, n as u32).and_then(|b| b.get_mut(..n * row_len)).ok_or_else(bug)?,
+            stride: row_len,
+        },
+        Output::Sink(_) => {
+            raw_band.resize(n * raw_row, 0);
+            RowsOut::Raw { buf: raw_band, stride: raw_row }
+        }
+    })
+}
+
 /// Image rows formatted and handed out at a time on one thread.
 const FORMAT_CHUNK: usize = 8;
+
+/// Image rows of one formatting job on two threads.
+const FORMAT_JOB_ROWS: usize = 16;
+
+/// The most formatting jobs of a band on two threads.
+const FORMAT_JOBS: usize = transform::BAND_MB_ROWS * 16 / FORMAT_JOB_ROWS;
 
 /// The inverse transform of one channel of a band: its coefficients, parameters, channel and
 /// macroblock rows, the buffers to write into, and what it gave.
@@ -499,7 +613,8 @@ struct Fetched {
 }
 
 /// Decodes the next `n` macroblock rows (without their flexbits when `deferred`), into the
-/// buffers of rows from `spare` while there are some.
+/// buffers of rows from `spare` while there are some; the tile columns of the primary
+/// codestream each as one job of the pool.
 fn fetch(
     prim: &mut RowDecoder,
     alpha: Option<&mut RowDecoder>,
@@ -507,28 +622,25 @@ fn fetch(
     n: usize,
     spare: &mut Vec<Fetched>,
 ) -> Result<Vec<Fetched>> {
-    let mut alpha = alpha;
-    let mut rows = Vec::with_capacity(n);
-    let past = || Error::invalid("JPEG XR: rows past the image (a bug in the decoder)");
-    for _ in 0..n {
-        let Fetched { mut planes, mut side, planar_alpha } =
-            spare.pop().unwrap_or_else(|| Fetched { planes: Vec::new(), side: Vec::new(), planar_alpha: None });
+    let mut rows: Vec<Fetched> = (0..n)
+        .map(|_| spare.pop().unwrap_or_else(|| Fetched { planes: Vec::new(), side: Vec::new(), planar_alpha: None }))
+        .collect();
+    let mut outs = Vec::with_capacity(n);
+    let mut sides = Vec::with_capacity(n);
+    for Fetched { planes, side, .. } in rows.iter_mut() {
         planes.resize_with(2, Vec::new);
-        if deferred {
-            side.resize_with(2, Vec::new);
-            prim.next_row_deferred(&mut planes, &mut side)?.ok_or_else(past)?;
-        } else {
-            prim.next_row(&mut planes)?.ok_or_else(past)?;
+        side.resize_with(if deferred { 2 } else { 0 }, Vec::new);
+        outs.push(&mut planes[..]);
+        sides.push(&mut side[..]);
+    }
+    prim.next_rows(&mut outs, deferred.then_some(sides))?;
+    if let Some(dec) = alpha {
+        let past = || Error::invalid("JPEG XR: rows past the image (a bug in the decoder)");
+        for row in &mut rows {
+            let mut b = vec![row.planar_alpha.take().unwrap_or_default()];
+            dec.next_row(&mut b)?.ok_or_else(past)?;
+            row.planar_alpha = b.pop();
         }
-        let planar_alpha = match alpha.as_deref_mut() {
-            Some(dec) => {
-                let mut b = vec![planar_alpha.unwrap_or_default()];
-                dec.next_row(&mut b)?.ok_or_else(past)?;
-                b.pop()
-            }
-            None => None,
-        };
-        rows.push(Fetched { planes, side, planar_alpha });
     }
     Ok(rows)
 }
@@ -638,6 +750,57 @@ mod tests {
             }
             // Both kinds of outcome occur: samples from damaged data, and errors.
             assert!(outcomes[0] > 0 && outcomes[1] > 0, "{name}: {outcomes:?}");
+        }
+    }
+
+    /// Two threads format each band straight into the caller's rows (a raw buffer with a
+    /// stride, an image, an unpadded f32 buffer) or, for a sink that takes copies (a padded
+    /// f32 or an f16 buffer), into a band handed out after each step: every way gives one
+    /// thread's samples and leaves the padding alone. The image is several bands high, each
+    /// several formatting jobs, with alpha; 4:4:4 in one tile and 4:2:0 in tiles.
+    #[test]
+    fn two_threads_deliver_every_way_as_one_thread() {
+        use crate::encoder::{encode, EncodeOptions, Subsampling};
+        use hdrcodec_core::sink::FrameBufMut;
+        use hdrcodec_core::{ColorInfo, HdrImage, ImageCodec, ThreadPool};
+        let (w, h) = (200usize, 300usize);
+        let mut next = crate::testing::rng(11);
+        let samples: Vec<f32> =
+            (0..w * h * 4).map(|i| ((i % (w * 4)) as f32 / 300.0) + (next() % 1000) as f32 / 4000.0).collect();
+        let image = HdrImage::new(w as u32, h as u32, Channels::Rgba, samples, ColorInfo::default()).unwrap();
+        let one = DecodeOptions::new(Limits::default());
+        let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).unwrap());
+        for (subsampling, tile_mbs) in [(Subsampling::Yuv444, 0), (Subsampling::Yuv420, 5)] {
+            let options = EncodeOptions { quality: 70, subsampling, tile_mbs, ..EncodeOptions::default() };
+            let file = encode(&image, &options, &ThreadPool::single()).unwrap().0;
+            let raw = decode_raw(&file, &one).unwrap();
+            assert_eq!(decode_raw(&file, &two).unwrap(), raw);
+            let (_, height, row) = raw_layout(&file).unwrap();
+            assert_eq!(height as usize, h);
+            let stride = row + 5;
+            let mut buf = vec![0xa5u8; stride * h];
+            decode_raw_into(&file, &two, &mut buf, stride).unwrap();
+            for (y, want) in raw.chunks_exact(row).enumerate() {
+                assert_eq!(&buf[y * stride..][..row], want, "{subsampling:?}, raw row {y}");
+                assert!(buf[y * stride + row..(y + 1) * stride].iter().all(|&b| b == 0xa5));
+            }
+            let bits = |v: &[f32]| v.iter().map(|s| s.to_bits()).collect::<Vec<_>>();
+            let linear = crate::JxrCodec.decode_with(&file, &one).unwrap();
+            assert_eq!(bits(crate::JxrCodec.decode_with(&file, &two).unwrap().samples()), bits(linear.samples()));
+            for pad in [0, 3] {
+                let stride = w * 4 + pad;
+                let mut buf = vec![-1.0f32; stride * h];
+                crate::JxrCodec.decode_into(&file, &two, FrameBufMut::f32(&mut buf, stride)).unwrap();
+                for y in 0..h {
+                    assert_eq!(bits(&buf[y * stride..][..w * 4]), bits(linear.row(y as u32)), "pad {pad}, row {y}");
+                    assert!(buf[y * stride + w * 4..(y + 1) * stride].iter().all(|&v| v == -1.0));
+                }
+            }
+            let mut halves = [vec![half::f16::ZERO; w * 4 * h], vec![half::f16::ZERO; w * 4 * h]];
+            for (pool, buf) in [&one, &two].into_iter().zip(&mut halves) {
+                crate::JxrCodec.decode_into(&file, pool, FrameBufMut::f16(buf, w * 4)).unwrap();
+            }
+            assert_eq!(halves[0], halves[1]);
         }
     }
 
