@@ -1217,9 +1217,8 @@ impl PlaneDecoder {
                         }
                     }
                     _ => {
-                        for &k in &TRANSPOSE444[1..16] {
-                            input[ndx][k] = refine(r, input[ndx][k], model_bits);
-                        }
+                        let block: &mut [i32; 15] = (&mut input[ndx][1..16]).try_into().expect("15 LP coefficients");
+                        refine_lp_block(r, block, model_bits);
                     }
                 }
             }
@@ -2478,6 +2477,36 @@ fn refine(r: &mut BitReader, coeff: i32, model_bits: u32) -> i32 {
     }
 }
 
+/// REFINE_LP of the 15 LP coefficients of a full-resolution channel (`block`: coefficients
+/// 1..=15), in [`TRANSPOSE444`] order: [`refine`] of each, read as FLEXBITS are
+/// ([`flex_raw`]: `model_bits` bits a coefficient, then a sign bit for a zero coefficient
+/// whose bits are not all zero), without a branch on any coefficient.
+fn refine_lp_block(r: &mut BitReader, block: &mut [i32; 15], model_bits: u32) {
+    debug_assert!((1..=15).contains(&model_bits));
+    let n = model_bits.clamp(1, 15);
+    let mut limit = [0u32; 15];
+    flex_limits(block, &mut limit, n);
+    let mut raw = [0u32; 15];
+    let bit = r.bit_pos();
+    let bit = match n {
+        0..=2 => flex_raw::<15>(r, bit, &limit, &mut raw, n),
+        3..=6 => flex_raw::<8>(r, bit, &limit, &mut raw, n),
+        7..=10 => flex_raw::<5>(r, bit, &limit, &mut raw, n),
+        _ => flex_raw::<3>(r, bit, &limit, &mut raw, n),
+    };
+    r.seek(bit);
+    // As `refine`: the coefficient shifted, plus or minus its bits by its own sign, or for a
+    // zero coefficient by the sign bit read (1 ≤ n ≤ 15: the shifts are below 32).
+    let (fine_shift, sign_shift) = (32 - n, 31 - n);
+    for (x, &v) in block.iter_mut().zip(&raw) {
+        let cur = *x;
+        let fine = (v >> fine_shift) as i32;
+        let zero = -i32::from(cur == 0);
+        let mask = (cur >> 31) | (zero & -(((v >> sign_shift) & 1) as i32));
+        *x = cur.wrapping_shl(n).wrapping_add((fine ^ mask).wrapping_sub(mask));
+    }
+}
+
 /// REFINE_CBP (`r_REFINE_CBP`): a 4-bit pattern with `num` bits set.
 fn refine_cbp(r: &mut BitReader, num: usize) -> u32 {
     match num {
@@ -3012,6 +3041,39 @@ mod tests {
                 assert_eq!(PlaneDecoder::abs_level_buffered(&mut ctx, &mut t), want, "table {table}, {w:016b}");
                 assert_eq!(t.bit_pos(), r.bit_pos(), "table {table}, {w:016b}");
                 assert_eq!(ctx.disc, vlc::ABS_LEVEL_DELTA[index]);
+            }
+        }
+    }
+
+    #[test]
+    fn lp_blocks_refine_as_each_coefficient_does() {
+        let mut rng = Rng(0x5DEE_CE66_D1CE_4E5B);
+        for model_bits in 1..=15 {
+            for case in 0..200 {
+                let block: [i32; 15] = std::array::from_fn(|_| match rng.below(4) {
+                    0 | 1 => 0,
+                    2 => rng.pm(1, 40),
+                    _ => rng.pm(0, 1 << 20),
+                });
+                // Streams long enough, and streams that end inside the block.
+                let len = if case % 4 == 0 { rng.below(30) as usize } else { 40 + rng.below(20) as usize };
+                let bytes: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
+                let skip = rng.below(8);
+                let (mut r, mut t) = (BitReader::new(&bytes), BitReader::new(&bytes));
+                r.read(skip);
+                t.read(skip);
+                let mut want = [0i32; 16];
+                want[1..].copy_from_slice(&block);
+                for &k in &TRANSPOSE444[1..16] {
+                    want[k] = refine(&mut r, want[k], model_bits);
+                }
+                let mut got = block;
+                refine_lp_block(&mut t, &mut got, model_bits);
+                let at = (model_bits, case, block);
+                assert_eq!(got[..], want[1..], "{at:?}");
+                assert_eq!((t.bit_pos(), t.overrun()), (r.bit_pos(), r.overrun()), "{at:?}");
+                // The reader goes on as the other does.
+                assert_eq!(t.read(13), r.read(13), "{at:?}");
             }
         }
     }
