@@ -686,15 +686,46 @@ struct HpContexts {
     abs_sums: [i32; 2],
 }
 
+/// The VLC contexts of a band's run-level symbols: FIRST_INDEX of luma and chroma, INDEX of
+/// luma by context, of chroma by context, and ABSLEVEL_INDEX by context.
+type BandContexts = [V; 8];
+
+/// [`BandContexts`] of HP.
+const HP_CONTEXTS: BandContexts = [
+    V::FirstIndHpLum,
+    V::FirstIndHpChr,
+    V::IndHpLum0,
+    V::IndHpLum1,
+    V::IndHpChr0,
+    V::IndHpChr1,
+    V::AbsLevelHp0,
+    V::AbsLevelHp1,
+];
+
+/// [`BandContexts`] of LP.
+const LP_CONTEXTS: BandContexts = [
+    V::FirstIndLpLum,
+    V::FirstIndLpChr,
+    V::IndLpLum0,
+    V::IndLpLum1,
+    V::IndLpChr0,
+    V::IndLpChr1,
+    V::AbsLevelLp0,
+    V::AbsLevelLp1,
+];
+
 impl HpContexts {
-    fn new(vlc: &[AdaptiveVlc; V_COUNT]) -> Self {
+    /// The tables of the contexts `band` of a macroblock (MB_HP's, or MB_LP's full-resolution
+    /// blocks: the same codes).
+    fn new(vlc: &[AdaptiveVlc; V_COUNT], band: &BandContexts) -> Self {
         let t = |v: V| usize::from(vlc[v as usize].table);
-        let (a0, a1) = (t(V::AbsLevelHp0) & 1, t(V::AbsLevelHp1) & 1);
+        let [first_lum, first_chr, lum0, lum1, chr0, chr1, abs0, abs1] = *band;
+        let (a0, a1) = (t(abs0) & 1, t(abs1) & 1);
         let index = |v: V, context: usize| &HP_INDEX_TABLES[context][t(v)][a0][a1];
         HpContexts {
-            first: [&HP_FIRST_TABLES[t(V::FirstIndHpLum)][a0][a1], &HP_FIRST_TABLES[t(V::FirstIndHpChr)][a0][a1]],
-            index: [[index(V::IndHpLum0, 0), index(V::IndHpLum1, 1)], [index(V::IndHpChr0, 0), index(V::IndHpChr1, 1)]],
-            fold: [&HP_FOLD_TABLES[t(V::IndHpLum0)][a0], &HP_FOLD_TABLES[t(V::IndHpChr0)][a0]],
+            first: [&HP_FIRST_TABLES[t(first_lum)][a0][a1], &HP_FIRST_TABLES[t(first_chr)][a0][a1]],
+            index: [[index(lum0, 0), index(lum1, 1)], [index(chr0, 0), index(chr1, 1)]],
+            fold: [&HP_FOLD_TABLES[t(lum0)][a0], &HP_FOLD_TABLES[t(chr0)][a0]],
             abs: [&ABS_LEVEL_LUT[a0], &ABS_LEVEL_LUT[a1]],
             first_sums: [0; 2],
             index_sums: [0; 4],
@@ -702,24 +733,25 @@ impl HpContexts {
         }
     }
 
-    /// Adds the sums to the contexts' discriminants.
-    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
-        let contexts = [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
+    /// Adds the sums to the discriminants of the contexts `band` (those of [`new`](Self::new)).
+    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT], band: &BandContexts) {
+        let [first_lum, first_chr, lum0, lum1, chr0, chr1, abs0, abs1] = *band;
+        let contexts = [first_lum, first_chr, lum0, lum1, chr0, chr1];
         for (i, (v, sum)) in contexts.into_iter().zip(self.first_sums.into_iter().chain(self.index_sums)).enumerate() {
             debug_assert!({
                 let ctx = &vlc[v as usize];
                 let max = if i < 2 { 4 } else { 3 };
                 (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), max)
             });
-            let [d, d2, abs0, abs1] = unpack_fields(sum);
+            let [d, d2, level0, level1] = unpack_fields(sum);
             let ctx = &mut vlc[v as usize];
             ctx.disc += d;
             ctx.disc2 += d2;
-            vlc[V::AbsLevelHp0 as usize].disc += abs0;
-            vlc[V::AbsLevelHp1 as usize].disc += abs1;
+            vlc[abs0 as usize].disc += level0;
+            vlc[abs1 as usize].disc += level1;
         }
-        vlc[V::AbsLevelHp0 as usize].disc += self.abs_sums[0];
-        vlc[V::AbsLevelHp1 as usize].disc += self.abs_sums[1];
+        vlc[abs0 as usize].disc += self.abs_sums[0];
+        vlc[abs1 as usize].disc += self.abs_sums[1];
     }
 
     /// One entry of `table` (index, sign and perhaps level), its deltas added to `sum`, with
@@ -1166,38 +1198,31 @@ impl PlaneDecoder {
         let mut input = [[0i32; 16]; MAX_CHANNELS];
         let mut lap_mean = [0i32; 2];
         let mut pairs = [RunLevel::default(); 16];
+        // Full-resolution blocks decode as HP blocks do (the same codes, LP's contexts, the
+        // levels unshifted: REFINE_LP follows).
+        let mut t = HpContexts::new(&self.st.vlc, &LP_CONTEXTS);
         for ndx in 0..full_planes {
             let chroma = ndx > 0;
             let mut nonzero = 0;
-            if (cbplp >> ndx) & 1 != 0 {
-                let location = match (fmt, chroma) {
-                    (ClrFmt::Yuv420, true) => 10,
-                    (ClrFmt::Yuv422, true) => 2,
-                    _ => 1,
+            if (cbplp >> ndx) & 1 != 0 && !(sub && chroma) {
+                let mut tables = t.channel(usize::from(chroma));
+                nonzero = hp_block(r, &mut t, &mut tables, &mut input[ndx], &mut self.st.lp_scan, 0)? as usize;
+                t.end_channel(usize::from(chroma), tables);
+            } else if (cbplp >> ndx) & 1 != 0 {
+                let location = match fmt {
+                    ClrFmt::Yuv420 => 10,
+                    _ => 2,
                 };
                 nonzero = self.block(r, chroma, BAND_LP, location, &mut pairs)?;
-                if sub && chroma {
-                    let mut temp = [0i32; 16];
-                    let mut i = 0usize;
-                    for p in &pairs[..nonzero] {
-                        i += p.run as usize;
-                        *temp.get_mut(i).ok_or_else(|| corrupt("chroma LP past the end"))? = p.level;
-                        i += 1;
-                    }
-                    for (k, &t) in temp[..sub_chroma_lp_len(fmt)].iter().enumerate() {
-                        input[(k & 1) + 1][sub_chroma_lp_pos(fmt, k)] = t;
-                    }
-                } else {
-                    let mut i = 1usize;
-                    for p in &pairs[..nonzero] {
-                        i += p.run as usize;
-                        if i > 15 {
-                            return Err(corrupt("LP past the end"));
-                        }
-                        let k = self.st.lp_scan.hit(i - 1);
-                        input[ndx][k] = p.level;
-                        i += 1;
-                    }
+                let mut temp = [0i32; 16];
+                let mut i = 0usize;
+                for p in &pairs[..nonzero] {
+                    i += p.run as usize;
+                    *temp.get_mut(i).ok_or_else(|| corrupt("chroma LP past the end"))? = p.level;
+                    i += 1;
+                }
+                for (k, &v) in temp[..sub_chroma_lp_len(fmt)].iter().enumerate() {
+                    input[(k & 1) + 1][sub_chroma_lp_pos(fmt, k)] = v;
                 }
             }
             let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
@@ -1236,6 +1261,7 @@ impl PlaneDecoder {
                 _ => c[ndx * MB_COEFFS + 1..ndx * MB_COEFFS + 16].copy_from_slice(&input[ndx][1..16]),
             }
         }
+        t.finish(&mut self.st.vlc, &LP_CONTEXTS);
         self.st.end_lp(lap_mean, mx, tile_w);
         Ok(())
     }
@@ -1354,7 +1380,7 @@ impl PlaneDecoder {
         bits: [u32; 2],
     ) -> Result<[i32; 2]> {
         let mut lap_mean = [0i32; 2];
-        let mut t = HpContexts::new(&self.st.vlc);
+        let mut t = HpContexts::new(&self.st.vlc, &HP_CONTEXTS);
         let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
         for ch in 0..self.st.channels {
             let chroma = usize::from(ch > 0);
@@ -1397,7 +1423,7 @@ impl PlaneDecoder {
             lap_mean[chroma] += count;
             t.end_channel(chroma, tables);
         }
-        t.finish(&mut self.st.vlc);
+        t.finish(&mut self.st.vlc, &HP_CONTEXTS);
         Ok(lap_mean)
     }
 }
