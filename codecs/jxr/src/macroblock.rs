@@ -33,6 +33,8 @@ const TRANSPOSE422: [usize; 8] = [0, 2, 1, 3, 4, 6, 5, 7];
 const SHIFT422: [u32; 4] = [0, 1, 4, 5];
 /// The order of a luma macroblock's blocks in the bitstream: 2×2 quads (T.835 `_jxr_hp_scan_map`).
 const HP_BLOCK_ORDER: [usize; 16] = [0, 1, 4, 5, 2, 3, 6, 7, 8, 9, 12, 13, 10, 11, 14, 15];
+/// The order of the blocks of 420 and 422 chroma: their own.
+const NATURAL_ORDER: [usize; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15];
 
 fn corrupt(what: &str) -> Error {
     Error::invalid(format!("JPEG XR: corrupt macroblock data ({what})"))
@@ -392,11 +394,19 @@ static RUN_LUT: [[u8; 256]; 15] = {
 /// [`RUN_LUT`] by the location before the run in an HP block after its first symbol (2..=16,
 /// the 1-based position after the last coefficient; the largest run is 15 − location, none
 /// from 15 on), padded to 32 so that a mask, not a comparison, keeps the index in bounds.
-static RUN_AT: [[u8; 256]; 32] = {
-    let mut t = [[0u8; 256]; 32];
+///
+/// Entries are `run << 8 | length` (the length in the low 6 bits: a shift by the whole entry
+/// shifts by it).
+static RUN_AT: [[u16; 256]; 32] = {
+    let mut t = [[0u16; 256]; 32];
     let mut location = 1;
     while location < 15 {
-        t[location] = RUN_LUT[15 - location];
+        let mut w = 0;
+        while w < 256 {
+            let e = RUN_LUT[15 - location][w] as u16;
+            t[location][w] = (e >> 4) << 8 | (e & 15);
+            w += 1;
+        }
         location += 1;
     }
     t
@@ -469,16 +479,23 @@ const SYMBOL_BITS: u32 = 25;
 
 /// FIRST_INDEX (T.832 Table 59) or INDEX (Table 60) of MB_HP, the sign bit after it and,
 /// when they fit in the same 8 bits, ABSLEVEL_INDEX and its raw bits: one lookup of the next
-/// 8 bits for a whole symbol but its run (a symbol of level 1 is the index and the sign
-/// alone). One table for each index table, each pair of ABSLEVEL_INDEX tables (of contexts
+/// 8 bits for a whole symbol (a symbol of level 1 is the index and the sign alone), and the
+/// run that follows it when that fits too and its code does not depend on where it is:
+/// after FIRST_INDEX the run before the first coefficient (always at location 1), after INDEX
+/// of context 0 (the "folding" tables) a run of 1 or 2, coded `1` and `01` at every location
+/// up to 12. One table for each index table, each pair of ABSLEVEL_INDEX tables (of contexts
 /// 0 and 1) and, for INDEX, the context, which with the symbol chooses the level's context
 /// (`context & (index >> 1)`; after FIRST_INDEX, `index & (index >> 2) & 1`).
 #[derive(Clone, Copy)]
 struct HpIndexTable {
-    /// `value << 16 | pending << 8 | symbol << 4 | length`: `length` the bits the entry
-    /// consumes (index, sign and level), `value` the signed level; when what follows is
-    /// `pending` ([`LEVEL_PENDING`]: the level is not within the 8 bits, or escapes), only its
-    /// sign (±1), and with [`SIGN_PENDING`] (an index of 8 bits) not even that (+1).
+    /// `value << 20 | RUN_PENDING | run << 12 | pending | symbol << 6 | length`: `length` the
+    /// bits the entry consumes (index, sign, level and run; 6 bits with the top two clear, so
+    /// that a shift by the whole entry shifts by it), `value` the signed level; when what
+    /// follows is `pending` ([`LEVEL_PENDING`]: the level is not within the 8 bits, or
+    /// escapes), only its sign (±1), and with [`SIGN_PENDING`] (an index of 8 bits) not even
+    /// that (+1). `run`: the run the entry read (0: none); a folding table's entry that read
+    /// one gives the symbol as if no run followed (`srn` 1). [`RUN_PENDING`]: after
+    /// FIRST_INDEX, a run follows that the entry did not read.
     info: [u32; 256],
     /// The discriminant deltas of the entry, as 16-bit fields of one number (see
     /// [`unpack_fields`]): INDEX's two, then ABSLEVEL_INDEX's of context 0 and of context 1.
@@ -486,9 +503,20 @@ struct HpIndexTable {
 }
 
 /// See [`HpIndexTable::info`].
-const LEVEL_PENDING: u32 = 1 << 8;
+const LEVEL_PENDING: u32 = 1 << 10;
 /// See [`HpIndexTable::info`]; always with [`LEVEL_PENDING`].
-const SIGN_PENDING: u32 = 1 << 9;
+const SIGN_PENDING: u32 = 1 << 11;
+/// Where [`HpIndexTable::info`] keeps the symbol.
+const SYMBOL_SHIFT: u32 = 6;
+/// Where [`HpIndexTable::info`] keeps the signed level.
+const VALUE_SHIFT: u32 = 20;
+/// Where [`HpIndexTable::info`] keeps the run it read.
+const RUN_SHIFT: u32 = 12;
+/// See [`HpIndexTable::info`].
+const RUN_PENDING: u32 = 1 << 16;
+/// The largest location at which a folding table's runs are what the entries say (at 13 the
+/// code `0` alone is a run of 2; at 14 a run of 1 takes no bits).
+const FOLD_LOCATIONS: u32 = 12;
 
 /// An [`HpIndexTable`] that [`hp_index_tables`] overwrites.
 const EMPTY_INDEX_TABLE: HpIndexTable = HpIndexTable { info: [0; 256], deltas: [0; 256] };
@@ -500,7 +528,7 @@ static HP_FIRST_TABLES: [[[HpIndexTable; 2]; 2]; 5] = {
     let mut table = 0;
     while table < 5 {
         let index = index_lut(&vlc::FIRST_INDEX_CODES[table], &vlc::FIRST_INDEX_DELTA, table, 4);
-        t[table] = hp_index_tables(&index, None);
+        t[table] = hp_index_tables(&index, None, false);
         table += 1;
     }
     t
@@ -513,22 +541,36 @@ static HP_INDEX_TABLES: [[[[HpIndexTable; 2]; 2]; 4]; 2] = {
     let mut table = 0;
     while table < 4 {
         let index = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
-        t[0][table] = hp_index_tables(&index, Some(0));
-        t[1][table] = hp_index_tables(&index, Some(1));
+        t[0][table] = hp_index_tables(&index, Some(0), false);
+        t[1][table] = hp_index_tables(&index, Some(1), false);
+        table += 1;
+    }
+    t
+};
+
+/// The folding [`HpIndexTable`]s of INDEX (context 0, see [`HpIndexTable`]), by INDEX table
+/// and the ABSLEVEL_INDEX table of context 0.
+static HP_FOLD_TABLES: [[HpIndexTable; 2]; 4] = {
+    let mut t = [[EMPTY_INDEX_TABLE; 2]; 4];
+    let mut table = 0;
+    while table < 4 {
+        let index = index_lut(&vlc::INDEX_CODES[table], &vlc::INDEX_DELTA, table, 3);
+        let pairs = hp_index_tables(&index, Some(0), true);
+        t[table] = [pairs[0][0], pairs[1][0]];
         table += 1;
     }
     t
 };
 
 /// [`hp_index_table`] for each pair of ABSLEVEL_INDEX tables.
-const fn hp_index_tables(index: &[u32; 256], context: Option<u32>) -> [[HpIndexTable; 2]; 2] {
+const fn hp_index_tables(index: &[u32; 256], context: Option<u32>, fold: bool) -> [[HpIndexTable; 2]; 2] {
     let abs = [abs_level_lut(0), abs_level_lut(1)];
     let mut t = [[EMPTY_INDEX_TABLE; 2]; 2];
     let mut a0 = 0;
     while a0 < 2 {
         let mut a1 = 0;
         while a1 < 2 {
-            t[a0][a1] = hp_index_table(index, [&abs[a0], &abs[a1]], context);
+            t[a0][a1] = hp_index_table(index, [&abs[a0], &abs[a1]], context, fold);
             a1 += 1;
         }
         a0 += 1;
@@ -538,8 +580,8 @@ const fn hp_index_tables(index: &[u32; 256], context: Option<u32>) -> [[HpIndexT
 
 /// One [`HpIndexTable`] from a [`FIRST_INDEX_LUT`] table (`context` `None`) or an
 /// [`INDEX_LUT`] table and its context, with the [`ABS_LEVEL_LUT`] tables of the two level
-/// contexts.
-const fn hp_index_table(index: &[u32; 256], abs: [&[u16; 256]; 2], context: Option<u32>) -> HpIndexTable {
+/// contexts; with `fold`, a folding table (of context 0).
+const fn hp_index_table(index: &[u32; 256], abs: [&[u16; 256]; 2], context: Option<u32>, fold: bool) -> HpIndexTable {
     let mut out = HpIndexTable { info: [0; 256], deltas: [0; 256] };
     let mut w = 0;
     while w < 256 {
@@ -570,7 +612,33 @@ const fn hp_index_table(index: &[u32; 256], abs: [&[u16; 256]; 2], context: Opti
                 pending = LEVEL_PENDING;
             }
         }
-        out.info[w] = ((value as u32) << 16) | pending | (symbol << 4) | used;
+        // The run after the symbol, when the entry reads it.
+        let (mut symbol, mut run) = (symbol, 0);
+        let rest = (w << used) & 0xFF;
+        match context {
+            None if symbol & 1 == 0 => {
+                let e = RUN_LUT[14][rest];
+                let run_len = (e & 15) as u32;
+                if pending == 0 && used + run_len <= 8 {
+                    run = (e >> 4) as u32;
+                    used += run_len;
+                } else {
+                    pending |= RUN_PENDING;
+                }
+            }
+            Some(_) if fold && pending == 0 && symbol >> 1 == 2 => {
+                if used < 8 && rest & 0x80 != 0 {
+                    (run, used) = (1, used + 1);
+                } else if used + 2 <= 8 && rest >> 6 == 1 {
+                    (run, used) = (2, used + 2);
+                }
+                if run != 0 {
+                    symbol = 2 | (symbol & 1);
+                }
+            }
+            _ => {}
+        }
+        out.info[w] = ((value as u32) << VALUE_SHIFT) | (run << RUN_SHIFT) | pending | (symbol << SYMBOL_SHIFT) | used;
         out.deltas[w] = pack_fields(fields);
         w += 1;
     }
@@ -606,6 +674,8 @@ struct HpContexts {
     first: [&'static HpIndexTable; 2],
     /// INDEX, sign and level by luma/chroma and context.
     index: [[&'static HpIndexTable; 2]; 2],
+    /// The folding tables of context 0 by luma/chroma.
+    fold: [&'static HpIndexTable; 2],
     /// ABSLEVEL_INDEX by context.
     abs: [&'static [u16; 256]; 2],
     /// Packed sums of the FIRST_INDEX [`HpIndexTable`]s, luma and chroma.
@@ -616,14 +686,46 @@ struct HpContexts {
     abs_sums: [i32; 2],
 }
 
+/// The VLC contexts of a band's run-level symbols: FIRST_INDEX of luma and chroma, INDEX of
+/// luma by context, of chroma by context, and ABSLEVEL_INDEX by context.
+type BandContexts = [V; 8];
+
+/// [`BandContexts`] of HP.
+const HP_CONTEXTS: BandContexts = [
+    V::FirstIndHpLum,
+    V::FirstIndHpChr,
+    V::IndHpLum0,
+    V::IndHpLum1,
+    V::IndHpChr0,
+    V::IndHpChr1,
+    V::AbsLevelHp0,
+    V::AbsLevelHp1,
+];
+
+/// [`BandContexts`] of LP.
+const LP_CONTEXTS: BandContexts = [
+    V::FirstIndLpLum,
+    V::FirstIndLpChr,
+    V::IndLpLum0,
+    V::IndLpLum1,
+    V::IndLpChr0,
+    V::IndLpChr1,
+    V::AbsLevelLp0,
+    V::AbsLevelLp1,
+];
+
 impl HpContexts {
-    fn new(vlc: &[AdaptiveVlc; V_COUNT]) -> Self {
+    /// The tables of the contexts `band` of a macroblock (MB_HP's, or MB_LP's full-resolution
+    /// blocks: the same codes).
+    fn new(vlc: &[AdaptiveVlc; V_COUNT], band: &BandContexts) -> Self {
         let t = |v: V| usize::from(vlc[v as usize].table);
-        let (a0, a1) = (t(V::AbsLevelHp0) & 1, t(V::AbsLevelHp1) & 1);
+        let [first_lum, first_chr, lum0, lum1, chr0, chr1, abs0, abs1] = *band;
+        let (a0, a1) = (t(abs0) & 1, t(abs1) & 1);
         let index = |v: V, context: usize| &HP_INDEX_TABLES[context][t(v)][a0][a1];
         HpContexts {
-            first: [&HP_FIRST_TABLES[t(V::FirstIndHpLum)][a0][a1], &HP_FIRST_TABLES[t(V::FirstIndHpChr)][a0][a1]],
-            index: [[index(V::IndHpLum0, 0), index(V::IndHpLum1, 1)], [index(V::IndHpChr0, 0), index(V::IndHpChr1, 1)]],
+            first: [&HP_FIRST_TABLES[t(first_lum)][a0][a1], &HP_FIRST_TABLES[t(first_chr)][a0][a1]],
+            index: [[index(lum0, 0), index(lum1, 1)], [index(chr0, 0), index(chr1, 1)]],
+            fold: [&HP_FOLD_TABLES[t(lum0)][a0], &HP_FOLD_TABLES[t(chr0)][a0]],
             abs: [&ABS_LEVEL_LUT[a0], &ABS_LEVEL_LUT[a1]],
             first_sums: [0; 2],
             index_sums: [0; 4],
@@ -631,24 +733,25 @@ impl HpContexts {
         }
     }
 
-    /// Adds the sums to the contexts' discriminants.
-    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT]) {
-        let contexts = [V::FirstIndHpLum, V::FirstIndHpChr, V::IndHpLum0, V::IndHpLum1, V::IndHpChr0, V::IndHpChr1];
+    /// Adds the sums to the discriminants of the contexts `band` (those of [`new`](Self::new)).
+    fn finish(self, vlc: &mut [AdaptiveVlc; V_COUNT], band: &BandContexts) {
+        let [first_lum, first_chr, lum0, lum1, chr0, chr1, abs0, abs1] = *band;
+        let contexts = [first_lum, first_chr, lum0, lum1, chr0, chr1];
         for (i, (v, sum)) in contexts.into_iter().zip(self.first_sums.into_iter().chain(self.index_sums)).enumerate() {
             debug_assert!({
                 let ctx = &vlc[v as usize];
                 let max = if i < 2 { 4 } else { 3 };
                 (usize::from(ctx.delta), usize::from(ctx.delta2)) == index_deltas(usize::from(ctx.table), max)
             });
-            let [d, d2, abs0, abs1] = unpack_fields(sum);
+            let [d, d2, level0, level1] = unpack_fields(sum);
             let ctx = &mut vlc[v as usize];
             ctx.disc += d;
             ctx.disc2 += d2;
-            vlc[V::AbsLevelHp0 as usize].disc += abs0;
-            vlc[V::AbsLevelHp1 as usize].disc += abs1;
+            vlc[abs0 as usize].disc += level0;
+            vlc[abs1 as usize].disc += level1;
         }
-        vlc[V::AbsLevelHp0 as usize].disc += self.abs_sums[0];
-        vlc[V::AbsLevelHp1 as usize].disc += self.abs_sums[1];
+        vlc[abs0 as usize].disc += self.abs_sums[0];
+        vlc[abs1 as usize].disc += self.abs_sums[1];
     }
 
     /// One entry of `table` (index, sign and perhaps level), its deltas added to `sum`, with
@@ -657,7 +760,8 @@ impl HpContexts {
     fn index(sum: &mut u64, r: &mut BitReader, table: &HpIndexTable) -> u32 {
         let w = r.peek_buffered(8) as usize;
         let info = table.info[w];
-        r.skip(info & 15);
+        // The length is the low 6 bits: a shift by `info & 63` needs no masking.
+        r.skip(info & 63);
         *sum = sum.wrapping_add(table.deltas[w]);
         info
     }
@@ -736,51 +840,131 @@ fn end_index(r: &mut BitReader, location: u32) -> u32 {
     }
 }
 
+/// The tables and sums of one channel's HP blocks (luma or chroma), taken from
+/// [`HpContexts`] for the channel and given back after it, so that they stay in registers.
+struct ChannelTables {
+    /// FIRST_INDEX, sign and level.
+    first: &'static HpIndexTable,
+    /// INDEX, sign and level by context.
+    index: [&'static HpIndexTable; 2],
+    /// The folding table of context 0.
+    fold: &'static HpIndexTable,
+    /// Packed sums of `first`.
+    first_sum: u64,
+    /// Packed sums of `index` by context.
+    sums: [u64; 2],
+}
+
+impl HpContexts {
+    /// The tables and sums of luma (`chroma` 0) or chroma (1).
+    #[inline(always)]
+    fn channel(&self, chroma: usize) -> ChannelTables {
+        ChannelTables {
+            first: self.first[chroma],
+            index: self.index[chroma],
+            fold: self.fold[chroma],
+            first_sum: self.first_sums[chroma],
+            sums: [self.index_sums[2 * chroma], self.index_sums[2 * chroma + 1]],
+        }
+    }
+
+    /// Takes back the sums of [`channel`](Self::channel).
+    #[inline(always)]
+    fn end_channel(&mut self, chroma: usize, tables: ChannelTables) {
+        self.first_sums[chroma] = tables.first_sum;
+        self.index_sums[2 * chroma] = tables.sums[0];
+        self.index_sums[2 * chroma + 1] = tables.sums[1];
+    }
+}
+
 /// One HP block of run-level symbols (`r_DECODE_BLOCK` at location 1), each level written
 /// (shifted by `model_bits`) straight into `block` (the block's 15 coefficients with the slot
 /// before it) where the adaptive `scan` puts it. Returns the number of symbols.
+///
+/// The INDEX context is 1 only while no run has been coded (it is the first symbol's, then
+/// `context & srn`: a run ends it for the rest of the block), so the block runs in two loops:
+/// context 1 without runs, then context 0 through the folding table (most runs read with
+/// their symbol), each with its table in a register (a table chosen by the context of the
+/// previous symbol would put a load of the table's address between one symbol and the
+/// next). Locations from 13 on (past [`FOLD_LOCATIONS`], and INDEX2 and one bit at 15 and 16)
+/// come after both, symbol by symbol.
 #[inline(always)]
 fn hp_block(
     r: &mut BitReader,
     t: &mut HpContexts,
-    chroma: usize,
+    ct: &mut ChannelTables,
     block: &mut [i32; 16],
     scan: &mut Scan,
     model_bits: u32,
 ) -> Result<i32> {
     r.ensure(SYMBOL_BITS);
-    let info = HpContexts::index(&mut t.first_sums[chroma], r, t.first[chroma]);
-    let index = (info >> 4) & 15;
+    let info = HpContexts::index(&mut ct.first_sum, r, ct.first);
+    let index = (info >> SYMBOL_SHIFT) & 15;
     let mut srn = index >> 2;
-    let mut context = ((index & 1) & srn) as usize;
-    let mut value = info as i32 >> 16;
+    let context = ((index & 1) & srn) as usize;
+    let mut value = info as i32 >> VALUE_SHIFT;
     if info & LEVEL_PENDING != 0 {
         value = t.pending(r, info, index & 2 != 0, context);
     }
-    // location: the 1-based position after the coefficient; the run is at most 14 here.
-    let mut location = 2 + if index & 1 != 0 {
-        0
-    } else {
+    // location: the 1-based position after the coefficient; the run (read by the entry or
+    // now) is at most 14 here.
+    let mut location = 2 + ((info >> RUN_SHIFT) & 15);
+    if info & RUN_PENDING != 0 {
         let e = RUN_LUT[14][r.peek_buffered(8) as usize];
         r.skip(u32::from(e & 15));
-        u32::from(e >> 4)
-    };
+        location += u32::from(e >> 4);
+    }
     // Scan entries are 1..=15: the mask only spares a bounds check.
     block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
     let mut n = 1;
-    while srn != 0 {
-        // Every symbol moves `location` on and it stays at most 16 (checked below): at most
-        // 15 symbols.
-        debug_assert!(n < 16);
-        r.ensure(SYMBOL_BITS);
-        if srn & 1 == 0 {
-            // From location 15 on the largest run is 0 and the table reads nothing (at 16 no
-            // position remains, and the check below fails).
-            let e = RUN_AT[location as usize & 31][r.peek_buffered(8) as usize];
-            r.skip(u32::from(e & 15));
-            location += u32::from(e >> 4);
+    // Every symbol moves `location` on, and the loops hand over to the end before 16: at
+    // most 15 symbols.
+    let context = 'end: {
+        if context != 0 {
+            // Context 1: srn is 1 (the next coefficient follows without a run) until it is not.
+            while srn == 1 {
+                r.ensure(SYMBOL_BITS);
+                location += 1;
+                if location >= 15 {
+                    break 'end 1;
+                }
+                let info = HpContexts::index(&mut ct.sums[1], r, ct.index[1]);
+                srn = (info >> (SYMBOL_SHIFT + 1)) & 3;
+                // The signed level, or its sign alone when the level follows (of context
+                // `1 & srn`).
+                let value = if info & LEVEL_PENDING != 0 {
+                    t.pending(r, info, true, (srn & 1) as usize)
+                } else {
+                    info as i32 >> VALUE_SHIFT
+                };
+                block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
+                n += 1;
+            }
         }
-        location += 1;
+        // Context 0: srn 2 is a run the entry did not read.
+        while srn != 0 {
+            r.ensure(SYMBOL_BITS);
+            if srn & 1 == 0 {
+                location += run_at(r, location);
+            }
+            location += 1;
+            if location > FOLD_LOCATIONS {
+                break 'end 0;
+            }
+            let info = HpContexts::index(&mut ct.sums[0], r, ct.fold);
+            srn = (info >> (SYMBOL_SHIFT + 1)) & 3;
+            let value =
+                if info & LEVEL_PENDING != 0 { t.pending(r, info, true, 0) } else { info as i32 >> VALUE_SHIFT };
+            block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
+            // The run the entry read, before the next coefficient.
+            location += (info >> RUN_SHIFT) & 15;
+            n += 1;
+        }
+        return Ok(n);
+    };
+    // From location 13 on, the run before it read (at most four symbols).
+    let mut context = context;
+    loop {
         if location > 16 {
             return Err(corrupt("a coefficient past the end of a block"));
         }
@@ -794,21 +978,37 @@ fn hp_block(
             let s = sign.wrapping_neg() as i32;
             (level as i32 ^ s).wrapping_sub(s)
         } else {
-            let slot = 2 * chroma + context;
-            let info = HpContexts::index(&mut t.index_sums[slot], r, t.index[chroma][context]);
-            srn = (info >> 5) & 3;
+            let info = HpContexts::index(&mut ct.sums[context & 1], r, ct.index[context & 1]);
+            srn = (info >> (SYMBOL_SHIFT + 1)) & 3;
             context &= srn as usize;
-            // The signed level, or its sign alone when the level follows.
             if info & LEVEL_PENDING != 0 {
                 t.pending(r, info, true, context)
             } else {
-                info as i32 >> 16
+                info as i32 >> VALUE_SHIFT
             }
         };
         block[scan.hit(location as usize - 2) & 15] = value.wrapping_shl(model_bits);
         n += 1;
+        if srn == 0 {
+            return Ok(n);
+        }
+        // From location 15 on the largest run is 0 and the table reads nothing; after 16 no
+        // position remains, and the check above fails.
+        r.ensure(SYMBOL_BITS);
+        if srn & 1 == 0 {
+            location += run_at(r, location);
+        }
+        location += 1;
     }
-    Ok(n)
+}
+
+/// The run of zeros after `location` in an HP block ([`RUN_AT`]), with at least 8 bits
+/// buffered.
+#[inline(always)]
+fn run_at(r: &mut BitReader, location: u32) -> u32 {
+    let e = u32::from(RUN_AT[location as usize & 31][r.peek_buffered(8) as usize]);
+    r.skip(e & 63);
+    e >> 8
 }
 
 /// NUM_BLKCBP's luma classes (`_jxr_r_MB_CBP`): class `val` codes `FLC[val]` raw bits that
@@ -998,38 +1198,31 @@ impl PlaneDecoder {
         let mut input = [[0i32; 16]; MAX_CHANNELS];
         let mut lap_mean = [0i32; 2];
         let mut pairs = [RunLevel::default(); 16];
+        // Full-resolution blocks decode as HP blocks do (the same codes, LP's contexts, the
+        // levels unshifted: REFINE_LP follows).
+        let mut t = HpContexts::new(&self.st.vlc, &LP_CONTEXTS);
         for ndx in 0..full_planes {
             let chroma = ndx > 0;
             let mut nonzero = 0;
-            if (cbplp >> ndx) & 1 != 0 {
-                let location = match (fmt, chroma) {
-                    (ClrFmt::Yuv420, true) => 10,
-                    (ClrFmt::Yuv422, true) => 2,
-                    _ => 1,
+            if (cbplp >> ndx) & 1 != 0 && !(sub && chroma) {
+                let mut tables = t.channel(usize::from(chroma));
+                nonzero = hp_block(r, &mut t, &mut tables, &mut input[ndx], &mut self.st.lp_scan, 0)? as usize;
+                t.end_channel(usize::from(chroma), tables);
+            } else if (cbplp >> ndx) & 1 != 0 {
+                let location = match fmt {
+                    ClrFmt::Yuv420 => 10,
+                    _ => 2,
                 };
                 nonzero = self.block(r, chroma, BAND_LP, location, &mut pairs)?;
-                if sub && chroma {
-                    let mut temp = [0i32; 16];
-                    let mut i = 0usize;
-                    for p in &pairs[..nonzero] {
-                        i += p.run as usize;
-                        *temp.get_mut(i).ok_or_else(|| corrupt("chroma LP past the end"))? = p.level;
-                        i += 1;
-                    }
-                    for (k, &t) in temp[..sub_chroma_lp_len(fmt)].iter().enumerate() {
-                        input[(k & 1) + 1][sub_chroma_lp_pos(fmt, k)] = t;
-                    }
-                } else {
-                    let mut i = 1usize;
-                    for p in &pairs[..nonzero] {
-                        i += p.run as usize;
-                        if i > 15 {
-                            return Err(corrupt("LP past the end"));
-                        }
-                        let k = self.st.lp_scan.hit(i - 1);
-                        input[ndx][k] = p.level;
-                        i += 1;
-                    }
+                let mut temp = [0i32; 16];
+                let mut i = 0usize;
+                for p in &pairs[..nonzero] {
+                    i += p.run as usize;
+                    *temp.get_mut(i).ok_or_else(|| corrupt("chroma LP past the end"))? = p.level;
+                    i += 1;
+                }
+                for (k, &v) in temp[..sub_chroma_lp_len(fmt)].iter().enumerate() {
+                    input[(k & 1) + 1][sub_chroma_lp_pos(fmt, k)] = v;
                 }
             }
             let model_bits = self.st.model[BAND_LP].bits[usize::from(chroma)];
@@ -1049,9 +1242,8 @@ impl PlaneDecoder {
                         }
                     }
                     _ => {
-                        for &k in &TRANSPOSE444[1..16] {
-                            input[ndx][k] = refine(r, input[ndx][k], model_bits);
-                        }
+                        let block: &mut [i32; 15] = (&mut input[ndx][1..16]).try_into().expect("15 LP coefficients");
+                        refine_lp_block(r, block, model_bits);
                     }
                 }
             }
@@ -1069,6 +1261,7 @@ impl PlaneDecoder {
                 _ => c[ndx * MB_COEFFS + 1..ndx * MB_COEFFS + 16].copy_from_slice(&input[ndx][1..16]),
             }
         }
+        t.finish(&mut self.st.vlc, &LP_CONTEXTS);
         self.st.end_lp(lap_mean, mx, tile_w);
         Ok(())
     }
@@ -1187,34 +1380,50 @@ impl PlaneDecoder {
         bits: [u32; 2],
     ) -> Result<[i32; 2]> {
         let mut lap_mean = [0i32; 2];
-        let mut t = HpContexts::new(&self.st.vlc);
+        let mut t = HpContexts::new(&self.st.vlc, &HP_CONTEXTS);
         let scan = if mode == 1 { &mut self.st.hp_ver } else { &mut self.st.hp_hor };
         for ch in 0..self.st.channels {
             let chroma = usize::from(ch > 0);
             let blocks = predict_blocks(self.st.fmt, ch);
             let model_bits = bits[chroma];
             let mut pattern = cbp[ch];
+            let mut tables = t.channel(chroma);
             let chan: &mut [i32; MB_COEFFS] =
                 (&mut c[ch * MB_COEFFS..][..MB_COEFFS]).try_into().expect("a channel's coefficients");
-            for block in 0..blocks {
-                // Below 16: the mask lets the compiler see that the block is in `chan`.
-                let b = if blocks == 16 { HP_BLOCK_ORDER[block] } else { block } & 15;
-                // Every block of the channel is written here, coded or not: the macroblock
-                // is not cleared before it is decoded (see `PlaneWork::dc`).
-                let at = hp(b, 1) - 1;
-                let block: &mut [i32; 16] =
-                    (&mut chan[at..at + 16]).try_into().expect("a block and the slot before it");
-                block[1..].fill(0);
-                if pattern & 1 != 0 {
-                    lap_mean[chroma] += hp_block(r, &mut t, chroma, block, scan, model_bits)?;
-                }
-                if FLEX {
+            // Every block of the channel is written here, coded or not: the macroblock is not
+            // cleared before it is decoded (see `PlaneWork::dc`).
+            chan[hp(0, 1)..hp(blocks, 1)].fill(0);
+            let order = if blocks == 16 { &HP_BLOCK_ORDER } else { &NATURAL_ORDER };
+            let mut count = 0;
+            if FLEX {
+                for block in 0..blocks {
+                    // Below 16: the mask lets the compiler see that the block is in `chan`.
+                    let b = order[block] & 15;
+                    if pattern & 1 != 0 {
+                        let at = hp(b, 1) - 1;
+                        let block: &mut [i32; 16] =
+                            (&mut chan[at..at + 16]).try_into().expect("a block and the slot before it");
+                        count += hp_block(r, &mut t, &mut tables, block, scan, model_bits)?;
+                    }
                     block_flex(r, chan, 0, b, model_bits, self.trim);
+                    pattern >>= 1;
                 }
-                pattern >>= 1;
+            } else {
+                // The coded blocks alone, in their order.
+                pattern &= (1 << blocks) - 1;
+                while pattern != 0 {
+                    let b = order[pattern.trailing_zeros() as usize & 15] & 15;
+                    pattern &= pattern - 1;
+                    let at = hp(b, 1) - 1;
+                    let block: &mut [i32; 16] =
+                        (&mut chan[at..at + 16]).try_into().expect("a block and the slot before it");
+                    count += hp_block(r, &mut t, &mut tables, block, scan, model_bits)?;
+                }
             }
+            lap_mean[chroma] += count;
+            t.end_channel(chroma, tables);
         }
-        t.finish(&mut self.st.vlc);
+        t.finish(&mut self.st.vlc, &HP_CONTEXTS);
         Ok(lap_mean)
     }
 }
@@ -2294,6 +2503,36 @@ fn refine(r: &mut BitReader, coeff: i32, model_bits: u32) -> i32 {
     }
 }
 
+/// REFINE_LP of the 15 LP coefficients of a full-resolution channel (`block`: coefficients
+/// 1..=15), in [`TRANSPOSE444`] order: [`refine`] of each, read as FLEXBITS are
+/// ([`flex_raw`]: `model_bits` bits a coefficient, then a sign bit for a zero coefficient
+/// whose bits are not all zero), without a branch on any coefficient.
+fn refine_lp_block(r: &mut BitReader, block: &mut [i32; 15], model_bits: u32) {
+    debug_assert!((1..=15).contains(&model_bits));
+    let n = model_bits.clamp(1, 15);
+    let mut limit = [0u32; 15];
+    flex_limits(block, &mut limit, n);
+    let mut raw = [0u32; 15];
+    let bit = r.bit_pos();
+    let bit = match n {
+        0..=2 => flex_raw::<15>(r, bit, &limit, &mut raw, n),
+        3..=6 => flex_raw::<8>(r, bit, &limit, &mut raw, n),
+        7..=10 => flex_raw::<5>(r, bit, &limit, &mut raw, n),
+        _ => flex_raw::<3>(r, bit, &limit, &mut raw, n),
+    };
+    r.seek(bit);
+    // As `refine`: the coefficient shifted, plus or minus its bits by its own sign, or for a
+    // zero coefficient by the sign bit read (1 ≤ n ≤ 15: the shifts are below 32).
+    let (fine_shift, sign_shift) = (32 - n, 31 - n);
+    for (x, &v) in block.iter_mut().zip(&raw) {
+        let cur = *x;
+        let fine = (v >> fine_shift) as i32;
+        let zero = -i32::from(cur == 0);
+        let mask = (cur >> 31) | (zero & -(((v >> sign_shift) & 1) as i32));
+        *x = cur.wrapping_shl(n).wrapping_add((fine ^ mask).wrapping_sub(mask));
+    }
+}
+
 /// REFINE_CBP (`r_REFINE_CBP`): a 4-bit pattern with `num` bits set.
 fn refine_cbp(r: &mut BitReader, num: usize) -> u32 {
     match num {
@@ -2654,26 +2893,45 @@ mod tests {
         (index, 2u32.wrapping_add(1 << fixed).wrapping_add(r.read(fixed)))
     }
 
+    /// RUN_INDEX, its bits and the unary codes, read symbol by symbol (`r_DECODE_RUN`).
+    fn read_run(r: &mut BitReader, max_run: i32) -> u32 {
+        if max_run <= 1 {
+            return max_run.max(0) as u32;
+        }
+        if max_run < 5 {
+            let mut zeros = 0;
+            while zeros < max_run as u32 - 1 && !r.bit() {
+                zeros += 1;
+            }
+            return zeros + 1;
+        }
+        let index = vlc::decode(r, &vlc::lut(&vlc::RUN_INDEX_CODES)) + 5 * RUN_BIN[max_run.min(14) as usize];
+        RUN_REMAP[index] + r.read(RUN_FIXED[index])
+    }
+
     #[test]
     fn hp_index_tables_decode_as_index_sign_and_level_do() {
-        // (codes, their delta tables, INDEX context or None for FIRST_INDEX, the entries).
-        type Case<'a> = (&'a [&'a str], [&'a [i32]; 2], Option<usize>, &'a HpIndexTable);
+        // (codes, their delta tables, INDEX context or None for FIRST_INDEX, folding, the
+        // entries).
+        type Case<'a> = (&'a [&'a str], [&'a [i32]; 2], Option<usize>, bool, &'a HpIndexTable);
         let mut cases: Vec<Case> = Vec::new();
+        let mut folded = 0;
         for a in [[0usize, 0], [0, 1], [1, 0], [1, 1]] {
             for table in 0..5 {
                 let (d1, d2) = index_deltas(table, 4);
                 let deltas = [&vlc::FIRST_INDEX_DELTA[d1][..], &vlc::FIRST_INDEX_DELTA[d2][..]];
-                cases.push((&vlc::FIRST_INDEX_CODES[table], deltas, None, &HP_FIRST_TABLES[table][a[0]][a[1]]));
+                cases.push((&vlc::FIRST_INDEX_CODES[table], deltas, None, false, &HP_FIRST_TABLES[table][a[0]][a[1]]));
             }
             for table in 0..4 {
                 let (d1, d2) = index_deltas(table, 3);
                 let deltas = [&vlc::INDEX_DELTA[d1][..], &vlc::INDEX_DELTA[d2][..]];
                 for context in 0..2 {
                     let entries = &HP_INDEX_TABLES[context][table][a[0]][a[1]];
-                    cases.push((&vlc::INDEX_CODES[table], deltas, Some(context), entries));
+                    cases.push((&vlc::INDEX_CODES[table], deltas, Some(context), false, entries));
                 }
+                cases.push((&vlc::INDEX_CODES[table], deltas, Some(0), true, &HP_FOLD_TABLES[table][a[0]]));
             }
-            for (i, &(codes, deltas, context, entries)) in cases.iter().enumerate() {
+            for (i, &(codes, deltas, context, fold, entries)) in cases.iter().enumerate() {
                 for w in 0..1u32 << 16 {
                     let bytes = [(w >> 8) as u8, w as u8, 0xA5, 0x3C, 0x96, 0x0F, 0xF0, 0x69, 0x11];
                     // Symbol by symbol: the index, the sign bit, ABSLEVEL_INDEX and its bits.
@@ -2698,6 +2956,7 @@ mod tests {
                     let mut contexts = HpContexts {
                         first: [entries; 2],
                         index: [[entries; 2]; 2],
+                        fold: [entries; 2],
                         abs: [&ABS_LEVEL_LUT[a[0]], &ABS_LEVEL_LUT[a[1]]],
                         first_sums: [0; 2],
                         index_sums: [0; 4],
@@ -2705,10 +2964,14 @@ mod tests {
                     };
                     let info = HpContexts::index(&mut contexts.index_sums[0], &mut t, entries);
                     let at = (i, a, w);
-                    assert_eq!((info >> 4) & 15, symbol as u32, "{at:?}");
-                    let mut value = info as i32 >> 16;
+                    let run = (info >> RUN_SHIFT) & 15;
+                    // A folding entry that read its run gives the symbol without it.
+                    let shown = if fold && run != 0 { 2 | (symbol & 1) } else { symbol };
+                    assert_eq!((info >> SYMBOL_SHIFT) & 15, shown as u32, "{at:?}");
+                    let mut value = info as i32 >> VALUE_SHIFT;
                     if info & LEVEL_PENDING != 0 {
                         assert_eq!(value, if info & SIGN_PENDING != 0 { 1 } else { value.signum() }, "{at:?}");
+                        assert_eq!(run, 0, "{at:?}");
                         value = contexts.pending(&mut t, info, has_level, level_context);
                     } else {
                         assert_eq!(info & SIGN_PENDING, 0);
@@ -2717,12 +2980,46 @@ mod tests {
                     fields[2] += contexts.abs_sums[0];
                     fields[3] += contexts.abs_sums[1];
                     assert_eq!(value, want, "{at:?}");
-                    assert_eq!(t.bit_pos(), r.bit_pos(), "{at:?}");
                     assert_eq!(fields, want_fields, "{at:?}");
+                    // The run after the symbol: read by the entry, or read now, as symbol by
+                    // symbol (FIRST_INDEX's before the first coefficient, at location 1; a
+                    // folding entry's at every location it is used at).
+                    match context {
+                        None if symbol & 1 == 0 => {
+                            assert_eq!(info & RUN_PENDING != 0, run == 0, "{at:?}");
+                            let want_run = read_run(&mut r, 14);
+                            let got = if run == 0 { PlaneDecoder::run(&mut t, 14) } else { run };
+                            assert_eq!(got, want_run, "{at:?}");
+                        }
+                        Some(_) if fold && symbol >> 1 == 2 => {
+                            assert_eq!(info & RUN_PENDING, 0, "{at:?}");
+                            let (r0, t0) = (r.clone(), t.clone());
+                            for location in 2..=FOLD_LOCATIONS {
+                                let (mut r, mut t) = (r0.clone(), t0.clone());
+                                let want_run = read_run(&mut r, 15 - location as i32);
+                                let got = if run == 0 {
+                                    let e = u32::from(RUN_AT[location as usize][t.peek_buffered(8) as usize]);
+                                    t.skip(e & 63);
+                                    e >> 8
+                                } else {
+                                    folded += 1;
+                                    run
+                                };
+                                assert_eq!((got, t.bit_pos()), (want_run, r.bit_pos()), "{at:?} at {location}");
+                            }
+                            if run != 0 {
+                                read_run(&mut r, 13);
+                            }
+                        }
+                        _ => assert_eq!((run, info & RUN_PENDING), (0, 0), "{at:?}"),
+                    }
+                    assert_eq!(t.bit_pos(), r.bit_pos(), "{at:?}");
                 }
             }
             cases.clear();
         }
+        // The folding tables read runs.
+        assert!(folded > 0);
         // Sums of many entries (more than a macroblock holds) unpack to the four sums.
         let mut rng = Rng(11);
         let entries = &HP_INDEX_TABLES[1][3][0][1];
@@ -2742,21 +3039,7 @@ mod tests {
 
     #[test]
     fn run_and_level_tables_decode_as_the_symbols_do() {
-        // RUN_INDEX, its bits and the unary codes, read symbol by symbol (`r_DECODE_RUN`).
-        let run = |r: &mut BitReader, max_run: i32| -> u32 {
-            if max_run <= 1 {
-                return max_run.max(0) as u32;
-            }
-            if max_run < 5 {
-                let mut zeros = 0;
-                while zeros < max_run as u32 - 1 && !r.bit() {
-                    zeros += 1;
-                }
-                return zeros + 1;
-            }
-            let index = vlc::decode(r, &vlc::lut(&vlc::RUN_INDEX_CODES)) + 5 * RUN_BIN[max_run.min(14) as usize];
-            RUN_REMAP[index] + r.read(RUN_FIXED[index])
-        };
+        let run = read_run;
         for max_run in -1..=16i32 {
             for w in 0..256usize {
                 let bytes = [w as u8, 0x5A];
@@ -2769,7 +3052,8 @@ mod tests {
             }
         }
         for location in 1..=16 {
-            assert_eq!(RUN_AT[location], RUN_LUT[15 - location.min(15)], "location {location}");
+            let want = RUN_LUT[15 - location.min(15)].map(|e| u16::from(e >> 4) << 8 | u16::from(e & 15));
+            assert_eq!(RUN_AT[location], want, "location {location}");
         }
         // ABSLEVEL_INDEX and its bits, escapes included, for both tables.
         for table in 0..2u8 {
@@ -2783,6 +3067,39 @@ mod tests {
                 assert_eq!(PlaneDecoder::abs_level_buffered(&mut ctx, &mut t), want, "table {table}, {w:016b}");
                 assert_eq!(t.bit_pos(), r.bit_pos(), "table {table}, {w:016b}");
                 assert_eq!(ctx.disc, vlc::ABS_LEVEL_DELTA[index]);
+            }
+        }
+    }
+
+    #[test]
+    fn lp_blocks_refine_as_each_coefficient_does() {
+        let mut rng = Rng(0x5DEE_CE66_D1CE_4E5B);
+        for model_bits in 1..=15 {
+            for case in 0..200 {
+                let block: [i32; 15] = std::array::from_fn(|_| match rng.below(4) {
+                    0 | 1 => 0,
+                    2 => rng.pm(1, 40),
+                    _ => rng.pm(0, 1 << 20),
+                });
+                // Streams long enough, and streams that end inside the block.
+                let len = if case % 4 == 0 { rng.below(30) as usize } else { 40 + rng.below(20) as usize };
+                let bytes: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
+                let skip = rng.below(8);
+                let (mut r, mut t) = (BitReader::new(&bytes), BitReader::new(&bytes));
+                r.read(skip);
+                t.read(skip);
+                let mut want = [0i32; 16];
+                want[1..].copy_from_slice(&block);
+                for &k in &TRANSPOSE444[1..16] {
+                    want[k] = refine(&mut r, want[k], model_bits);
+                }
+                let mut got = block;
+                refine_lp_block(&mut t, &mut got, model_bits);
+                let at = (model_bits, case, block);
+                assert_eq!(got[..], want[1..], "{at:?}");
+                assert_eq!((t.bit_pos(), t.overrun()), (r.bit_pos(), r.overrun()), "{at:?}");
+                // The reader goes on as the other does.
+                assert_eq!(t.read(13), r.read(13), "{at:?}");
             }
         }
     }
