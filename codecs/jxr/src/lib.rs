@@ -112,8 +112,8 @@ impl ImageCodec for JxrCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.len() >= 4 && head[..3] == *b"II\xBC" && head[3] <= 1
     }
-    /// `window=N`: decoding from a file, the least bytes read for each packet at a time
-    /// (default 65536; 0: what one macroblock can take, a few KB a channel).
+    /// `window=N`: decoding from a file, the least bytes held for the packets of a tile row
+    /// together (default 65536; 0: what one macroblock can take, a few KB a channel each).
     fn decode_option_keys(&self) -> &'static [&'static str] {
         &["window"]
     }

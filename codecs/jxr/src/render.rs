@@ -104,8 +104,9 @@ fn decode_parsed(parsed: &Parsed, options: &DecodeOptions, sink: &mut dyn RowSin
 /// codestreams (sub-version 0), whose transform may need every macroblock's quantizer first,
 /// are read whole.
 ///
-/// The option `window=N` sets the least bytes of each packet's window (default 65536, which
-/// keeps reads large; 0: only what the bound per macroblock needs).
+/// The option `window=N` sets the least bytes of the windows of the packets of a tile row,
+/// together (default 65536, which keeps reads large; 0: only what the bound per macroblock
+/// needs).
 pub fn decode_rows_from(input: &mut dyn ReadSeek, options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
     let mut tuning = Tuning::default();
     if let Some(n) = options.parse_option::<usize>("window")? {

@@ -114,8 +114,10 @@ impl<'a> Source<'a> {
 
     /// A reader of the packet at `offset` of the codestream (checked by the header parser to
     /// lie inside it), whose macroblocks each consume at most `bound` bytes: in memory, the
-    /// bytes from `offset` to the codestream's end; from a file, a window of them.
-    pub fn packet(&self, offset: u64, bound: usize) -> Result<Packet<'a>> {
+    /// bytes from `offset` to the codestream's end; from a file, a window of them, one of
+    /// `open` read side by side (the packets of a tile row), which share the least window
+    /// size ([`Tuning::min_window`]).
+    pub fn packet(&self, offset: u64, bound: usize, open: usize) -> Result<Packet<'a>> {
         let past = || Error::invalid("JPEG XR: an index table entry points past the end of the codestream");
         match *self {
             Source::Memory(data) => {
@@ -133,10 +135,11 @@ impl<'a> Source<'a> {
                 }
                 let tuning = file.tuning();
                 let bound = tuning.bound.unwrap_or(bound);
-                // The window: twice the bound, at least the tuning's minimum, at most the rest
-                // of the codestream.
+                // The window: twice the bound, at least the packet's share of the tuning's
+                // minimum, at most the rest of the codestream.
                 let rest = len - offset;
-                let cap = (2 * bound + MARGIN).max(tuning.min_window).min(usize::try_from(rest).unwrap_or(usize::MAX));
+                let least = tuning.min_window / open.max(1);
+                let cap = (2 * bound + MARGIN).max(least).min(usize::try_from(rest).unwrap_or(usize::MAX));
                 let charge = file.limits().charge(cap as u64, "a JPEG XR packet window")?;
                 let mut buf = vec![0; cap];
                 file.read_at(start + offset, &mut buf)?;

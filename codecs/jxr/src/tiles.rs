@@ -367,9 +367,11 @@ impl<'a> TileDecoder<'a> {
         // What a macroblock consumes at most, for the packets' windows of a file (the tile
         // headers take less).
         let bound = crate::source::mb_bound(cs);
-        for band in 0..per_tile.min(max_bands.max(1)) {
+        let bands_read = per_tile.min(max_bands.max(1));
+        let open = bands_read * cs.image.tile_widths.len();
+        for band in 0..bands_read {
             let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
-            let mut packet = data.packet(*entry, bound)?;
+            let mut packet = data.packet(*entry, bound, open)?;
             // jxrlib tolerates a bad FLEXBITS start code.
             packet.run(|r| start_code(r, band < 3))?;
             readers.push(packet);
