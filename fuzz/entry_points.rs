@@ -308,6 +308,22 @@ pub fn jxr(data: &[u8]) {
     let limits = Limits::fuzzing();
     let _ = probe_and_decode(&JxrCodec, data, &limits);
     let options = hdrcodec_core::DecodeOptions::new(limits.clone());
+    // From a stream, each packet through the smallest window the bound allows: the same
+    // samples as from memory, or (holding less) an error only where memory ran out too.
+    let mut small = options.clone();
+    small.options.push(("window".to_string(), "0".to_string()));
+    let from_stream = JxrCodec.decode_from(&mut std::io::Cursor::new(data), &small);
+    match (JxrCodec.decode_with(data, &options), from_stream) {
+        (Ok(a), Ok(b)) => assert!(
+            a.samples().iter().zip(b.samples()).all(|(x, y)| x.to_bits() == y.to_bits())
+                && (a.width(), a.height(), a.channels()) == (b.width(), b.height(), b.channels()),
+            "JPEG XR decoded from a stream differs from the decode from memory"
+        ),
+        (Err(_), Err(_))
+        | (Err(hdrcodec_core::Error::LimitExceeded { .. }), Ok(_))
+        | (Ok(_), Err(hdrcodec_core::Error::LimitExceeded { .. })) => {}
+        (a, b) => panic!("JPEG XR from memory: {:?}, from a stream: {:?}", a.err(), b.err()),
+    }
     let _ = hdrcodec_jxr::decode_raw(data, &options);
     if let Ok(c) = hdrcodec_jxr::container::parse_container(data) {
         let _ = hdrcodec_jxr::decode_coefficients(c.image, &options);

@@ -100,9 +100,10 @@ done
 # its resident set before reading the file; growth = (peak - start) / decoded image, the bench's target
 # 1.5x. Shown beside /usr/bin/time's figure for the same process. --check counts the formats that meet
 # 1.5x (OpenEXR read from the file a batch of chunks at a time, PFM a band of rows at a time, LogLuv
-# TIFF a strip at a time, `.hdrc` a few DATA chunks at a time, Radiance, DDS, KTX2, JPEG XR: its file
-# held whole, 0.16x of the image here, and a band of macroblock rows).
-printf '\n| `hdrcodec memory-peak` (whole image) | peak MB (time) | peak MB (VmHWM) | start MB | growth x decoded | met 1.5x |\n'
+# TIFF a strip at a time, `.hdrc` a few DATA chunks at a time, Radiance, DDS, KTX2); JPEG XR, read a
+# window of each packet at a time, is held to 1.35x (1.29x on 2048x1536 at 2026-11-27, 1.11x on
+# 3712x3624: its working set is a band of macroblock rows, a larger share of a shorter image).
+printf '\n| `hdrcodec memory-peak` (whole image) | peak MB (time) | peak MB (VmHWM) | start MB | growth x decoded | met (1.5x; JPEG XR 1.35x) |\n'
 printf '| --- | --- | --- | --- | --- | --- |\n'
 growth_checked="exr pfm hdr tif dds ktx2 hdrc jxr"
 for f in $formats; do
@@ -111,7 +112,9 @@ for f in $formats; do
   peak=$(field peak_rss_bytes)
   start=$(field start_rss_bytes)
   growth=$(awk -v p="$peak" -v s="$start" -v d="$(field decoded_bytes)" 'BEGIN { printf "%.2f", (p - s) / d }')
-  met=$(awk -v g="$growth" 'BEGIN { print (g <= 1.5) ? "yes" : "no" }')
+  limit=1.5
+  if [ "$f" = jxr ]; then limit=1.35; fi
+  met=$(awk -v g="$growth" -v l="$limit" 'BEGIN { print (g <= l) ? "yes" : "no" }')
   if [ "$met" = no ] && [[ " $growth_checked " == *" $f "* ]]; then missed=$((missed + 1)); fi
   printf '| `big.%s` | %s | %s | %s | %s | %s |\n' "$f" "$(mb $(($(tail -n 1 "$dir/peak") * 1024)))" "$(mb "$peak")" \
     "$(mb "$start")" "$growth" "$met"

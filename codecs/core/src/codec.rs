@@ -269,10 +269,11 @@ pub trait WriteSeek: Write + std::io::Seek {}
 impl<T: Write + std::io::Seek + ?Sized> WriteSeek for T {}
 
 /// A reader that can also seek: what [`ImageCodec::decode_rows_from`] reads (a file, a
-/// `Cursor` over bytes).
-pub trait ReadSeek: std::io::Read + std::io::Seek {}
+/// `Cursor` over bytes). It is `Send`, so that a decoder may read it from its pool's threads
+/// (behind a lock: JPEG XR refills the windows of tiles decoded in parallel that way).
+pub trait ReadSeek: std::io::Read + std::io::Seek + Send {}
 
-impl<T: std::io::Read + std::io::Seek + ?Sized> ReadSeek for T {}
+impl<T: std::io::Read + std::io::Seek + Send + ?Sized> ReadSeek for T {}
 
 /// Where `input` is and how many bytes it has from there to its end (0 if its end is before
 /// its position), leaving it where it was: what a decoder reading a file piece by piece

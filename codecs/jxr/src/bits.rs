@@ -23,10 +23,33 @@ pub struct BitReader<'a> {
     padded: u64,
 }
 
+/// Where a [`BitReader`] is in its data, without the data: what a reader over a window of a
+/// file keeps between macroblocks, so that the window can move (see `source`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct ReaderState {
+    pos: usize,
+    buf: u64,
+    avail: u32,
+    padded: u64,
+}
+
 impl<'a> BitReader<'a> {
     /// A reader at the first bit of `data`.
     pub fn new(data: &'a [u8]) -> Self {
         BitReader { data, pos: 0, buf: 0, avail: 0, padded: 0 }
+    }
+
+    /// A reader over `data` where [`state`](Self::state) left one over the same bytes.
+    #[inline(always)]
+    pub(crate) fn resume(data: &'a [u8], state: ReaderState) -> Self {
+        let ReaderState { pos, buf, avail, padded } = state;
+        BitReader { data, pos, buf, avail, padded }
+    }
+
+    /// Where the reader is (see [`resume`](Self::resume)).
+    #[inline(always)]
+    pub(crate) fn state(&self) -> ReaderState {
+        ReaderState { pos: self.pos, buf: self.buf, avail: self.avail, padded: self.padded }
     }
 
     /// Tops the buffer up to at least 56 bits: one unaligned 8-byte load while 8 bytes

@@ -16,6 +16,7 @@ use hdrcodec_core::tiff::{
     write_header, Entry, FieldType, Ifd, IfdWriter, Tiff, HEADER_LEN, MAGIC_HD_PHOTO, MAGIC_JPEG_XR,
 };
 use hdrcodec_core::{Error, Result};
+use std::ops::Range;
 
 /// Tags of the JPEG XR IFD (T.832 Table A.4; jxrlib `JXRMeta.h`).
 pub mod tag {
@@ -415,6 +416,19 @@ fn blob<'a>(tiff: &Tiff<'a>, ifd: &Ifd, t: u16) -> Result<Option<&'a [u8]>> {
 /// codestream locations. Every offset and count is checked against `data`; a file cut anywhere
 /// gives an error, never a panic.
 pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
+    let (mut container, image, alpha) = parse_layout(data, data.len() as u64)?;
+    let file = ByteReader::le(data);
+    container.image = file.bytes_at(image.start, image.end - image.start, "the JPEG XR image codestream")?;
+    container.alpha =
+        alpha.map(|a| file.bytes_at(a.start, a.end - a.start, "the JPEG XR alpha codestream")).transpose()?;
+    Ok(container)
+}
+
+/// [`parse_container`] of a file `file_len` bytes long of which `data` holds the first bytes,
+/// enough for its header, first IFD and the values of its tags (else [`Error::Truncated`]):
+/// the container with empty codestreams, and where the primary and the planar alpha
+/// codestreams lie in the file (checked against `file_len`).
+pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>, Range<u64>, Option<Range<u64>>)> {
     if data.len() >= 2 && &data[..2] == b"MM" {
         return Err(Error::invalid("big-endian (\"MM\") JPEG XR file; T.832 A.3 allows only \"II\""));
     }
@@ -473,7 +487,7 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
         Some(n) => u64::from(n),
         // No byte count: up to the alpha codestream if it follows, else to the end of the file.
         None => {
-            let end = alpha_offset.filter(|&a| a > image_offset).map_or(data.len() as u64, u64::from);
+            let end = alpha_offset.filter(|&a| a > image_offset).map_or(file_len, u64::from);
             end.checked_sub(u64::from(image_offset)).ok_or_else(|| {
                 Error::truncated(format!("the JPEG XR image codestream (offset {image_offset} past the end)"))
             })?
@@ -482,13 +496,16 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
     if image_len == 0 {
         return Err(Error::invalid("the JPEG XR image codestream is empty (IMAGE_BYTE_COUNT 0)"));
     }
-    let file = ByteReader::le(data);
-    let image = file.bytes_at(u64::from(image_offset), image_len, "the JPEG XR image codestream")?;
+    let within = |off: u64, n: u64, what: &str| -> Result<Range<u64>> {
+        off.checked_add(n).filter(|&end| end <= file_len).map(|end| off..end).ok_or_else(|| {
+            Error::truncated(format!("{what} (bytes {off}..{} of a {file_len}-byte file)", off.saturating_add(n)))
+        })
+    };
+    let image = within(u64::from(image_offset), image_len, "the JPEG XR image codestream")?;
 
     let alpha = match (alpha_offset, alpha_count) {
         (None, None) => None,
         (Some(off), count) => {
-            let file_len = data.len() as u64;
             let len = match count.map(u64::from) {
                 Some(n) if u64::from(off) + n <= file_len => n,
                 // jxrlib's WriteContainerPost stores offset + length (JXR-NOTES §8 quirk 4): a
@@ -500,7 +517,7 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
             if len == 0 {
                 return Err(Error::invalid("the JPEG XR alpha codestream is empty"));
             }
-            Some(file.bytes_at(u64::from(off), len, "the JPEG XR alpha codestream")?)
+            Some(within(u64::from(off), len, "the JPEG XR alpha codestream")?)
         }
         (None, Some(_)) => return Err(Error::invalid("JPEG XR ALPHA_BYTE_COUNT without ALPHA_OFFSET")),
     };
@@ -515,12 +532,12 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
         None => None,
     };
 
-    Ok(Container {
+    let container = Container {
         version,
         pixel_format_guid: guid,
         pixel_format,
-        image,
-        alpha,
+        image: &[],
+        alpha: None,
         orientation,
         width,
         height,
@@ -529,7 +546,8 @@ pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
         xmp: blob(&tiff, &ifd, tag::XMP_METADATA)?,
         ptm_color_info,
         exif_ifd,
-    })
+    };
+    Ok((container, image, alpha))
 }
 
 /// What [`write_container`] stores besides the pixel format, the sizes and the codestreams.

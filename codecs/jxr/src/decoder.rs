@@ -5,6 +5,7 @@
 
 use crate::header::{self, ClrFmt, Codestream};
 use crate::mb::{MbCoeffs, MB_COEFFS};
+use crate::source::Source;
 use crate::tiles::{self, FlexStage, MbSide, TileDecoder};
 use hdrcodec_core::{Allocation, DecodeOptions, Error, Result, ThreadPool};
 
@@ -98,14 +99,11 @@ pub struct Coefficients {
 /// Checks what can be checked before allocating: the size against the limits, and that the
 /// codestream is long enough for its macroblocks (each takes at least one bit, its DC flags:
 /// a short stream declaring a large image is truncated, whatever the limits allow).
-pub(crate) fn check_size(cs: &Codestream, data: &[u8], options: &DecodeOptions) -> Result<()> {
+pub(crate) fn check_size(cs: &Codestream, len: u64, options: &DecodeOptions) -> Result<()> {
     options.limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
     let mbs = u64::from(cs.image.mb_width) * u64::from(cs.image.mb_height);
-    if mbs > data.len() as u64 * 8 {
-        return Err(Error::truncated(format!(
-            "the JPEG XR codestream ({} bytes cannot hold {mbs} macroblocks)",
-            data.len()
-        )));
+    if mbs > len.saturating_mul(8) {
+        return Err(Error::truncated(format!("the JPEG XR codestream ({len} bytes cannot hold {mbs} macroblocks)")));
     }
     Ok(())
 }
@@ -115,7 +113,7 @@ pub(crate) fn check_size(cs: &Codestream, data: &[u8], options: &DecodeOptions) 
 /// transform. Holds two macroblock rows per tile column and plane.
 pub struct RowDecoder<'a> {
     cs: &'a Codestream,
-    data: &'a [u8],
+    data: Source<'a>,
     pool: ThreadPool,
     /// The next tile row, the next macroblock row, and the rows left in the current tile row.
     ty: usize,
@@ -134,7 +132,12 @@ impl<'a> RowDecoder<'a> {
     /// Starts decoding `data`, whose headers are `cs` (from [`header::parse`]); charges its
     /// working memory to `options.limits`.
     pub fn new(cs: &'a Codestream, data: &'a [u8], options: &DecodeOptions) -> Result<Self> {
-        check_size(cs, data, options)?;
+        Self::from_source(cs, Source::Memory(data), options)
+    }
+
+    /// [`new`](Self::new) for a codestream in memory or in a file.
+    pub(crate) fn from_source(cs: &'a Codestream, data: Source<'a>, options: &DecodeOptions) -> Result<Self> {
+        check_size(cs, data.len(), options)?;
         let bytes = (0..cs.image.tile_widths.len()).map(|tx| tiles::tile_bytes(cs, tx, 0) * 2).sum();
         let charge = options.limits.charge(bytes, "the JPEG XR entropy decoder's rows")?;
         Ok(RowDecoder {
@@ -307,7 +310,7 @@ type TileJob<'t, 'a> = (Option<&'t mut TileDecoder<'a>>, Vec<Vec<&'t mut [i32]>>
 /// (each has its own FLEXBITS packet).
 pub(crate) struct RowCompleter<'a> {
     cs: &'a Codestream,
-    data: &'a [u8],
+    data: Source<'a>,
     pool: ThreadPool,
     ty: usize,
     left: u32,
@@ -321,7 +324,7 @@ type FlexJob<'t, 'a> = (&'t mut FlexStage<'a>, Vec<&'t mut [i32]>, Vec<&'t [MbSi
 impl<'a> RowCompleter<'a> {
     /// The completer of the rows a deferred [`RowDecoder`] of the same codestream gives, on
     /// `pool`'s threads.
-    pub fn new(cs: &'a Codestream, data: &'a [u8], pool: ThreadPool) -> Self {
+    pub fn new(cs: &'a Codestream, data: Source<'a>, pool: ThreadPool) -> Self {
         RowCompleter { cs, data, pool, ty: 0, left: 0, stages: Vec::new() }
     }
 
@@ -377,7 +380,7 @@ impl<'a> RowCompleter<'a> {
 /// per coefficient, 256 per macroblock and channel) before allocating them.
 pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coefficients> {
     let cs = header::parse(data)?;
-    check_size(&cs, data, options)?;
+    check_size(&cs, data.len() as u64, options)?;
     let img = &cs.image;
     let mbs = u64::from(img.mb_width) * u64::from(img.mb_height);
     let headers: Vec<&header::PlaneHeader> = std::iter::once(&cs.primary).chain(cs.alpha.as_ref()).collect();
@@ -417,7 +420,7 @@ pub fn decode_coefficients(data: &[u8], options: &DecodeOptions) -> Result<Coeff
         }
     }
     let decode_tile = |t: usize, segs: &mut Vec<Vec<&mut [i32]>>| -> Result<()> {
-        let mut tile = TileDecoder::new(&cs, data, t % cols, t / cols)?;
+        let mut tile = TileDecoder::new(&cs, data.into(), t % cols, t / cols)?;
         let h = img.tile_heights[t / cols] as usize;
         for r in 0..h {
             let mut row: Vec<&mut [i32]> = segs.iter_mut().map(|p| &mut *p[r]).collect();
@@ -572,7 +575,7 @@ mod tests {
             let options = DecodeOptions::new(Limits::default()).with_pool(pool.clone());
             let mut first = RowDecoder::new(&cs, bytes, &options).unwrap();
             let mut plain = RowDecoder::new(&cs, bytes, &options).unwrap();
-            let mut completer = RowCompleter::new(&cs, bytes, pool);
+            let mut completer = RowCompleter::new(&cs, bytes.into(), pool);
             for (g, group) in rows.chunks(3).enumerate() {
                 let n = group.len();
                 let (mut b, mut c) = (vec![vec![Vec::new()]; n], vec![vec![Vec::new()]; n]);

@@ -383,6 +383,13 @@ pub struct Codestream {
 /// reads for consistency; allocates only the tile and index tables (bounded by 4096 × 4096
 /// tiles, and by the data's length for the index table).
 pub fn parse(data: &[u8]) -> Result<Codestream> {
+    parse_prefix(data, data.len() as u64)
+}
+
+/// [`parse`] of a codestream `len` bytes long of which `data` holds the first bytes, enough
+/// for its headers and index table (else [`Error::Truncated`]): the index table's entries are
+/// checked against `len`.
+pub(crate) fn parse_prefix(data: &[u8], len: u64) -> Result<Codestream> {
     if data.len() < 8 || &data[..8] != b"WMPHOTO\0" {
         return Err(if data.len() < 8 && b"WMPHOTO\0".starts_with(data) {
             Error::truncated("the JPEG XR codestream signature")
@@ -538,7 +545,7 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
     for p in &mut packets {
         *p = p
             .checked_add(header_len)
-            .filter(|&o| o < data.len() as u64)
+            .filter(|&o| o < len)
             .ok_or_else(|| Error::invalid("JPEG XR: an index table entry points past the end of the codestream"))?;
     }
     Ok(Codestream { image, primary, alpha, packets, profile_level, header_len })

@@ -47,6 +47,7 @@ mod quant;
 mod reduced;
 mod region;
 mod render;
+mod source;
 mod tiles;
 pub mod transform;
 mod vlc;
@@ -111,6 +112,11 @@ impl ImageCodec for JxrCodec {
     fn sniff(&self, head: &[u8]) -> bool {
         head.len() >= 4 && head[..3] == *b"II\xBC" && head[3] <= 1
     }
+    /// `window=N`: decoding from a file, the least bytes held for the packets of a tile row
+    /// together (default 65536; 0: what one macroblock can take, a few KB a channel each).
+    fn decode_option_keys(&self) -> &'static [&'static str] {
+        &["window"]
+    }
     /// Decoding reads PTM_COLOR_INFO (H.273 primaries); without it the samples are scRGB by
     /// convention (see the crate documentation). The encoder writes PTM_COLOR_INFO for the
     /// primaries H.273 names and none for BT.709.
@@ -135,6 +141,16 @@ impl ImageCodec for JxrCodec {
     }
     fn decode_rows(&self, data: &[u8], options: &DecodeOptions, sink: &mut dyn RowSink) -> Result<()> {
         render::decode_rows(data, options, sink)
+    }
+    /// Reads the container and headers, then each packet through a window of the file: the
+    /// file is never held whole (HD Photo 1.0 codestreams excepted).
+    fn decode_rows_from(
+        &self,
+        input: &mut dyn hdrcodec_core::ReadSeek,
+        options: &DecodeOptions,
+        sink: &mut dyn RowSink,
+    ) -> Result<()> {
+        render::decode_rows_from(input, options, sink)
     }
     /// See [`encoder`]: options `format`, `overlap`, `lossless`, `tile`.
     fn encode_to(

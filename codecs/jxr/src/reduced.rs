@@ -350,7 +350,7 @@ fn decode_request(
     let setup = Setup::new(data, sink.is_some(), request.resolution != Resolution::Full)?;
     // The image's size against the limits and the codestream's length, before anything sized
     // by the header is allocated (a reduced or windowed decode is no exception).
-    crate::decoder::check_size(&setup.cs, setup.data, options)?;
+    crate::decoder::check_size(&setup.cs, setup.data.len() as u64, options)?;
     let img = &setup.cs.image;
     let (ow, oh) = output_size(img.width, img.height, request)?;
     let region = request.region.unwrap_or(Rect { x: 0, y: 0, width: ow, height: oh });

@@ -14,6 +14,7 @@ use crate::macroblock::{self, PlaneDecoder};
 use crate::mb::MB_COEFFS;
 use crate::predict;
 use crate::quant::{self, TileQp};
+use crate::source::{Packet, Source};
 use hdrcodec_core::{Error, Result};
 
 /// Per-macroblock side information kept while a tile decodes (and handed to the FLEXBITS
@@ -262,11 +263,12 @@ fn dequantize_mb(c: &mut [i32], side: &MbSide, qp: &TileQp, fmt: ClrFmt, scaled:
 }
 
 /// Runs `f` on every macroblock of row `my` (`w` wide), each plane in turn (primary, then
-/// alpha, with that plane's row), then checks that the packet did not run out.
+/// alpha, with that plane's row), then checks that the packet did not run out. Before each
+/// macroblock the packet's window is made to hold what a macroblock can consume.
 fn each_mb<F>(
     planes: &mut [PlaneWork],
     rows: &mut [&mut [i32]],
-    r: &mut BitReader,
+    packet: &mut Packet,
     w: usize,
     my: usize,
     what: &str,
@@ -275,12 +277,30 @@ fn each_mb<F>(
 where
     F: FnMut(&mut PlaneWork, &mut [i32], &mut BitReader, usize, usize) -> Result<()>,
 {
-    for mx in 0..w {
-        for (p, row) in planes.iter_mut().zip(rows.iter_mut()) {
-            f(p, row, r, mx, my)?;
+    if let Some(mut r) = packet.memory_reader() {
+        // In memory: one reader through the row.
+        for mx in 0..w {
+            #[cfg(test)]
+            packet.note(r.bit_pos());
+            for (p, row) in planes.iter_mut().zip(rows.iter_mut()) {
+                f(p, row, &mut r, mx, my)?;
+            }
         }
+        packet.set_state(r.state());
+        return packet.check(what);
     }
-    r.check(what)
+    // From a file: before each macroblock, the window is made to hold what a macroblock can
+    // consume.
+    for mx in 0..w {
+        packet.reserve()?;
+        let mut r = packet.window_reader();
+        for (p, row) in planes.iter_mut().zip(rows.iter_mut()) {
+            f(p, row, &mut r, mx, my)?;
+        }
+        let state = r.state();
+        packet.set_state(state);
+    }
+    packet.check(what)
 }
 
 /// Reads a packet's start code `00 00 01 xx` (`strict`: an error if it is wrong; jxrlib
@@ -311,7 +331,7 @@ pub struct TileDecoder<'a> {
     bands: Bands,
     frequency: bool,
     /// Spatial: the tile's packet. Frequency: DC, LP, HP and FLEXBITS, as many as coded.
-    readers: Vec<BitReader<'a>>,
+    readers: Vec<Packet<'a>>,
     planes: Vec<PlaneWork<'a>>,
     /// Leave the FLEXBITS packet, HP prediction and dequantization to a [`FlexStage`].
     defer_flex: bool,
@@ -319,14 +339,20 @@ pub struct TileDecoder<'a> {
 
 impl<'a> TileDecoder<'a> {
     /// Locates the tile's packets and reads their start codes and tile headers.
-    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+    pub(crate) fn new(cs: &'a Codestream, data: Source<'a>, tx: usize, ty: usize) -> Result<Self> {
         Self::with_bands(cs, data, tx, ty, 4)
     }
 
     /// [`new`](Self::new), reading in frequency order only the first `max_bands` packets of
     /// the tile (1: DC; 2: DC and LP): a reduced-resolution decode never opens the others.
     /// Spatial order has one packet and ignores the limit.
-    pub fn with_bands(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize, max_bands: usize) -> Result<Self> {
+    pub(crate) fn with_bands(
+        cs: &'a Codestream,
+        data: Source<'a>,
+        tx: usize,
+        ty: usize,
+        max_bands: usize,
+    ) -> Result<Self> {
         let (_, _, w, h) = tile_rect(cs, tx, ty);
         let (w, h) = (w as usize, h as usize);
         let mut planes = vec![PlaneWork::new(&cs.primary, w)];
@@ -338,35 +364,39 @@ impl<'a> TileDecoder<'a> {
         let frequency = cs.image.frequency_mode;
         let per_tile = if frequency { bands.count() } else { 1 };
         let mut readers = Vec::with_capacity(per_tile);
-        for band in 0..per_tile.min(max_bands.max(1)) {
+        // What a macroblock consumes at most, for the packets' windows of a file (the tile
+        // headers take less).
+        let bound = crate::source::mb_bound(cs);
+        let bands_read = per_tile.min(max_bands.max(1));
+        let open = bands_read * cs.image.tile_widths.len();
+        for band in 0..bands_read {
             let entry = cs.packets.get(tile * per_tile + band).ok_or_else(|| Error::invalid("JPEG XR: index table"))?;
-            let mut r = BitReader::new(&data[*entry as usize..]);
+            let mut packet = data.packet(*entry, bound, open)?;
             // jxrlib tolerates a bad FLEXBITS start code.
-            start_code(&mut r, band < 3)?;
-            readers.push(r);
+            packet.run(|r| start_code(r, band < 3))?;
+            readers.push(packet);
         }
         let trim_flag = cs.image.trim_flexbits;
         if !frequency {
-            let r = &mut readers[0];
-            let trim = if trim_flag { r.read(4) } else { 0 };
-            for p in &mut planes {
-                p.dec.trim = trim;
-                p.header_dc(r);
-                p.header_lp(r);
-                p.header_hp(r);
-            }
-        } else {
-            for p in &mut planes {
-                p.header_dc(&mut readers[0]);
-            }
-            if let Some(r) = readers.get_mut(1) {
-                planes.iter_mut().for_each(|p| p.header_lp(r));
-            }
-            if let Some(r) = readers.get_mut(2) {
-                planes.iter_mut().for_each(|p| p.header_hp(r));
-            }
-            if let Some(r) = readers.get_mut(3) {
+            readers[0].run(|r| {
                 let trim = if trim_flag { r.read(4) } else { 0 };
+                for p in &mut planes {
+                    p.dec.trim = trim;
+                    p.header_dc(r);
+                    p.header_lp(r);
+                    p.header_hp(r);
+                }
+            });
+        } else {
+            readers[0].run(|r| planes.iter_mut().for_each(|p| p.header_dc(r)));
+            if let Some(packet) = readers.get_mut(1) {
+                packet.run(|r| planes.iter_mut().for_each(|p| p.header_lp(r)));
+            }
+            if let Some(packet) = readers.get_mut(2) {
+                packet.run(|r| planes.iter_mut().for_each(|p| p.header_hp(r)));
+            }
+            if let Some(packet) = readers.get_mut(3) {
+                let trim = packet.run(|r| if trim_flag { r.read(4) } else { 0 });
                 planes.iter_mut().for_each(|p| p.dec.trim = trim);
             }
         }
@@ -515,7 +545,7 @@ impl<'a> TileDecoder<'a> {
 /// prediction and dequantization.
 pub(crate) struct FlexStage<'a> {
     w: usize,
-    reader: BitReader<'a>,
+    reader: Packet<'a>,
     trim: u32,
     /// Per plane: INTERNAL_CLR_FMT, channels, SCALED_FLAG and the tile's quantizers.
     planes: Vec<(ClrFmt, usize, bool, TileQp)>,
@@ -524,7 +554,7 @@ pub(crate) struct FlexStage<'a> {
 impl<'a> FlexStage<'a> {
     /// The FLEXBITS stage of tile (`tx`, `ty`) (the tile headers are read again for its
     /// quantizers).
-    pub fn new(cs: &'a Codestream, data: &'a [u8], tx: usize, ty: usize) -> Result<Self> {
+    pub fn new(cs: &'a Codestream, data: Source<'a>, tx: usize, ty: usize) -> Result<Self> {
         let mut t = TileDecoder::new(cs, data, tx, ty)?;
         let reader = t.readers.pop().filter(|_| t.readers.len() == 3).ok_or_else(|| {
             Error::invalid("JPEG XR: a FLEXBITS stage without a FLEXBITS packet (a bug in the decoder)")
@@ -539,16 +569,32 @@ impl<'a> FlexStage<'a> {
         if rows.len() < self.planes.len() || side.len() < self.planes.len() {
             return Err(Error::invalid("JPEG XR: a FLEXBITS stage given too few planes (a bug)"));
         }
+        // In memory one reader runs through the row; a window is checked before each
+        // macroblock.
+        let mut memory = self.reader.memory_reader();
         for mx in 0..self.w {
+            match &memory {
+                None => self.reader.reserve()?,
+                #[cfg(test)]
+                Some(r) => self.reader.note(r.bit_pos()),
+                #[cfg(not(test))]
+                Some(_) => {}
+            }
             for (i, (fmt, channels, _, _)) in self.planes.iter().enumerate() {
                 let stride = channels * MB_COEFFS;
                 let c = rows[i]
                     .get_mut(mx * stride..(mx + 1) * stride)
                     .ok_or_else(|| Error::invalid("JPEG XR: a short row (a bug)"))?;
                 let s = side[i].get(mx).ok_or_else(|| Error::invalid("JPEG XR: a short side row (a bug)"))?;
-                macroblock::flex_mb(&mut self.reader, c, *fmt, *channels, self.trim, s.hp_bits);
+                match &mut memory {
+                    Some(r) => macroblock::flex_mb(r, c, *fmt, *channels, self.trim, s.hp_bits),
+                    None => self.reader.run(|r| macroblock::flex_mb(r, c, *fmt, *channels, self.trim, s.hp_bits)),
+                }
                 predict_hp_mb(*fmt, *channels, c, s.hp_mode);
             }
+        }
+        if let Some(r) = memory {
+            self.reader.set_state(r.state());
         }
         self.reader.check("a JPEG XR FLEXBITS packet")?;
         for (i, (fmt, channels, scaled, qp)) in self.planes.iter().enumerate() {

@@ -129,7 +129,7 @@ fn per_mb_steps(
         for tx in 0..cs.image.tile_widths.len() {
             let (x0, y0, w, h) = crate::tiles::tile_rect(cs, tx, ty);
             let (x0, y0, w) = (x0 as usize, y0 as usize, w as usize);
-            let mut tile = crate::tiles::TileDecoder::new(cs, data, tx, ty)?;
+            let mut tile = crate::tiles::TileDecoder::new(cs, data.into(), tx, ty)?;
             let mut bufs: Vec<Vec<i32>> = strides.iter().map(|s| vec![0; w * s]).collect();
             for r in 0..h as usize {
                 let mut rows: Vec<&mut [i32]> = bufs.iter_mut().map(|b| &mut b[..]).collect();
