@@ -383,6 +383,13 @@ pub struct Codestream {
 /// reads for consistency; allocates only the tile and index tables (bounded by 4096 × 4096
 /// tiles, and by the data's length for the index table).
 pub fn parse(data: &[u8]) -> Result<Codestream> {
+    parse_head(data, data.len() as u64)
+}
+
+/// [`parse`] of a codestream of `len` bytes of which `data` holds the first (all of its headers,
+/// or the parse fails as on a codestream cut there): the sizes and offsets are checked against
+/// `len`. What a caller that reads a file piece by piece parses.
+pub fn parse_head(data: &[u8], len: u64) -> Result<Codestream> {
     if data.len() < 8 || &data[..8] != b"WMPHOTO\0" {
         return Err(if data.len() < 8 && b"WMPHOTO\0".starts_with(data) {
             Error::truncated("the JPEG XR codestream signature")
@@ -511,7 +518,7 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
         }
         let entries = tiles * per_tile;
         // Each entry takes at least one byte.
-        if entries as u64 > (data.len() as u64).saturating_sub(r.byte_pos() + 8) {
+        if entries as u64 > len.saturating_sub(r.byte_pos() + 8) {
             return Err(Error::truncated("the JPEG XR index table"));
         }
         packets.reserve(entries);
@@ -533,12 +540,12 @@ pub fn parse(data: &[u8]) -> Result<Codestream> {
     }
     let header_len = after
         .checked_add(subsequent)
-        .filter(|&l| l <= data.len() as u64)
+        .filter(|&l| l <= len)
         .ok_or_else(|| Error::truncated("the JPEG XR codestream (SUBSEQUENT_BYTES runs past its end)"))?;
     for p in &mut packets {
         *p = p
             .checked_add(header_len)
-            .filter(|&o| o < data.len() as u64)
+            .filter(|&o| o < len)
             .ok_or_else(|| Error::invalid("JPEG XR: an index table entry points past the end of the codestream"))?;
     }
     Ok(Codestream { image, primary, alpha, packets, profile_level, header_len })
