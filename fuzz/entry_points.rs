@@ -66,7 +66,8 @@ fn probe_and_decode(codec: &dyn ImageCodec, data: &[u8], limits: &Limits) -> Res
 /// `codec.probe_from` on `data` as a file says what `probed` (its `probe`) says: the same
 /// answer, or an error of the same kind. `.hdrc` reads its structure from a file as its stream
 /// decoder does (tile headers, index, META), so it may refuse what `probe` takes where decoding
-/// (`decode_fails`) fails too.
+/// (`decode_fails`) fails too, and of a damaged file it reports the first problem that walk
+/// meets, which may be of another kind than `probe`'s.
 fn from_a_file_agrees(
     codec: &dyn ImageCodec,
     data: &[u8],
@@ -76,7 +77,12 @@ fn from_a_file_agrees(
 ) {
     let from = codec.probe_from(&mut std::io::Cursor::new(data), limits);
     match (probed, &from) {
-        (Ok(p), Ok(f)) => assert_eq!(p, f, "{}: probe_from and probe disagree", codec.name()),
+        // Compared as printed: a NaN chromaticity (which OpenEXR headers can hold) is not equal
+        // to itself.
+        (Ok(p), Ok(f)) => {
+            assert_eq!(format!("{p:?}"), format!("{f:?}"), "{}: probe_from and probe disagree", codec.name())
+        }
+        (Err(_), Err(_)) if codec.name() == "hdrc" => {}
         (Err(p), Err(f)) => assert_eq!(
             std::mem::discriminant(p),
             std::mem::discriminant(f),

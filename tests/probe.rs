@@ -169,9 +169,11 @@ fn probe_never_panics_on_damaged_files_and_agrees_with_decode_where_both_succeed
         for d in &damaged {
             let probed = codec.probe(d, &limits);
             // From a file: the same answer, or an error of the same kind; `.hdrc` checks its
-            // tile headers and index there as decoding does, so it may refuse what `probe` takes.
+            // tile headers and index there as decoding does, so it may refuse what `probe` takes,
+            // and reports the first problem of that walk (fuzz/entry_points.rs says the same).
             match (&probed, probe_from(codec.as_ref(), d, 3, &limits)) {
                 (Ok(p), Ok(f)) => assert_eq!(p, &f, "{}", codec.name()),
+                (Err(_), Err(_)) if codec.name() == "hdrc" => {}
                 (Err(p), Err(f)) => assert_eq!(
                     std::mem::discriminant(p),
                     std::mem::discriminant(&f),
