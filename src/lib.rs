@@ -195,6 +195,19 @@ impl Registry {
         Ok((codec, info))
     }
 
+    /// [`Registry::probe`] of the file at `path`, read from the file
+    /// ([`ImageCodec::probe_from`]): the codecs that can read only their header (OpenEXR, JPEG
+    /// XR, `.hdrc`, Radiance, PFM, LogLuv TIFF) never read the file whole. Also returns the
+    /// file, back at its start, for a decoder that reads it
+    /// ([`ImageCodec::decode_rows_from`]).
+    pub fn probe_file(&self, path: &Path, limits: &Limits) -> Result<(Arc<dyn ImageCodec>, ImageInfo, std::fs::File)> {
+        use std::io::Seek;
+        let (codec, mut file) = self.open(path)?;
+        let info = codec.probe_from(&mut file, limits)?;
+        file.rewind().map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))))?;
+        Ok((codec, info, file))
+    }
+
     /// Decodes `data` (the contents of `path`) with the codec [`Registry::for_input`] picks.
     pub fn decode(&self, path: &Path, data: &[u8], limits: &Limits) -> Result<(Arc<dyn ImageCodec>, HdrImage)> {
         self.decode_with(path, data, &DecodeOptions::new(limits.clone()))
@@ -920,6 +933,30 @@ mod tests {
     use super::*;
     use crate::core::EncodeSettings;
     use std::io::Write;
+
+    #[test]
+    fn probe_file_reads_the_header_from_the_file_and_leaves_it_at_its_start() {
+        let reg = registry();
+        let (w, h) = (64u32, 48u32);
+        let samples = (0..w * h * 3).map(|i| (i % 13) as f32 / 4.0).collect();
+        let image = HdrImage::new(w, h, crate::core::Channels::Rgb, samples, Default::default()).unwrap();
+        let dir = std::env::temp_dir().join(format!("hdrcodec-probe-file-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for ext in ["exr", "pfm", "hdr", "tif", "jxr", "hdrc"] {
+            let path = dir.join(format!("small.{ext}"));
+            let codec = reg.for_output(&path).unwrap();
+            let (bytes, _) = encode_for(codec.as_ref(), &image, &EncodeSettings::default()).unwrap();
+            std::fs::write(&path, &bytes).unwrap();
+            let (_, expected) = reg.probe(&path, &bytes, &Limits::default()).unwrap();
+            // Within fewer bytes than the file: only the header is read.
+            let tight = Limits::default().with_max_alloc_bytes(bytes.len() as u64 / 2);
+            let (found, info, mut file) = reg.probe_file(&path, &tight).unwrap_or_else(|e| panic!("{ext}: {e}"));
+            assert_eq!((found.name(), &info), (codec.name(), &expected), "{ext}");
+            let decoded = found.decode_from(&mut file, &DecodeOptions::new(Limits::default())).unwrap();
+            assert_eq!(decoded.samples(), codec.decode(&bytes, &Limits::default()).unwrap().samples(), "{ext}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// A codec for registry tests: magic "FAKE", extensions fake / fk.
     struct Fake(&'static str, &'static [&'static str], &'static [u8]);

@@ -5,9 +5,13 @@
 //!   a file is an input when a codec of the family handles its extension or recognises its first
 //!   bytes; other files are counted as skipped. Our own temporary files are never inputs. Each
 //!   output keeps its source's relative folder under OUT_DIR, with the target's extension.
-//! - **Memory.** Before a file starts, its header is probed (nothing of the image's size is
-//!   allocated) and its cost estimated by [`in_flight_cost`]; [`Admission`] starts it only while
-//!   the costs of the files in flight fit the budget (one file always runs, however large).
+//! - **Memory.** Before a file starts, its header is probed from the file
+//!   ([`Registry::probe_file`]: nothing of the image's size is allocated, and the file is not
+//!   read whole by the codecs that can read their header alone) and its cost estimated by
+//!   [`in_flight_cost`]; the source, and the output decoded back, are decoded from their files
+//!   ([`ImageCodec::decode_from`]), so a codec that reads its file piece by piece never holds
+//!   it. [`Admission`] starts a file only while the costs of the files in flight fit the budget
+//!   (one file always runs, however large).
 //! - **Threads.** One rayon pool: each admitted file is a task on it, and the same pool is the
 //!   codecs' [`ThreadPool`], so a codec's parallel work runs on the workers the other files
 //!   leave idle: never more threads than the pool has. `jobs` caps the files in flight.
@@ -170,8 +174,8 @@ fn mem_total_bytes(meminfo: &str) -> Option<u64> {
     kib.checked_mul(1024)
 }
 
-/// What one file in flight is assumed to hold at its peak, in bytes: its encoded bytes, the
-/// decoded source (kept for the PU21-PSNR), the output decoded back, and as much again for the
+/// What one file in flight is assumed to hold at its peak, in bytes: its encoded bytes (which
+/// the decoders that cannot read a file piece by piece read whole), the decoded source (kept for the PU21-PSNR), the output decoded back, and as much again for the
 /// encoder's working memory and the bytes it writes (measured peaks: README, "hdrcodec batch").
 pub fn in_flight_cost(info: &ImageInfo, file_bytes: u64) -> u64 {
     file_bytes.saturating_add(info.decoded_bytes().saturating_mul(3))
@@ -525,15 +529,15 @@ pub fn run(o: &BatchOptions, progress: &mut dyn Progress) -> Result<Summary> {
     let mut admission = Admission::new(o.memory_budget, jobs);
     let (done_tx, done_rx) = mpsc::channel::<(ManifestLine, u64)>();
     let mut queue = jobs_to_run.into_iter();
-    let mut waiting: Option<(Job, Vec<u8>, u64)> = None;
+    let mut waiting: Option<(Job, Opened, u64)> = None;
     loop {
         // Start files while the budget allows, in order.
         loop {
             if waiting.is_none() {
                 let Some(job) = queue.next() else { break };
                 let t0 = Instant::now();
-                match read_and_cost(&job, &registry) {
-                    Ok((data, cost)) => waiting = Some((job, data, cost)),
+                match open_and_cost(&job, &registry) {
+                    Ok((opened, cost)) => waiting = Some((job, opened, cost)),
                     Err(e) => {
                         let line = failed_line(&job.source, &job.output, 0, t0.elapsed().as_secs_f64(), &e);
                         record(&line, &mut summary, &mut manifest, progress)?;
@@ -547,11 +551,11 @@ pub fn run(o: &BatchOptions, progress: &mut dyn Progress) -> Result<Summary> {
             }
             summary.peak_in_flight_cost = summary.peak_in_flight_cost.max(admission.in_flight_bytes());
             summary.peak_in_flight_files = summary.peak_in_flight_files.max(admission.in_flight());
-            let Some((job, data, cost)) = waiting.take() else { break };
+            let Some((job, opened, cost)) = waiting.take() else { break };
             let (tx, conversion, registry, out_codec) =
                 (done_tx.clone(), conversion.clone(), registry.clone(), out_codec.clone());
             rayon_pool.spawn(move || {
-                let line = convert_one(&job, data, &registry, out_codec.as_ref(), &conversion);
+                let line = convert_one(&job, opened, &registry, out_codec.as_ref(), &conversion);
                 // The receiver lives until every file has reported.
                 let _ = tx.send((line, cost));
             });
@@ -643,27 +647,37 @@ fn remove_stale_temps<'a>(out_dir: &Path, outputs: impl Iterator<Item = &'a Path
     removed
 }
 
-/// Reads a source and estimates its cost from its header alone.
-fn read_and_cost(job: &Job, registry: &Registry) -> Result<(Vec<u8>, u64)> {
-    let data = hdrcodec::read_file(&job.source)?;
-    let (_, info) = registry.probe(&job.source, &data, &Limits::default())?;
-    let cost = in_flight_cost(&info, data.len() as u64);
-    Ok((data, cost))
+/// A source opened for its decoder: the codec that reads it, the file (at its start) and its
+/// size in bytes.
+struct Opened {
+    codec: Arc<dyn ImageCodec>,
+    file: std::fs::File,
+    bytes: u64,
+}
+
+/// Opens a source and estimates its cost from its header alone, read from the file
+/// ([`Registry::probe_file`]): the file is not read whole here, and is decoded from the file
+/// later ([`ImageCodec::decode_from`]).
+fn open_and_cost(job: &Job, registry: &Registry) -> Result<(Opened, u64)> {
+    let (codec, info, file) = registry.probe_file(&job.source, &Limits::default())?;
+    let bytes = file.metadata().map_err(Error::Io)?.len();
+    let cost = in_flight_cost(&info, bytes);
+    Ok((Opened { codec, file, bytes }, cost))
 }
 
 /// Converts one file (on a worker of the pool) and measures the output against the source.
 /// A panic in a codec (a bug) fails this file only.
 fn convert_one(
     job: &Job,
-    data: Vec<u8>,
+    opened: Opened,
     registry: &Registry,
     out_codec: &dyn ImageCodec,
     conversion: &ConversionSettings,
 ) -> ManifestLine {
     let t0 = Instant::now();
-    let bytes_in = data.len() as u64;
+    let bytes_in = opened.bytes;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        convert_and_measure(job, data, registry, out_codec, conversion)
+        convert_and_measure(job, opened, registry, out_codec, conversion)
     }))
     .unwrap_or_else(|_| Err(Error::invalid("internal error in a codec (a bug, please report it)")));
     let seconds = t0.elapsed().as_secs_f64();
@@ -688,25 +702,25 @@ fn convert_one(
 /// and returns its size, the PU21-PSNR and the conversion's notes.
 fn convert_and_measure(
     job: &Job,
-    data: Vec<u8>,
+    opened: Opened,
     registry: &Registry,
     out_codec: &dyn ImageCodec,
     conversion: &ConversionSettings,
 ) -> Result<(u64, f64, Vec<String>)> {
-    let in_codec = registry.for_input(&job.source, &data)?;
+    let Opened { codec: in_codec, mut file, .. } = opened;
     let (options, settings) = conversion.for_decoder(in_codec.as_ref(), Limits::default());
-    let source = in_codec.decode_with(&data, &options)?;
-    drop(data);
+    let source = in_codec.decode_from(&mut file, &options)?;
+    drop(file);
     if let Some(dir) = job.output.parent() {
         std::fs::create_dir_all(dir)
             .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("{}: {e}", dir.display()))))?;
     }
     let notes =
         if job.reuse_output { Vec::new() } else { hdrcodec::encode_file(out_codec, &source, &settings, &job.output)? };
-    let written = hdrcodec::read_file(&job.output)?;
-    let bytes_out = written.len() as u64;
     let back_options = hdrcodec::core::DecodeOptions::new(Limits::default()).with_pool(settings.pool.clone());
-    let (_, back) = registry.decode_with(&job.output, &written, &back_options)?;
+    let (back_codec, mut written) = registry.open(&job.output)?;
+    let bytes_out = written.metadata().map_err(Error::Io)?.len();
+    let back = back_codec.decode_from(&mut written, &back_options)?;
     drop(written);
     let psnr = metrics::pu21_psnr(&source, &back)?;
     Ok((bytes_out, psnr, notes))

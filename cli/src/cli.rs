@@ -184,17 +184,20 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         return crate::video::info(file, json);
     }
     let reg = hdrcodec::registry();
-    let data = hdrcodec::read_file(file)?;
-    let (codec, header) = reg.probe(file, &data, &Limits::default())?;
+    // The header and then the pixels are read from the file, never the file whole for the
+    // codecs that read it piece by piece.
+    let (codec, header, mut input) = reg.probe_file(file, &Limits::default())?;
+    let file_size = input.metadata().map_err(Error::Io)?.len();
     // A sequence's statistics are its first frame's (decoded alone by the stream decoder).
     let (stats, metadata) = if header.frames > 1 && codec.name() == "hdrc" {
+        let data = hdrcodec::read_file(file)?;
         let video = hdrcodec::container::HdrcVideoCodec::new(reg.codecs().to_vec());
         let mut frames = video.begin_decode(data.as_slice().into(), &DecodeOptions::new(Limits::default()))?;
         let image = frames.next_frame()?.ok_or_else(|| Error::invalid("the .hdrc sequence has no frame"))?;
         (hdrcodec::ImageStats::of(&image), image.metadata)
     } else {
         let mut sink = hdrcodec::StatsSink::new();
-        codec.decode_rows(&data, &DecodeOptions::new(Limits::default()), &mut sink)?;
+        codec.decode_rows_from(&mut input, &DecodeOptions::new(Limits::default()), &mut sink)?;
         let metadata = sink.info().map(|i| i.metadata.clone()).unwrap_or_default();
         (sink.stats(), metadata)
     };
@@ -212,7 +215,7 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
         return print_json(&json!({
             "file": file.display().to_string(),
             "codec": codec.name(),
-            "file_size": data.len(),
+            "file_size": file_size,
             "format": header.format,
             "frames": header.frames,
             "width": header.width,
@@ -232,7 +235,7 @@ pub fn info(file: &Path, json: bool) -> Result<()> {
             "metadata": metadata_json,
         }));
     }
-    println!("file:          {} ({} bytes, {})", file.display(), data.len(), codec.name());
+    println!("file:          {} ({file_size} bytes, {})", file.display(), codec.name());
     println!("format:        {}", header.format);
     if header.frames != 1 {
         println!("frames:        {}", header.frames);

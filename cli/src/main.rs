@@ -30,7 +30,9 @@ enum Command {
     /// as `hdrcodec: note: ...` lines on stderr after the file is written.
     Convert(ConvertArgs),
     /// Print what a file holds: stored format, size, channels and colour (read from the header),
-    /// HDR10 metadata, luminance range (from the decoded pixels).
+    /// HDR10 metadata, luminance range (from the decoded pixels). The file is read as the codec
+    /// needs it: its header alone, then its pixels as they are decoded (whole only for the codecs
+    /// that cannot read a file piece by piece).
     Info {
         /// The image file.
         file: PathBuf,

@@ -766,6 +766,14 @@ impl HdrcCodec {
     fn resolve(&self, id: [u8; 4]) -> Option<&dyn ImageCodec> {
         self.codecs.iter().find(|c| c.id() == id).map(|c| c.as_ref())
     }
+
+    /// What [`probe`](ImageCodec::probe) says of a file with this HEAD and colour: an error if
+    /// the payload codec is unknown.
+    fn head_info(&self, HeadInfo { head: h, color }: HeadInfo) -> Result<ImageInfo> {
+        let codec = self.resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
+        let format = stored_format(codec.name(), &h);
+        Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
+    }
 }
 
 impl ImageCodec for HdrcCodec {
@@ -793,10 +801,12 @@ impl ImageCodec for HdrcCodec {
     /// count of every frame, and the payload codec and tiling as the format ("rgbe payload,
     /// 15 tiles of 64x64"). Fails, as decoding would, if the payload codec is unknown.
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
-        let HeadInfo { head: h, color } = crate::reader::probe(data, limits)?;
-        let codec = self.resolve(h.codec).ok_or_else(|| unknown_payload(h.codec))?;
-        let format = stored_format(codec.name(), &h);
-        Ok(ImageInfo::new(h.width, h.height, h.channels, color).with_format(format).with_frames(h.frames))
+        self.head_info(crate::reader::probe(data, limits)?)
+    }
+    /// The file's chunks but DATA (and the tile header of each DATA chunk), read from the file
+    /// as decoding reads them before the first tile: a tile is never read.
+    fn probe_from(&self, input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        self.head_info(crate::stream::probe(input, limits)?)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         hdrcodec_core::decode_image(self, data, options)

@@ -38,6 +38,16 @@ struct Chunk {
     ctx: String,
 }
 
+/// [`probe`](crate::probe) from a stream (a file, from its position): the file's structure is
+/// read and checked as [`StreamFile::open`] reads it (every chunk but DATA, of each DATA chunk
+/// its tile header), not a tile, and HEAD with COLR and HDRM is returned. It checks what
+/// decoding checks before the first tile (the tile grid and the index, too), so a file that
+/// `probe` accepts with a damaged tile header is refused here.
+pub(crate) fn probe(input: &mut dyn ReadSeek, limits: &Limits) -> Result<crate::HeadInfo> {
+    let file = StreamFile::open(input, limits)?;
+    Ok(crate::HeadInfo { head: file.layout.head, color: file.layout.color_info() })
+}
+
 impl<'r> StreamFile<'r> {
     /// Reads the file that starts at `input`'s position: its signature, every chunk's header,
     /// every chunk but DATA whole (each checked against `limits` before it is read, and its

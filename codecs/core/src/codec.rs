@@ -50,6 +50,18 @@ pub trait ImageCodec: Send + Sync {
         let image = self.decode(data, limits)?;
         Ok(ImageInfo::new(image.width(), image.height(), image.channels(), image.color.clone()))
     }
+    /// [`probe`](Self::probe) from a source that reads and seeks (a file, from its current
+    /// position): a codec whose layout allows it reads only what its header needs (OpenEXR its
+    /// headers, JPEG XR its IFD and codestream header, `.hdrc` its chunks but DATA, Radiance,
+    /// PFM and LogLuv TIFF their headers), so that inspecting a file costs little whatever its
+    /// size. Same answer and the same kinds of errors as `probe` on the file's bytes.
+    ///
+    /// The provided version reads the rest of `input` into memory, charged to `limits` while
+    /// it is held, and calls `probe`.
+    fn probe_from(&self, input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        let data = read_rest(input, limits)?;
+        self.probe(&data, limits)
+    }
     /// Decodes a whole file held in memory, with the caller's limits and threads. Never
     /// panics; checks (and charges) `options.limits` before allocating.
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage>;

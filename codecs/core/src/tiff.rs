@@ -15,7 +15,10 @@
 //!
 //! Reading: [`Tiff::parse`] checks the header; [`Tiff::ifd_chain`] walks the IFDs with loop
 //! protection without reading their entries; [`Tiff::read_ifd`] reads one IFD's [`Entry`]s, whose
-//! values are read with the [`Entry`] methods, bounded by the data and by [`Limits`].
+//! values are read with the [`Entry`] methods, bounded by the data and by [`Limits`]. A file
+//! that is not in memory is read in [`TiffParts`] (its header, IFDs and the values of the tags a
+//! reader asks for, each read from the stream at its offset) and parsed by
+//! [`Tiff::from_parts`]: the same reader, the same checks, without holding the file.
 //! Writing: [`write_header`] and [`IfdWriter`].
 //!
 //! ```
@@ -41,8 +44,9 @@
 //! ```
 
 use crate::bytes::{ByteOrder, ByteReader, ByteWriter};
-use crate::{Error, Limits, Result};
+use crate::{Allocation, Error, Limits, ReadSeek, Result};
 use std::collections::HashSet;
+use std::io::SeekFrom;
 
 /// The magic number of TIFF (Section 2, "Image File Header", bytes 2-3).
 pub const MAGIC_TIFF: u16 = 42;
@@ -237,10 +241,153 @@ pub fn sniff(head: &[u8], magic: u16) -> bool {
     }
 }
 
-/// A parsed TIFF-structured file: its bytes, byte order and the offset of its first IFD.
+/// Where a [`Tiff`]'s bytes are: the whole file in memory, or the parts of it read from a
+/// stream ([`TiffParts`]).
+#[derive(Clone, Copy, Debug)]
+enum Source<'a> {
+    Bytes(&'a [u8]),
+    Parts(&'a TiffParts),
+}
+
+impl<'a> Source<'a> {
+    /// The file's length.
+    fn len(&self) -> u64 {
+        match self {
+            Source::Bytes(b) => b.len() as u64,
+            Source::Parts(p) => p.len,
+        }
+    }
+
+    /// The `len` bytes at `at`: `Ok(None)` when they are not all inside the file, an error when
+    /// they are but were not read into the parts (a reader that did not ask for them).
+    fn get(&self, at: u64, len: u64) -> Result<Option<&'a [u8]>> {
+        if at.checked_add(len).is_none_or(|end| end > self.len()) {
+            return Ok(None);
+        }
+        match self {
+            Source::Bytes(b) => Ok(Some(&b[at as usize..(at + len) as usize])),
+            Source::Parts(p) => {
+                let holds = |(from, bytes): &(&u64, &Vec<u8>)| **from <= at && at + len <= **from + bytes.len() as u64;
+                // The part that starts last at or before `at`, else (parts that overlap) any.
+                let part = p.parts.range(..=at).next_back().filter(holds).or_else(|| p.parts.iter().find(holds));
+                part.map(|(from, bytes)| Some(&bytes[(at - from) as usize..(at - from + len) as usize])).ok_or_else(
+                    || Error::invalid(format!("bytes {at}..{} of the TIFF file were not read from it", at + len)),
+                )
+            }
+        }
+    }
+
+    /// [`get`](Self::get), with bytes outside the file [`Error::Truncated`] naming `what`.
+    fn bytes(&self, at: u64, len: u64, what: &str) -> Result<&'a [u8]> {
+        self.get(at, len)?.ok_or_else(|| {
+            Error::truncated(format!("{what} (bytes {at}..{} of a {}-byte file)", at.saturating_add(len), self.len()))
+        })
+    }
+}
+
+/// The parts of a TIFF-structured file that describe its first image, read from a stream (a
+/// file on disk) at their own offsets, so that [`Tiff::from_parts`] reads them as it reads a
+/// file in memory without the file being held: the header, the first IFD, the entry count and
+/// next-IFD offset of every further IFD of the chain, and the values (longer than 4 bytes, so
+/// stored elsewhere) of the first IFD's tags that the reader asks for. Values of other tags,
+/// and other IFDs' entries, are not read: asking a [`Tiff`] over the parts for them is an
+/// error. What is held is bounded by the file and charged to the caller's [`Limits`].
+#[derive(Debug)]
+pub struct TiffParts {
+    /// The file's length, from the stream's position at [`TiffParts::read`].
+    len: u64,
+    /// The bytes read, by their offset in the file (of two parts read at one offset, the
+    /// longer is kept; a range is found in the part that starts last at or before it).
+    parts: std::collections::BTreeMap<u64, Vec<u8>>,
+    _charge: Option<Allocation>,
+}
+
+impl TiffParts {
+    /// Reads the parts of the TIFF-structured file that starts at `input`'s position (see
+    /// [`TiffParts`]), with header magic number `magic`; `wanted` says which tags' values to
+    /// read (values that do not lie inside the file are not read: the [`Entry`] methods report
+    /// them). Checks only what it must to know what to read: the chain of IFDs is checked when
+    /// [`Tiff::ifd_chain`] walks it, as for a file in memory.
+    pub fn read(input: &mut dyn ReadSeek, magic: u16, limits: &Limits, wanted: &dyn Fn(u16) -> bool) -> Result<Self> {
+        let (base, len) = crate::remaining_len(input)?;
+        let mut reading = Reading { input, base, limits, held: 0 };
+        let mut parts = TiffParts { len, parts: Default::default(), _charge: None };
+        parts.add(&mut reading, 0, (HEADER_LEN as u64).min(len))?;
+        let (order, first) = {
+            let t = Tiff::from_parts(&parts, magic)?;
+            (t.order, u64::from(t.first_ifd))
+        };
+        let u16_at = |parts: &TiffParts, at: u64| -> Result<u16> {
+            ByteReader::new(Source::Parts(parts).bytes(at, 2, "a TIFF IFD")?, order).u16("a TIFF IFD")
+        };
+        // The chain: the first IFD whole, of the others their entry count and next offset, as
+        // far as they lie in the file and the walk of `ifd_chain` would go.
+        let (mut next, mut seen) = (first, HashSet::new());
+        while next != 0 && next.saturating_add(2) <= len && seen.insert(next) && seen.len() <= MAX_IFDS {
+            parts.add(&mut reading, next, 2)?;
+            let link = next + 2 + u64::from(u16_at(&parts, next)?) * ENTRY_LEN;
+            if link.saturating_add(4) > len {
+                break;
+            }
+            if next == first {
+                parts.add(&mut reading, next, link + 4 - next)?;
+            } else {
+                parts.add(&mut reading, link, 4)?;
+            }
+            let b = Source::Parts(&parts).bytes(link, 4, "a TIFF IFD")?;
+            next = u64::from(ByteReader::new(b, order).u32("a TIFF IFD")?);
+        }
+        if first == 0 || first.saturating_add(2) > len {
+            return Ok(parts);
+        }
+        let Ok(ifd) = Tiff::from_parts(&parts, magic)?.read_ifd(first) else { return Ok(parts) };
+        for e in ifd.entries {
+            let (Some(at), Some(n)) = (e.values_at(), e.byte_len()) else { continue };
+            if n > 4 && wanted(e.tag) && at.saturating_add(n) <= len {
+                parts.add(&mut reading, at, n)?;
+            }
+        }
+        Ok(parts)
+    }
+
+    /// The length of the file the parts come from.
+    pub fn file_len(&self) -> u64 {
+        self.len
+    }
+
+    /// Reads the `n` bytes at `at` (inside the file) as one more part, charged to the limits.
+    fn add(&mut self, reading: &mut Reading<'_>, at: u64, n: u64) -> Result<()> {
+        reading.held = reading.held.saturating_add(n);
+        self._charge = None;
+        self._charge = Some(reading.limits.charge(reading.held, "the TIFF's IFDs and tag values")?);
+        let mut bytes = vec![0; n as usize];
+        reading.input.seek(SeekFrom::Start(reading.base + at))?;
+        reading.input.read_exact(&mut bytes).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => {
+                Error::truncated(format!("the TIFF file (it ended inside bytes {at}..{})", at + n))
+            }
+            _ => Error::Io(e),
+        })?;
+        if self.parts.get(&at).is_none_or(|b| b.len() < bytes.len()) {
+            self.parts.insert(at, bytes);
+        }
+        Ok(())
+    }
+}
+
+/// The stream [`TiffParts::read`] reads from and what it holds so far.
+struct Reading<'r> {
+    input: &'r mut dyn ReadSeek,
+    base: u64,
+    limits: &'r Limits,
+    held: u64,
+}
+
+/// A parsed TIFF-structured file: its bytes (in memory or [`TiffParts`]), byte order and the
+/// offset of its first IFD.
 #[derive(Clone, Debug)]
 pub struct Tiff<'a> {
-    data: &'a [u8],
+    data: Source<'a>,
     order: ByteOrder,
     magic: u16,
     first_ifd: u32,
@@ -250,9 +397,20 @@ impl<'a> Tiff<'a> {
     /// Checks the image file header (Section 2): "II" (little-endian) or "MM" (big-endian),
     /// the magic number `magic` in that order, and reads the first IFD's offset.
     pub fn parse(data: &'a [u8], magic: u16) -> Result<Self> {
-        if data.len() < HEADER_LEN {
+        Self::from_source(Source::Bytes(data), magic)
+    }
+
+    /// [`parse`](Self::parse) over the parts of a file read from a stream: the methods of the
+    /// `Tiff` and of its [`Entry`]s read the parts as they read a file in memory, with the same
+    /// checks and errors, except that bytes inside the file which were not read are an error.
+    pub fn from_parts(parts: &'a TiffParts, magic: u16) -> Result<Self> {
+        Self::from_source(Source::Parts(parts), magic)
+    }
+
+    fn from_source(src: Source<'a>, magic: u16) -> Result<Self> {
+        let Some(data) = src.get(0, HEADER_LEN as u64)? else {
             return Err(Error::truncated("the 8-byte TIFF header"));
-        }
+        };
         let order = match &data[..2] {
             b"II" => ByteOrder::Little,
             b"MM" => ByteOrder::Big,
@@ -274,19 +432,19 @@ impl<'a> Tiff<'a> {
             }
         }
         let first_ifd = r.u32("the TIFF header")?;
-        Ok(Tiff { data, order, magic, first_ifd })
+        Ok(Tiff { data: src, order, magic, first_ifd })
     }
 
     /// A region laid out as TIFF but without the image file header, in byte order `order`,
     /// whose offsets count from its own start: an EXIF maker note such as Apple's (its IFD
     /// offset is the caller's to know; [`first_ifd_offset`](Self::first_ifd_offset) is 0).
     pub fn without_header(data: &'a [u8], order: ByteOrder) -> Self {
-        Tiff { data, order, magic: 0, first_ifd: 0 }
+        Tiff { data: Source::Bytes(data), order, magic: 0, first_ifd: 0 }
     }
 
-    /// The whole file.
-    pub fn data(&self) -> &'a [u8] {
-        self.data
+    /// The length of the file.
+    pub fn file_len(&self) -> u64 {
+        self.data.len()
     }
 
     /// The byte order of the file.
@@ -304,16 +462,18 @@ impl<'a> Tiff<'a> {
         self.first_ifd
     }
 
-    /// A reader over the whole file in its byte order, at position 0.
-    pub fn reader(&self) -> ByteReader<'a> {
-        ByteReader::new(self.data, self.order)
-    }
-
     /// The IFDs of the file in chain order, located but not read. The walk stops after the
     /// first error: an offset seen before (a loop, which TIFF 6.0 does not allow but never
     /// says), more than [`MAX_IFDS`] IFDs, or an IFD that does not fit in the file.
     pub fn ifd_chain(&self) -> IfdChain<'a> {
-        IfdChain { reader: self.reader(), next: u64::from(self.first_ifd), index: 0, seen: HashSet::new(), done: false }
+        IfdChain {
+            data: self.data,
+            order: self.order,
+            next: u64::from(self.first_ifd),
+            index: 0,
+            seen: HashSet::new(),
+            done: false,
+        }
     }
 
     /// The first IFD, read; an error if the file has none.
@@ -329,15 +489,15 @@ impl<'a> Tiff<'a> {
     /// allocates is bounded by the file); their values are not read.
     pub fn read_ifd(&self, offset: u64) -> Result<Ifd> {
         let what = format!("the TIFF IFD at offset {offset}");
-        let mut r = self.reader().at(offset);
-        let n = r.u16(&what)?;
-        r.check_remaining(u64::from(n) * ENTRY_LEN + 4, 1, &what)?;
+        let n = ByteReader::new(self.data.bytes(offset, 2, &what)?, self.order).u16(&what)?;
+        let len = 2 + u64::from(n) * ENTRY_LEN + 4;
+        let mut r = ByteReader::new(self.data.bytes(offset, len, &what)?, self.order).at(2);
         let mut entries = Vec::with_capacity(usize::from(n));
         for _ in 0..n {
             let tag = r.u16(&what)?;
             let typ = r.u16(&what)?;
             let count = r.u32(&what)?;
-            let field_at = r.position();
+            let field_at = offset + r.position();
             let value_field = r.u32(&what)?;
             entries.push(Entry { tag, typ, count, value_field, field_at });
         }
@@ -363,7 +523,8 @@ pub struct IfdLocation {
 /// that the entries and the next offset fit in the file and reads the next offset.
 #[derive(Clone, Debug)]
 pub struct IfdChain<'a> {
-    reader: ByteReader<'a>,
+    data: Source<'a>,
+    order: ByteOrder,
     next: u64,
     index: usize,
     seen: HashSet<u64>,
@@ -379,12 +540,16 @@ impl IfdChain<'_> {
             return Err(Error::limit(format!("more than {MAX_IFDS} TIFF IFDs")));
         }
         let what = format!("TIFF IFD {} at offset {offset}", self.index);
-        let mut r = self.reader.at(offset);
-        let entry_count = r.u16(&what)?;
+        let entry_count = ByteReader::new(self.data.bytes(offset, 2, &what)?, self.order).u16(&what)?;
         let entries = u64::from(entry_count) * ENTRY_LEN;
-        r.check_remaining(entries + 4, 1, &what)?;
-        r.seek(offset + 2 + entries);
-        let next = r.u32(&what)?;
+        if offset.saturating_add(2 + entries + 4) > self.data.len() {
+            return Err(Error::truncated(format!(
+                "{what} ({} entries and the next offset, past the end of a {}-byte file)",
+                entry_count,
+                self.data.len()
+            )));
+        }
+        let next = ByteReader::new(self.data.bytes(offset + 2 + entries, 4, &what)?, self.order).u32(&what)?;
         Ok(IfdLocation { index: self.index, offset, entry_count, next })
     }
 }
@@ -499,7 +664,7 @@ impl Entry {
         let (Some(at), Some(len)) = (self.values_at(), self.byte_len()) else {
             return Err(Error::unsupported(format!("TIFF tag {} has unknown field type {}", self.tag, self.typ)));
         };
-        tiff.reader().bytes_at(at, len, "").map_err(|_| {
+        tiff.data.get(at, len)?.ok_or_else(|| {
             Error::truncated(format!(
                 "the values of TIFF tag {} ({len} bytes at offset {at}, file of {} bytes)",
                 self.tag,
@@ -1115,6 +1280,108 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// What a reader sees of a file's first IFD: the entries and, for each, its values as
+    /// every typed method reads them (errors by kind), and the IFD chain.
+    fn seen(t: &Tiff) -> Vec<String> {
+        let l = Limits::default();
+        let kind = |r: Result<String>| match r {
+            Ok(v) => v,
+            Err(e) => format!("error {}", e.to_string().split(':').next().unwrap_or_default()),
+        };
+        let mut out: Vec<String> = t.ifd_chain().map(|r| kind(r.map(|l| format!("{l:?}")))).collect();
+        match t.first_ifd() {
+            Err(e) => out.push(kind(Err(e))),
+            Ok(ifd) => {
+                out.push(format!("next {}", ifd.next));
+                for e in &ifd.entries {
+                    out.push(format!("{e:?}"));
+                    out.push(kind(e.value_bytes(t).map(|b| format!("{b:?}"))));
+                    out.push(kind(e.u32s(t, &l).map(|v| format!("{v:?}"))));
+                    out.push(kind(e.f64s(t, &l).map(|v| format!("{v:?}"))));
+                    out.push(kind(e.ascii(t, &l)));
+                    out.push(kind(e.rationals(t, &l).map(|v| format!("{v:?}"))));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn parts_read_from_a_stream_read_as_the_file_in_memory() {
+        for order in [ByteOrder::Little, ByteOrder::Big] {
+            let mut file = b"junk".to_vec();
+            file.extend(two_ifds(order, MAGIC_TIFF));
+            let mut input = std::io::Cursor::new(file.clone());
+            input.set_position(4);
+            let parts = TiffParts::read(&mut input, MAGIC_TIFF, &Limits::default(), &|_| true).unwrap();
+            assert_eq!(parts.file_len(), file.len() as u64 - 4);
+            let (memory, streamed) =
+                (Tiff::parse(&file[4..], MAGIC_TIFF).unwrap(), Tiff::from_parts(&parts, MAGIC_TIFF).unwrap());
+            assert_eq!(seen(&memory), seen(&streamed));
+            // Less than the file: the values of the tags not asked for are not read.
+            let held: usize = parts.parts.values().map(Vec::len).sum();
+            let some =
+                TiffParts::read(&mut input_at(&file, 4), MAGIC_TIFF, &Limits::default(), &|t| t == tag::SOFTWARE)
+                    .unwrap();
+            let t = Tiff::from_parts(&some, MAGIC_TIFF).unwrap();
+            let ifd = t.first_ifd().unwrap();
+            assert_eq!(ifd.get(tag::SOFTWARE).unwrap().ascii(&t, &Limits::default()).unwrap(), "hdrcodec");
+            assert!(
+                matches!(ifd.get(tag::ARTIST).unwrap().ascii(&t, &Limits::default()), Ok(s) if s == "abc"),
+                "inline"
+            );
+            assert!(matches!(ifd.get(40002).unwrap().value_bytes(&t), Err(Error::Invalid { .. })));
+            assert!(some.parts.values().map(Vec::len).sum::<usize>() < held);
+            // What is held is charged to the limits.
+            let tight = Limits::new(1 << 20, 1 << 20, 1 << 40, 40);
+            assert!(matches!(
+                TiffParts::read(&mut input_at(&file, 4), MAGIC_TIFF, &tight, &|_| true),
+                Err(Error::LimitExceeded { .. })
+            ));
+        }
+    }
+
+    fn input_at(file: &[u8], at: u64) -> std::io::Cursor<Vec<u8>> {
+        let mut c = std::io::Cursor::new(file.to_vec());
+        c.set_position(at);
+        c
+    }
+
+    #[test]
+    fn every_prefix_read_in_parts_gives_the_errors_of_the_prefix_in_memory() {
+        for order in [ByteOrder::Little, ByteOrder::Big] {
+            let file = two_ifds(order, MAGIC_TIFF);
+            for cut in 0..file.len() {
+                let f = &file[..cut];
+                let parts = TiffParts::read(&mut input_at(f, 0), MAGIC_TIFF, &Limits::default(), &|_| true);
+                match (Tiff::parse(f, MAGIC_TIFF), parts) {
+                    (Ok(memory), Ok(parts)) => {
+                        assert_eq!(seen(&memory), seen(&Tiff::from_parts(&parts, MAGIC_TIFF).unwrap()), "cut {cut}")
+                    }
+                    (Err(m), parts) => {
+                        let s = parts.and_then(|p| Tiff::from_parts(&p, MAGIC_TIFF).map(|_| ())).unwrap_err();
+                        assert_eq!(std::mem::discriminant(&m), std::mem::discriminant(&s), "cut {cut}: {m} / {s}");
+                    }
+                    (Ok(_), Err(e)) => panic!("cut {cut}: reading the parts failed: {e}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_chain_that_loops_is_read_once_and_reported() {
+        let mut file = two_ifds(ByteOrder::Little, MAGIC_TIFF);
+        let t = Tiff::parse(&file, MAGIC_TIFF).unwrap();
+        let second = t.ifd_chain().nth(1).unwrap().unwrap();
+        // The second IFD's next offset points back at the first.
+        let link = (second.offset + 2 + u64::from(second.entry_count) * ENTRY_LEN) as usize;
+        let first = t.first_ifd_offset();
+        file[link..link + 4].copy_from_slice(&first.to_le_bytes());
+        let parts = TiffParts::read(&mut input_at(&file, 0), MAGIC_TIFF, &Limits::default(), &|_| true).unwrap();
+        let t = Tiff::from_parts(&parts, MAGIC_TIFF).unwrap();
+        assert!(matches!(t.ifd_chain().last(), Some(Err(Error::Invalid { .. }))));
     }
 
     #[test]

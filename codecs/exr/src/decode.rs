@@ -44,6 +44,22 @@ pub fn probe_exr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     guarded("reading the OpenEXR header", || probe_inner(data, limits))
 }
 
+/// [`probe_exr`] from a file (any source that reads and seeks, positioned at the file's first
+/// byte): only the magic number and the headers are read, not the offset tables or a chunk.
+/// Same answer and errors as [`probe_exr`] on the file's bytes.
+pub fn probe_exr_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+    if input.stream_position()? != 0 {
+        // The offset tables count from the file's first byte (as decode_exr_rows_from reads them).
+        let data = hdrcodec_core::read_rest(input, limits)?;
+        return probe_exr(&data, limits);
+    }
+    let (_, len) = hdrcodec_core::remaining_len(input)?;
+    guarded("reading the OpenEXR header", || {
+        let reader = read_meta(std::io::BufReader::new(input))?;
+        probe_meta(reader.meta_data(), len, limits)
+    })
+}
+
 /// [`decode_exr`] with the caller's threads: chunks decompress in parallel on `options.pool`.
 pub fn decode_exr_with(data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
     let mut sink = ImageSink::new(&options.limits);

@@ -41,7 +41,7 @@ pub mod interop;
 /// The underlying `exr` crate, for callers who need multi-part, deep or arbitrary-channel files.
 pub use exr;
 
-pub use decode::{decode_exr, decode_exr_rows, decode_exr_rows_from, decode_exr_with, probe_exr};
+pub use decode::{decode_exr, decode_exr_rows, decode_exr_rows_from, decode_exr_with, probe_exr, probe_exr_from};
 pub use encode::{encode_exr, write_exr};
 
 use exr::compression::Compression;
@@ -257,6 +257,14 @@ impl ImageCodec for ExrCodec {
     /// The headers only (see [`probe_exr`]).
     fn probe(&self, data: &[u8], limits: &hdrcodec_core::Limits) -> Result<hdrcodec_core::ImageInfo> {
         probe_exr(data, limits)
+    }
+    /// The headers only, read from the file (see [`probe_exr_from`]).
+    fn probe_from(
+        &self,
+        input: &mut dyn hdrcodec_core::ReadSeek,
+        limits: &hdrcodec_core::Limits,
+    ) -> Result<hdrcodec_core::ImageInfo> {
+        probe_exr_from(input, limits)
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         decode_exr_with(data, options)

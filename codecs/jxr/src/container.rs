@@ -13,10 +13,10 @@
 
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::tiff::{
-    write_header, Entry, FieldType, Ifd, IfdWriter, Tiff, HEADER_LEN, MAGIC_HD_PHOTO, MAGIC_JPEG_XR,
+    write_header, Entry, FieldType, Ifd, IfdWriter, Tiff, TiffParts, HEADER_LEN, MAGIC_HD_PHOTO, MAGIC_JPEG_XR,
 };
-use hdrcodec_core::{Error, Result};
-use std::ops::Range;
+use hdrcodec_core::{Allocation, Error, Limits, ReadSeek, Result};
+use std::io::{Read, SeekFrom};
 
 /// Tags of the JPEG XR IFD (T.832 Table A.4; jxrlib `JXRMeta.h`).
 pub mod tag {
@@ -416,19 +416,167 @@ fn blob<'a>(tiff: &Tiff<'a>, ifd: &Ifd, t: u16) -> Result<Option<&'a [u8]>> {
 /// codestream locations. Every offset and count is checked against `data`; a file cut anywhere
 /// gives an error, never a panic.
 pub fn parse_container(data: &[u8]) -> Result<Container<'_>> {
-    let (mut container, image, alpha) = parse_layout(data, data.len() as u64)?;
+    let version = file_version(data)?;
+    let tiff = Tiff::parse(data, magic_of(version))?;
     let file = ByteReader::le(data);
-    container.image = file.bytes_at(image.start, image.end - image.start, "the JPEG XR image codestream")?;
-    container.alpha =
-        alpha.map(|a| file.bytes_at(a.start, a.end - a.start, "the JPEG XR alpha codestream")).transpose()?;
-    Ok(container)
+    parse_ifd(version, tiff, &mut |at, len, what| file.bytes_at(at, len, what))
 }
 
-/// [`parse_container`] of a file `file_len` bytes long of which `data` holds the first bytes,
-/// enough for its header, first IFD and the values of its tags (else [`Error::Truncated`]):
-/// the container with empty codestreams, and where the primary and the planar alpha
-/// codestreams lie in the file (checked against `file_len`).
-pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>, Range<u64>, Option<Range<u64>>)> {
+/// The tags whose values [`read_container`] reads: every tag [`parse_container`] reads, so that
+/// a damaged entry whose values moved out of line is read (and checked) as in memory.
+const READ_TAGS: [u16; 14] = [
+    tag::PIXEL_FORMAT,
+    tag::SPATIAL_XFRM_PRIMARY,
+    tag::PTM_COLOR_INFO,
+    tag::IMAGE_WIDTH,
+    tag::IMAGE_HEIGHT,
+    tag::WIDTH_RESOLUTION,
+    tag::HEIGHT_RESOLUTION,
+    tag::IMAGE_OFFSET,
+    tag::IMAGE_BYTE_COUNT,
+    tag::ALPHA_OFFSET,
+    tag::ALPHA_BYTE_COUNT,
+    tag::ICC_PROFILE,
+    tag::XMP_METADATA,
+    tag::EXIF_METADATA,
+];
+
+/// The container of a JPEG XR file read from a stream ([`read_container`]): the header, the
+/// first IFD and its tags' values (core's [`TiffParts`]), and the first bytes of each
+/// codestream.
+#[derive(Debug)]
+pub struct ContainerHead {
+    version: u8,
+    parts: TiffParts,
+    /// Where each codestream is (offset, length) and its first bytes, primary first.
+    codestreams: Vec<(u64, u64, Vec<u8>)>,
+    _charge: Allocation,
+}
+
+impl ContainerHead {
+    /// The container as [`parse_container`] returns it for the whole file, except that its
+    /// [`image`](Container::image) and [`alpha`](Container::alpha) hold only the first bytes of
+    /// each codestream that were read (all of them when the codestream is shorter than what was
+    /// asked for): [`image_len`](Self::image_len) is the primary codestream's length.
+    pub fn container(&self) -> Result<Container<'_>> {
+        let tiff = Tiff::from_parts(&self.parts, magic_of(self.version))?;
+        let mut heads = self.codestreams.iter();
+        parse_ifd(self.version, tiff, &mut |_, _, what| {
+            heads
+                .next()
+                .map(|(_, _, head)| head.as_slice())
+                .ok_or_else(|| Error::invalid(format!("{what} was not read")))
+        })
+    }
+
+    /// The length of the primary codestream (IMAGE_BYTE_COUNT, or as [`parse_container`] infers it).
+    pub fn image_len(&self) -> u64 {
+        self.codestreams.first().map_or(0, |c| c.1)
+    }
+
+    /// Where each codestream lies in the file (from the position [`read_container`] started
+    /// at), primary first, then the planar alpha codestream if there is one.
+    pub fn codestream_ranges(&self) -> impl Iterator<Item = std::ops::Range<u64>> + '_ {
+        self.codestreams.iter().map(|&(at, n, _)| at..at + n)
+    }
+}
+
+/// The container and the codestreams' headers of a JPEG XR file read from a stream: what
+/// [`read_headers`] gives.
+#[derive(Debug)]
+pub struct FileHeaders {
+    /// The container's IFD and the first bytes of each codestream.
+    pub head: ContainerHead,
+    /// The primary codestream's headers.
+    pub image: crate::header::Codestream,
+    /// The planar alpha codestream's headers, if the file has one and they were asked for.
+    pub alpha: Option<crate::header::Codestream>,
+}
+
+/// [`read_container`] and the headers of its primary codestream and, if `with_alpha`, of its
+/// planar alpha codestream (`header::parse_head`), reading first
+/// `head_len` bytes of each codestream and 16 times more each time the headers (a long index
+/// table) need more: what a header probe and a decoder that reads the file piece by piece both
+/// start from. Reads from `input`'s position; errors are those of the file held in memory.
+pub fn read_headers(
+    input: &mut dyn ReadSeek,
+    limits: &Limits,
+    mut head_len: u64,
+    with_alpha: bool,
+) -> Result<FileHeaders> {
+    let (at, _) = hdrcodec_core::remaining_len(input)?;
+    loop {
+        input.seek(SeekFrom::Start(at))?;
+        let head = read_container(input, limits, head_len)?;
+        let container = head.container()?;
+        let lens: Vec<u64> = head.codestream_ranges().map(|r| r.end - r.start).collect();
+        // A codestream's header errors are its own only when all of it was there to read.
+        let parse = |bytes: &[u8], len: u64| match crate::header::parse_head(bytes, len) {
+            Err(_) if (bytes.len() as u64) < len => None,
+            cs => Some(cs),
+        };
+        let image = parse(container.image, lens[0]);
+        let alpha = container.alpha.filter(|_| with_alpha).map(|a| parse(a, lens.get(1).copied().unwrap_or(0)));
+        match (image, alpha) {
+            (Some(image), None) => return Ok(FileHeaders { image: image?, alpha: None, head }),
+            (Some(image), Some(Some(alpha))) => {
+                return Ok(FileHeaders { image: image?, alpha: Some(alpha?), head });
+            }
+            _ => head_len = head_len.saturating_mul(16),
+        }
+    }
+}
+
+/// [`parse_container`] from a file (any source that reads and seeks, from its current
+/// position): reads the header, the first IFD and its tags' values (core's [`TiffParts`]), and
+/// the first `head_len` bytes of each codestream, not the file. Same checks and errors as
+/// `parse_container` on the file's bytes; what it holds is charged to `limits`.
+pub fn read_container(input: &mut dyn ReadSeek, limits: &Limits, head_len: u64) -> Result<ContainerHead> {
+    let (base, len) = hdrcodec_core::remaining_len(input)?;
+    let mut signature = Vec::with_capacity(4);
+    input.take(4).read_to_end(&mut signature)?;
+    let version = file_version(&signature)?;
+    input.seek(SeekFrom::Start(base))?;
+    let parts = TiffParts::read(input, magic_of(version), limits, &|t| READ_TAGS.contains(&t))?;
+    // Where the codestreams are, checked against the file's length as the bytes of a file in
+    // memory would be.
+    let mut located = Vec::new();
+    parse_ifd(version, Tiff::from_parts(&parts, magic_of(version))?, &mut |at, n, what| {
+        if at.checked_add(n).is_none_or(|end| end > len) {
+            return Err(Error::truncated(format!(
+                "{what} (bytes {at}..{} of a {len}-byte input)",
+                at.saturating_add(n)
+            )));
+        }
+        located.push((at, n));
+        Ok(&[])
+    })?;
+    let heads: u64 = located.iter().map(|&(_, n)| n.min(head_len)).sum();
+    let charge = limits.charge(heads, "the first bytes of the JPEG XR codestreams")?;
+    let mut codestreams = Vec::with_capacity(located.len());
+    for (at, n) in located {
+        let mut head = vec![0; n.min(head_len) as usize];
+        input.seek(SeekFrom::Start(base + at))?;
+        input.read_exact(&mut head).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => Error::truncated("the JPEG XR file (it ended while it was read)"),
+            _ => Error::Io(e),
+        })?;
+        codestreams.push((at, n, head));
+    }
+    Ok(ContainerHead { version, parts, codestreams, _charge: charge })
+}
+
+/// The magic number of the TIFF structure of a file of this version (1: JPEG XR, 0: HD Photo).
+fn magic_of(version: u8) -> u16 {
+    if version == 0 {
+        MAGIC_HD_PHOTO
+    } else {
+        MAGIC_JPEG_XR
+    }
+}
+
+/// The version byte of a JPEG XR file from its first bytes ("II", 0xBC, version 0 or 1).
+fn file_version(data: &[u8]) -> Result<u8> {
     if data.len() >= 2 && &data[..2] == b"MM" {
         return Err(Error::invalid("big-endian (\"MM\") JPEG XR file; T.832 A.3 allows only \"II\""));
     }
@@ -440,8 +588,15 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
         Some(_) => return Err(Error::invalid("not a JPEG XR file (no \"II\" 0xBC signature)")),
         None => return Err(Error::truncated("the 8-byte JPEG XR file header")),
     };
-    let magic = if version == 0 { MAGIC_HD_PHOTO } else { MAGIC_JPEG_XR };
-    let tiff = Tiff::parse(data, magic)?;
+    Ok(version)
+}
+
+/// What [`parse_ifd`] calls with each codestream's offset, length and name, for its bytes.
+type TakeCodestream<'c, 'a> = dyn FnMut(u64, u64, &str) -> Result<&'a [u8]> + 'c;
+
+/// The container from the first IFD of `tiff`, the codestreams taken by `codestream` (offset,
+/// length, what they are) once their places are checked against the file.
+fn parse_ifd<'a>(version: u8, tiff: Tiff<'a>, codestream: &mut TakeCodestream<'_, 'a>) -> Result<Container<'a>> {
     let ifd = tiff.first_ifd()?;
 
     let pf_entry =
@@ -487,7 +642,7 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
         Some(n) => u64::from(n),
         // No byte count: up to the alpha codestream if it follows, else to the end of the file.
         None => {
-            let end = alpha_offset.filter(|&a| a > image_offset).map_or(file_len, u64::from);
+            let end = alpha_offset.filter(|&a| a > image_offset).map_or(tiff.file_len(), u64::from);
             end.checked_sub(u64::from(image_offset)).ok_or_else(|| {
                 Error::truncated(format!("the JPEG XR image codestream (offset {image_offset} past the end)"))
             })?
@@ -496,16 +651,12 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
     if image_len == 0 {
         return Err(Error::invalid("the JPEG XR image codestream is empty (IMAGE_BYTE_COUNT 0)"));
     }
-    let within = |off: u64, n: u64, what: &str| -> Result<Range<u64>> {
-        off.checked_add(n).filter(|&end| end <= file_len).map(|end| off..end).ok_or_else(|| {
-            Error::truncated(format!("{what} (bytes {off}..{} of a {file_len}-byte file)", off.saturating_add(n)))
-        })
-    };
-    let image = within(u64::from(image_offset), image_len, "the JPEG XR image codestream")?;
+    let image = codestream(u64::from(image_offset), image_len, "the JPEG XR image codestream")?;
 
     let alpha = match (alpha_offset, alpha_count) {
         (None, None) => None,
         (Some(off), count) => {
+            let file_len = tiff.file_len();
             let len = match count.map(u64::from) {
                 Some(n) if u64::from(off) + n <= file_len => n,
                 // jxrlib's WriteContainerPost stores offset + length (JXR-NOTES §8 quirk 4): a
@@ -517,7 +668,7 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
             if len == 0 {
                 return Err(Error::invalid("the JPEG XR alpha codestream is empty"));
             }
-            Some(within(u64::from(off), len, "the JPEG XR alpha codestream")?)
+            Some(codestream(u64::from(off), len, "the JPEG XR alpha codestream")?)
         }
         (None, Some(_)) => return Err(Error::invalid("JPEG XR ALPHA_BYTE_COUNT without ALPHA_OFFSET")),
     };
@@ -532,12 +683,12 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
         None => None,
     };
 
-    let container = Container {
+    Ok(Container {
         version,
         pixel_format_guid: guid,
         pixel_format,
-        image: &[],
-        alpha: None,
+        image,
+        alpha,
         orientation,
         width,
         height,
@@ -546,8 +697,7 @@ pub(crate) fn parse_layout(data: &[u8], file_len: u64) -> Result<(Container<'_>,
         xmp: blob(&tiff, &ifd, tag::XMP_METADATA)?,
         ptm_color_info,
         exif_ifd,
-    };
-    Ok((container, image, alpha))
+    })
 }
 
 /// What [`write_container`] stores besides the pixel format, the sizes and the codestreams.

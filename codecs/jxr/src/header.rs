@@ -383,13 +383,13 @@ pub struct Codestream {
 /// reads for consistency; allocates only the tile and index tables (bounded by 4096 × 4096
 /// tiles, and by the data's length for the index table).
 pub fn parse(data: &[u8]) -> Result<Codestream> {
-    parse_prefix(data, data.len() as u64)
+    parse_head(data, data.len() as u64)
 }
 
-/// [`parse`] of a codestream `len` bytes long of which `data` holds the first bytes, enough
-/// for its headers and index table (else [`Error::Truncated`]): the index table's entries are
-/// checked against `len`.
-pub(crate) fn parse_prefix(data: &[u8], len: u64) -> Result<Codestream> {
+/// [`parse`] of a codestream of `len` bytes of which `data` holds the first (all of its headers,
+/// or the parse fails as on a codestream cut there): the sizes and offsets are checked against
+/// `len`. What a caller that reads a file piece by piece parses.
+pub fn parse_head(data: &[u8], len: u64) -> Result<Codestream> {
     if data.len() < 8 || &data[..8] != b"WMPHOTO\0" {
         return Err(if data.len() < 8 && b"WMPHOTO\0".starts_with(data) {
             Error::truncated("the JPEG XR codestream signature")
@@ -518,7 +518,7 @@ pub(crate) fn parse_prefix(data: &[u8], len: u64) -> Result<Codestream> {
         }
         let entries = tiles * per_tile;
         // Each entry takes at least one byte.
-        if entries as u64 > (data.len() as u64).saturating_sub(r.byte_pos() + 8) {
+        if entries as u64 > len.saturating_sub(r.byte_pos() + 8) {
             return Err(Error::truncated("the JPEG XR index table"));
         }
         packets.reserve(entries);
@@ -540,7 +540,7 @@ pub(crate) fn parse_prefix(data: &[u8], len: u64) -> Result<Codestream> {
     }
     let header_len = after
         .checked_add(subsequent)
-        .filter(|&l| l <= data.len() as u64)
+        .filter(|&l| l <= len)
         .ok_or_else(|| Error::truncated("the JPEG XR codestream (SUBSEQUENT_BYTES runs past its end)"))?;
     for p in &mut packets {
         *p = p

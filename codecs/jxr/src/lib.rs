@@ -72,6 +72,28 @@ pub struct JxrCodec;
 pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
     let container = container::parse_container(data)?;
     let cs = header::parse(container.image)?;
+    probe_headers(&container, &cs, limits)
+}
+
+/// [`probe_jxr`] from a file (any source that reads and seeks, from its current position): the
+/// container's IFD and tag values and the first 4 KiB of the codestream are read
+/// ([`container::read_container`]), more of it only if its headers (the index table of a file
+/// of many tiles) are longer. Same answer and the same kinds of errors as `probe_jxr` on the
+/// file's bytes.
+pub fn probe_jxr_from(input: &mut dyn hdrcodec_core::ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+    probe_from_reading(input, limits, 4 << 10)
+}
+
+/// [`probe_jxr_from`] reading first `head_len` bytes of the codestream, 16 times more each time
+/// the headers need more.
+fn probe_from_reading(input: &mut dyn hdrcodec_core::ReadSeek, limits: &Limits, head_len: u64) -> Result<ImageInfo> {
+    // The header probe in memory reads the primary codestream's headers only.
+    let file = container::read_headers(input, limits, head_len, false)?;
+    probe_headers(&file.head.container()?, &file.image, limits)
+}
+
+/// What [`probe_jxr`] says of a file with this container and codestream headers.
+fn probe_headers(container: &container::Container, cs: &header::Codestream, limits: &Limits) -> Result<ImageInfo> {
     limits.check_dimensions(u64::from(cs.image.width), u64::from(cs.image.height))?;
     let format = container.pixel_format;
     let channels = if format.alpha { Channels::Rgba } else { Channels::Rgb };
@@ -91,8 +113,8 @@ pub fn probe_jxr(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         Some(o) if o != 0 => format!("{description}, orientation {o}"),
         _ => description,
     };
-    let colour = colour::file_colour(&container);
-    let (width, height) = render::orientation(&container).size(i.width, i.height);
+    let colour = colour::file_colour(container);
+    let (width, height) = render::orientation(container).size(i.width, i.height);
     let mut info = ImageInfo::new(width, height, channels, colour.color).with_format(description);
     info.metadata = colour.metadata;
     Ok(info)
@@ -136,6 +158,11 @@ impl ImageCodec for JxrCodec {
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe_jxr(data, limits)
     }
+    /// The container's IFD and the codestream's headers, read from the file (see
+    /// [`probe_jxr_from`]).
+    fn probe_from(&self, input: &mut dyn hdrcodec_core::ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        probe_jxr_from(input, limits)
+    }
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
         hdrcodec_core::decode_image(self, data, options)
     }
@@ -163,6 +190,56 @@ impl ImageCodec for JxrCodec {
         let (file, report) = encoder::encode(image, &options, &settings.pool)?;
         out.write_all(&file)?;
         Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod probe_tests {
+    use super::*;
+
+    /// A 512x256 file of 16x16-pixel tiles: 512 tiles, an index table of more than 512 bytes.
+    fn tiled() -> Vec<u8> {
+        let (w, h) = (512u32, 256u32);
+        let samples = (0..w * h * 3).map(|i| (i % 97) as f32 / 50.0).collect();
+        let image = HdrImage::new(w, h, Channels::Rgb, samples, Default::default()).unwrap();
+        let settings = EncodeSettings::default().with_option("tile", "16");
+        JxrCodec.encode(&image, &settings).unwrap()
+    }
+
+    fn from(file: &[u8], skip: usize, head_len: u64) -> Result<ImageInfo> {
+        let mut bytes = vec![7; skip];
+        bytes.extend_from_slice(file);
+        let mut input = std::io::Cursor::new(bytes);
+        input.set_position(skip as u64);
+        probe_from_reading(&mut input, &Limits::default(), head_len)
+    }
+
+    #[test]
+    fn headers_longer_than_what_is_read_first_are_read_in_more_steps() {
+        let file = tiled();
+        let info = probe_jxr(&file, &Limits::default()).unwrap();
+        assert!(info.format.contains("32x16 tiles"), "{}", info.format);
+        let cs = header::parse(container::parse_container(&file).unwrap().image).unwrap();
+        assert!(cs.header_len > 512, "{}", cs.header_len);
+        for head_len in [16, 100, 4096] {
+            assert_eq!(from(&file, 3, head_len).unwrap(), info, "first {head_len} bytes");
+        }
+    }
+
+    #[test]
+    fn every_cut_of_a_tiled_file_is_the_same_kind_of_error_from_a_file() {
+        let file = tiled();
+        for cut in (0..file.len()).step_by(7) {
+            let memory = probe_jxr(&file[..cut], &Limits::default());
+            let streamed = from(&file[..cut], 1, 16);
+            match (memory, streamed) {
+                (Ok(m), Ok(s)) => assert_eq!(m, s, "cut {cut}"),
+                (Err(m), Err(s)) => {
+                    assert_eq!(std::mem::discriminant(&m), std::mem::discriminant(&s), "cut {cut}: {m} / {s}")
+                }
+                (m, s) => panic!("cut {cut}: in memory {m:?}, from a file {s:?}"),
+            }
+        }
     }
 }
 

@@ -2,7 +2,7 @@
 //! coefficients, the inverse transform of each channel, chroma upsampling and output
 //! formatting as jxrlib's (its raw samples), then the conversion to linear f32.
 
-use crate::container::{parse_container, parse_layout, Container, OutputBitDepth, OutputColorFormat};
+use crate::container::{parse_container, Container, OutputBitDepth, OutputColorFormat};
 use crate::decoder::{RowCompleter, RowDecoder};
 use crate::header;
 use crate::header::{ClrFmt, Codestream};
@@ -13,7 +13,7 @@ use crate::transform::{
     self, BandRequest, BandScratch, HardEdges, MbRows, OperatorSet, OverlapMode, PlaneKind, TransformParams,
 };
 use hdrcodec_core::sink::{fill_rows, OrientSink, Orientation, RowSink, Scratch};
-use hdrcodec_core::{Allocation, Channels, DecodeOptions, Error, ImageInfo, ReadSeek, Result};
+use hdrcodec_core::{Channels, DecodeOptions, Error, ImageInfo, ReadSeek, Result};
 use std::collections::VecDeque;
 use std::ops::Range;
 
@@ -124,55 +124,27 @@ pub(crate) fn decode_rows_from_tuned(
     tuning: Tuning,
 ) -> Result<()> {
     let limits = &options.limits;
-    let (start, file_len) = hdrcodec_core::remaining_len(input)?;
-    let (head, _head_charge) = read_head(input, start, file_len, limits, |b| parse_layout(b, file_len).map(|_| ()))?;
-    let (container, image, alpha) = parse_layout(&head, file_len)?;
-    // The headers of a codestream, from as many of its first bytes as they take.
-    let codestream = |input: &mut dyn ReadSeek, at: &Range<u64>| -> Result<Codestream> {
-        let len = at.end - at.start;
-        let (bytes, _charge) =
-            read_head(input, start + at.start, len, limits, |b| header::parse_prefix(b, len).map(|_| ()))?;
-        header::parse_prefix(&bytes, len)
-    };
-    let cs = codestream(input, &image)?;
-    let planar = alpha.as_ref().map(|a| codestream(input, a)).transpose()?;
-    if std::iter::once(&cs).chain(planar.as_ref()).any(|c| c.image.sub_version == 0) {
+    let (start, _) = hdrcodec_core::remaining_len(input)?;
+    let headers = crate::container::read_headers(input, limits, 64 << 10, true)?;
+    let container = headers.head.container()?;
+    if std::iter::once(&headers.image).chain(headers.alpha.as_ref()).any(|c| c.image.sub_version == 0) {
         input.seek(std::io::SeekFrom::Start(start))?;
         let data = hdrcodec_core::read_rest(input, limits)?;
         return decode_rows(&data, options, sink);
     }
+    let mut ranges = headers.head.codestream_ranges();
+    let (image, alpha) = (ranges.next(), ranges.next());
+    let image = image.ok_or_else(|| Error::invalid("JPEG XR: no image codestream (a bug in the decoder)"))?;
     let file = SharedFile::new(input, limits, tuning);
     let source = |r: &Range<u64>| Source::File { file: &file, start: start + r.start, len: r.end - r.start };
-    let parsed = Parsed { cs, planar, image: source(&image), alpha: alpha.as_ref().map(source), container };
+    let parsed = Parsed {
+        cs: headers.image,
+        planar: headers.alpha,
+        image: source(&image),
+        alpha: alpha.as_ref().map(source),
+        container,
+    };
     decode_parsed(&parsed, options, sink)
-}
-
-/// The first bytes of `len` at `at` in `input` that `parse` needs: 64 KiB, or four times more
-/// while `parse` finds them truncated (at most `len`), charged to `limits` while they are held.
-fn read_head(
-    input: &mut dyn ReadSeek,
-    at: u64,
-    len: u64,
-    limits: &hdrcodec_core::Limits,
-    parse: impl Fn(&[u8]) -> Result<()>,
-) -> Result<(Vec<u8>, Allocation)> {
-    let mut n = len.min(64 << 10);
-    loop {
-        let charge = limits.charge(n, "the JPEG XR headers")?;
-        let mut bytes = vec![0; usize::try_from(n).map_err(|_| Error::limit("the JPEG XR headers are too large"))?];
-        input.seek(std::io::SeekFrom::Start(at))?;
-        input.read_exact(&mut bytes).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => {
-                Error::truncated(format!("the JPEG XR file (it ended inside bytes {at}..{})", at + n))
-            }
-            _ => Error::Io(e),
-        })?;
-        match parse(&bytes) {
-            Err(Error::Truncated { .. }) if n < len => n = len.min(n.saturating_mul(4)),
-            Err(e) => return Err(e),
-            Ok(()) => return Ok((bytes, charge)),
-        }
-    }
 }
 
 /// A file's container and codestream headers, and where the codestreams' bytes are.

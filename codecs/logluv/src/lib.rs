@@ -219,6 +219,14 @@ pub fn probe(data: &[u8], limits: &Limits, opts: &DecodeOptions) -> Result<Image
     image_info(&tiff::read_info(data)?, limits, opts)
 }
 
+/// [`probe`] from a file (any source that reads and seeks, from its current position): the
+/// header, the first IFD and its tags' values are read from the file
+/// ([`tiff::read_info_from`]), not a strip. Same answer and the same kinds of errors as
+/// [`probe`] on the file's bytes.
+pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits, opts: &DecodeOptions) -> Result<ImageInfo> {
+    image_info(&tiff::read_info_from(input, limits)?, limits, opts)
+}
+
 /// What [`probe`] returns for the image the first IFD describes.
 fn image_info(info: &tiff::TiffInfo, limits: &Limits, opts: &DecodeOptions) -> Result<ImageInfo> {
     limits.check_dimensions(u64::from(info.width), u64::from(info.height))?;
@@ -521,6 +529,10 @@ impl ImageCodec for LogLuvTiffCodec {
     /// The TIFF header and first IFD only (see [`probe`]).
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe(data, limits, &DecodeOptions::default())
+    }
+    /// The TIFF header, first IFD and its tags' values, read from the file (see [`probe_from`]).
+    fn probe_from(&self, input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        probe_from(input, limits, &DecodeOptions::default())
     }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         hdrcodec_core::decode_image(self, data, options)

@@ -8,7 +8,7 @@
 use crate::rle;
 use crate::{Encoding, LogLuvRaster};
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
-use hdrcodec_core::tiff::{self as core_tiff, tag, Entry, IfdWriter, Tiff, MAGIC_TIFF};
+use hdrcodec_core::tiff::{self as core_tiff, tag, Entry, IfdWriter, Tiff, TiffParts, MAGIC_TIFF};
 use hdrcodec_core::{Allocation, Error, Limits, ReadSeek, Result};
 use std::io::SeekFrom;
 
@@ -29,11 +29,10 @@ pub fn is_tiff(head: &[u8]) -> bool {
     core_tiff::sniff(head, MAGIC_TIFF)
 }
 
-/// Parses the header and the first IFD, keeping the entries of known types whose values lie
-/// inside the file (values past the end are an error only for the tags [`read`] uses); walks the
-/// rest of the IFD chain only to reject loops and pointers past the end of the file.
-fn read_ifd(data: &[u8]) -> Result<(Tiff<'_>, Vec<Entry>)> {
-    let t = Tiff::parse(data, MAGIC_TIFF)?;
+/// Reads the first IFD of `t`, keeping the entries of known types whose values lie inside the
+/// file (values past the end are an error only for the tags [`read`] uses); walks the rest of
+/// the IFD chain only to reject loops and pointers past the end of the file.
+fn read_ifd(t: Tiff<'_>) -> Result<(Tiff<'_>, Vec<Entry>)> {
     let mut chain = t.ifd_chain();
     let first = chain.next().ok_or_else(|| Error::invalid("the TIFF file has no image (first IFD offset is 0)"))??;
     let mut entries = Vec::new();
@@ -85,12 +84,27 @@ pub struct TiffInfo {
 /// Reads the TIFF header and the tags of the first IFD that describe the image (no strip
 /// offsets, no pixels): allocates only the IFD's entry list.
 pub fn read_info(data: &[u8]) -> Result<TiffInfo> {
-    Ok(read_header(data)?.2)
+    Ok(read_header(Tiff::parse(data, MAGIC_TIFF)?)?.2)
+}
+
+/// [`read_info`] from a file (any source that reads and seeks, from its current position):
+/// the header, the first IFD and the values of the tags that describe the image are read from
+/// the file (see [`StripRows::from_reader`]), not a strip.
+pub fn read_info_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<TiffInfo> {
+    let parts = read_parts(input, limits)?;
+    Ok(read_header(Tiff::from_parts(&parts, MAGIC_TIFF)?)?.2)
+}
+
+/// What [`read_info_from`] and [`StripRows::from_reader`] read of a file: its header, IFDs and
+/// the values of the tags the decoder uses ([`TiffParts`]).
+fn read_parts(input: &mut dyn ReadSeek, limits: &Limits) -> Result<TiffParts> {
+    // TileWidth's presence is read too (a tiled file is refused).
+    TiffParts::read(input, MAGIC_TIFF, limits, &|t| is_needed(t) || t == tag::TILE_WIDTH)
 }
 
 /// The IFD and what it says of the image (the part of [`read`] before the strips).
-fn read_header(data: &[u8]) -> Result<(Tiff<'_>, Vec<Entry>, TiffInfo)> {
-    let (r, entries) = read_ifd(data)?;
+fn read_header(t: Tiff<'_>) -> Result<(Tiff<'_>, Vec<Entry>, TiffInfo)> {
+    let (r, entries) = read_ifd(t)?;
     let find = |t: u16| entries.iter().find(|e| e.tag == t);
     let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
     let width = required(tag::IMAGE_WIDTH, "ImageWidth")?.first_u32(&r)?;
@@ -196,8 +210,8 @@ enum StripSource<'a> {
 /// (at most one entry per strip of the checked height).
 type StripTables = (TiffInfo, u32, Vec<u32>, Vec<u32>);
 
-fn strip_tables(data: &[u8]) -> Result<StripTables> {
-    let (r, entries, info) = read_header(data)?;
+fn strip_tables(t: Tiff<'_>) -> Result<StripTables> {
+    let (r, entries, info) = read_header(t)?;
     let find = |t: u16| entries.iter().find(|e| e.tag == t);
     let required = |t: u16, name: &str| find(t).ok_or_else(|| Error::invalid(format!("the TIFF has no {name} tag")));
     let height = info.height;
@@ -232,109 +246,25 @@ fn read_at(input: &mut dyn ReadSeek, base: u64, at: u64, out: &mut [u8], what: &
     })
 }
 
-/// The parts of a TIFF file (from `input`'s position, `len` bytes) that describe its first
-/// image, read from the file and laid out as a small TIFF of their own: the header, the first
-/// IFD (its next-IFD offset 0) and the out-of-line values of the tags the decoder uses, their
-/// offsets rewritten (other tags' offsets point past its end, so they are dropped as values
-/// outside the file are). The strip offsets it holds still count from the original file's
-/// start. The rest of the IFD chain is walked in the file and checked as [`read_ifd`] checks
-/// it (loops, IFDs past the end). What it reads is bounded by the file and charged to `limits`.
-fn read_structure(input: &mut dyn ReadSeek, base: u64, len: u64, limits: &Limits) -> Result<Vec<u8>> {
-    let mut head = [0u8; core_tiff::HEADER_LEN];
-    let n = (len as usize).min(head.len());
-    read_at(input, base, 0, &mut head[..n], "the TIFF header")?;
-    let t = Tiff::parse(&head[..n], MAGIC_TIFF)?;
-    let order = t.order();
-    let first = u64::from(t.first_ifd_offset());
-    if first == 0 {
-        return Err(Error::invalid("the TIFF file has no image (first IFD offset is 0)"));
-    }
-    let ifd_len = |input: &mut dyn ReadSeek, at: u64| -> Result<u64> {
-        let what = format!("the TIFF IFD at offset {at}");
-        let mut count = [0u8; 2];
-        read_at(input, base, at, &mut count, &what)?;
-        let n = u64::from(ByteReader::new(&count, order).u16(&what)?);
-        let ifd = 2 + core_tiff::ENTRY_LEN * n + 4;
-        if at.saturating_add(ifd) > len {
-            return Err(Error::truncated(format!("{what} ({ifd} bytes in a {len}-byte file)")));
-        }
-        Ok(ifd)
-    };
-    let first_len = ifd_len(input, first)?;
-    let mut charge = limits.charge(head.len() as u64 + first_len, "the TIFF's IFD and tag values")?;
-    let mut out = head.to_vec();
-    out.resize(first_len as usize + head.len(), 0);
-    read_at(input, base, first, &mut out[head.len()..], "the first TIFF IFD")?;
-    let put = |v: u32| match order {
-        ByteOrder::Little => v.to_le_bytes(),
-        ByteOrder::Big => v.to_be_bytes(),
-    };
-    out[4..8].copy_from_slice(&put(core_tiff::HEADER_LEN as u32));
-    // The original next-IFD offset; the copy's is 0.
-    let next_at = out.len() - 4;
-    let mut next = u64::from(ByteReader::new(&out[next_at..], order).u32("the first TIFF IFD")?);
-    out[next_at..].fill(0);
-    // The out-of-line values of the tags the decoder reads, appended word-aligned.
-    let ifd = Tiff::parse(&out, MAGIC_TIFF)?.read_ifd(core_tiff::HEADER_LEN as u64)?;
-    for e in &ifd.entries {
-        let Some(bytes) = e.byte_len() else { continue };
-        if bytes <= 4 {
-            continue;
-        }
-        let mut new_at = u32::MAX;
-        let from = u64::from(e.value_field);
-        if is_needed(e.tag) && from.saturating_add(bytes) <= len {
-            if out.len() % 2 == 1 {
-                out.push(0);
-            }
-            let grown = out.len() as u64 + bytes;
-            charge = {
-                drop(charge);
-                limits.charge(grown, "the TIFF's IFD and tag values")?
-            };
-            let at = out.len();
-            new_at = at as u32;
-            out.resize(at + bytes as usize, 0);
-            read_at(input, base, from, &mut out[at..], "a TIFF tag's values")?;
-        }
-        let field = e.field_at as usize;
-        out[field..field + 4].copy_from_slice(&put(new_at));
-    }
-    drop(charge);
-    // The rest of the chain, checked in the file.
-    let mut seen = std::collections::HashSet::from([first]);
-    while next != 0 {
-        if !seen.insert(next) {
-            return Err(Error::invalid(format!("the TIFF IFD chain loops (offset {next} again)")));
-        }
-        if seen.len() > core_tiff::MAX_IFDS {
-            return Err(Error::limit(format!("more than {} TIFF IFDs", core_tiff::MAX_IFDS)));
-        }
-        let l = ifd_len(input, next)?;
-        let mut link = [0u8; 4];
-        read_at(input, base, next + l - 4, &mut link, "a TIFF IFD")?;
-        next = u64::from(ByteReader::new(&link, order).u32("a TIFF IFD")?);
-    }
-    Ok(out)
-}
-
 impl<'a> StripRows<'a> {
     /// Reads the IFD and the strip tables (at most one entry per strip of the checked height).
     pub fn new(data: &'a [u8]) -> Result<Self> {
-        let (info, rows_per_strip, offsets, counts) = strip_tables(data)?;
-        let file = ByteReader::new(data, Tiff::parse(data, MAGIC_TIFF)?.order());
+        let t = Tiff::parse(data, MAGIC_TIFF)?;
+        let file = ByteReader::new(data, t.order());
+        let (info, rows_per_strip, offsets, counts) = strip_tables(t)?;
         let source = StripSource::Memory { file, strip: &[] };
         Ok(StripRows { info, rows_per_strip, offsets, counts, row: 0, source, pos: 0 })
     }
 
     /// [`new`](Self::new) for a file (any source that reads and seeks, from its current
-    /// position): the header, the first IFD and the values of its tags are read from the file,
-    /// then each strip when its first row is decoded, into a buffer charged to `limits` (the
-    /// largest strip), so that the file is never held whole.
+    /// position): the header, the IFDs and the values of the tags it uses are read from the file
+    /// ([`TiffParts`]), then each strip when its first row is decoded, into a buffer charged to
+    /// `limits` (the largest strip), so that the file is never held whole.
     pub fn from_reader(input: &'a mut dyn ReadSeek, limits: &Limits) -> Result<Self> {
         let (base, len) = hdrcodec_core::remaining_len(input)?;
-        let structure = read_structure(input, base, len, limits)?;
-        let (info, rows_per_strip, offsets, counts) = strip_tables(&structure)?;
+        let parts = read_parts(input, limits)?;
+        let (info, rows_per_strip, offsets, counts) = strip_tables(Tiff::from_parts(&parts, MAGIC_TIFF)?)?;
+        drop(parts);
         let source = StripSource::File { input, base, len, strip: Vec::new(), charge: None, limits: limits.clone() };
         Ok(StripRows { info, rows_per_strip, offsets, counts, row: 0, source, pos: 0 })
     }

@@ -179,6 +179,22 @@ pub fn decode_pfm_rows(data: &[u8], limits: &Limits, sink: &mut dyn RowSink) -> 
 /// whole (at most a band of about 1 MB of its bytes, charged to `limits`). Same rows and the
 /// same kinds of errors as [`decode_pfm_rows`] on the file's bytes.
 pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mut dyn RowSink) -> Result<()> {
+    let (h, start) = read_header_from(input, limits)?;
+    let info = header_info(&h);
+    let pixels = StoredBytes::file(input, start, limits, PIXELS);
+    decode_bands(&h, &info, limits, sink, pixels)
+}
+
+/// [`probe_pfm`] from a file (any source that reads and seeks, from its current position):
+/// reads the header alone and checks the file's length against the pixels it declares. Same
+/// answer and the same kinds of errors as [`probe_pfm`] on the file's bytes.
+pub fn probe_pfm_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+    Ok(header_info(&read_header_from(input, limits)?.0))
+}
+
+/// The header of the PFM file at `input`'s position, checked as [`probe_pfm`] checks it, and
+/// where in `input` its pixels start.
+fn read_header_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<(Header, u64)> {
     let (at, rest) = hdrcodec_core::remaining_len(input)?;
     // The header with a byte to spare past its longest accepted length (the parser looks at
     // the byte after the last token), or the whole file when it is shorter.
@@ -198,9 +214,7 @@ pub fn decode_pfm_rows_from(input: &mut dyn ReadSeek, limits: &Limits, sink: &mu
             rest
         )));
     }
-    let info = header_info(&h);
-    let pixels = StoredBytes::file(input, start, limits, PIXELS);
-    decode_bands(&h, &info, limits, sink, pixels)
+    Ok((h, start))
 }
 
 /// Delivers the rows of the image the header `h` describes, band by band from the top, each
@@ -360,6 +374,10 @@ impl ImageCodec for PfmCodec {
     /// The header only (see [`probe_pfm`]).
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         probe_pfm(data, limits)
+    }
+    /// The header only, read from the file (see [`probe_pfm_from`]).
+    fn probe_from(&self, input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        probe_pfm_from(input, limits)
     }
     fn decode_with(&self, data: &[u8], options: &DecodeOptions) -> Result<HdrImage> {
         hdrcodec_core::decode_image(self, data, options)

@@ -5,7 +5,7 @@ use crate::header::{self, Axis, Header, PixelFormat};
 use crate::{MantissaDecode, RgbeDecodeOptions};
 use hdrcodec_core::bytes::ByteReader;
 use hdrcodec_core::sink::{band_rows, fill_rows, ImageSink, RowSink, Scratch};
-use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, Result};
+use hdrcodec_core::{Channels, ColorInfo, ColorPrimaries, Error, HdrImage, ImageInfo, Limits, ReadSeek, Result};
 
 /// New-style RLE is used only for scanlines of 8 to 0x7fff pixels (Radiance's MINELEN and
 /// MAXELEN); shorter or longer ones are always old-style or flat.
@@ -483,9 +483,47 @@ fn primaries(hdr: &Header) -> ColorPrimaries {
 
 /// Reads the header and resolution string only: see [`crate::probe`].
 pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
-    let hdr = header::parse(data)?;
+    probe_head(data, data.len() as u64, limits)
+}
+
+/// [`probe`] from a file (any source that reads and seeks, from its current position): reads
+/// the first 64 KiB, or as much as the longest header accepted (1 MiB) if the header is longer,
+/// and the first bytes of the first scanline. Same answer and the same kinds of errors as
+/// [`probe`] on the file's bytes.
+pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+    use std::io::Read;
+    let (at, len) = hdrcodec_core::remaining_len(input)?;
+    // The header, its resolution string and the 4 bytes that say whether scanlines are coded.
+    let most = (header::MAX_HEADER_BYTES as u64 + 4).min(len);
+    let mut read = |n: u64| -> Result<Vec<u8>> {
+        input.seek(std::io::SeekFrom::Start(at))?;
+        let mut head = Vec::new();
+        (&mut *input).take(n).read_to_end(&mut head)?;
+        Ok(head)
+    };
+    let first = (64 << 10u64).min(most);
+    match probe_head(&read(first)?, len, limits) {
+        Err(_) if first < most => probe_head(&read(most)?, len, limits),
+        r => r,
+    }
+}
+
+/// [`probe`] of a file of `len` bytes that starts with `head`, which holds at least the header,
+/// the resolution string and the first 4 bytes of the pixels when the file has them.
+fn probe_head(head: &[u8], len: u64, limits: &Limits) -> Result<ImageInfo> {
+    let hdr = header::parse(head)?;
     limits.check_dimensions(u64::from(hdr.width()), u64::from(hdr.height()))?;
-    let r = pixel_reader(&hdr, data)?;
+    let r = ByteReader::le(head).at(hdr.data_start as u64);
+    let (nscan, n) = (hdr.major.len, hdr.minor.len);
+    // As `pixel_reader` checks it, against the whole file's length.
+    let need = u64::from(nscan) * 4;
+    if need > len.saturating_sub(hdr.data_start as u64) {
+        return Err(Error::truncated(format!(
+            "the {nscan} scanlines of {n} pixels, at least 4 bytes each (bytes {}..{} of a {len}-byte input)",
+            hdr.data_start,
+            hdr.data_start as u64 + need
+        )));
+    }
     // The first scanline says how the pixels are stored (files use one encoding throughout).
     let n = hdr.minor.len as usize;
     let rle = (MIN_RLE_LEN..=MAX_RLE_LEN).contains(&n) && rle_length(r.peek_rest()).is_some();

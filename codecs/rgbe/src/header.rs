@@ -10,7 +10,7 @@ use hdrcodec_core::{Chromaticities, Error, Result};
 
 /// Longest header we accept: real headers are a few hundred bytes, and a bound keeps a file of
 /// megabytes without a newline from being scanned as "header" forever.
-const MAX_HEADER_BYTES: usize = 1 << 20;
+pub(crate) const MAX_HEADER_BYTES: usize = 1 << 20;
 
 /// The pixel encoding named by `FORMAT=`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

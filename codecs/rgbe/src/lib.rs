@@ -226,6 +226,11 @@ impl ImageCodec for RgbeCodec {
     fn probe(&self, data: &[u8], limits: &Limits) -> Result<ImageInfo> {
         decode::probe(data, limits)
     }
+    /// The header only, read from the file: at most 64 KiB of it, or 1 MiB for the longest
+    /// header accepted.
+    fn probe_from(&self, input: &mut dyn hdrcodec_core::ReadSeek, limits: &Limits) -> Result<ImageInfo> {
+        decode::probe_from(input, limits)
+    }
     fn decode_with(&self, data: &[u8], options: &hdrcodec_core::DecodeOptions) -> Result<HdrImage> {
         hdrcodec_core::decode_image(self, data, options)
     }
