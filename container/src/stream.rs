@@ -143,13 +143,7 @@ impl<'r> StreamFile<'r> {
 impl Source<'_> {
     /// Reads `out.len()` bytes at `offset` in the file.
     fn read_at(&mut self, offset: u64, out: &mut [u8]) -> Result<()> {
-        self.input.seek(SeekFrom::Start(self.base + offset))?;
-        self.input.read_exact(out).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => {
-                Error::truncated(format!("the file at offset {offset} (it ended while it was read)"))
-            }
-            _ => Error::Io(e),
-        })
+        hdrcodec_core::read_exact_at(self.input, self.base + offset, out, "the .hdrc file")
     }
 
     /// Reads the chunk at `*at` and moves `*at` past it: its length checked against the bytes

@@ -297,6 +297,20 @@ pub fn remaining_len(input: &mut dyn ReadSeek) -> Result<(u64, u64)> {
     Ok((at, end.saturating_sub(at)))
 }
 
+/// Reads `out.len()` bytes of `input` at position `offset`: a source that ends first is
+/// [`Error::Truncated`] naming `what` and the bytes asked for. What the decoders that read a
+/// file piece by piece read each piece with.
+pub fn read_exact_at(input: &mut dyn ReadSeek, offset: u64, out: &mut [u8], what: &str) -> Result<()> {
+    input.seek(std::io::SeekFrom::Start(offset))?;
+    input.read_exact(out).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
+            "{what} (the input ended inside bytes {offset}..{})",
+            offset.saturating_add(out.len() as u64)
+        )),
+        _ => Error::Io(e),
+    })
+}
+
 /// The bytes of `input` from its position to its end, their size charged to `limits` (checked
 /// before anything is allocated) while the returned buffer lives. A source that ends before
 /// the size it reported is [`Error::Truncated`].
@@ -360,14 +374,7 @@ impl<'a> StoredBytes<'a> {
                     *charge = Some(limits.charge(len as u64, "a band of rows read from the file")?);
                     buf.resize(len, 0);
                 }
-                input.seek(std::io::SeekFrom::Start(*start + offset as u64))?;
-                input.read_exact(&mut buf[..len]).map_err(|e| match e.kind() {
-                    std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
-                        "{what} (the file ended inside bytes {offset}..{} of them)",
-                        offset + len
-                    )),
-                    _ => Error::Io(e),
-                })?;
+                read_exact_at(*input, *start + offset as u64, &mut buf[..len], what)?;
                 Ok(&buf[..len])
             }
         }

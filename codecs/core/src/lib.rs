@@ -46,9 +46,9 @@ pub mod tonemap;
 pub mod transfer;
 
 pub use codec::{
-    decode_image, encode_rows, encode_via_seekable, read_rest, remaining_len, split_option, ChargedBytes,
-    ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, PendingHeader, ReadSeek,
-    RowCounter, RowEncoder, StoredBytes, StreamReport, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
+    decode_image, encode_rows, encode_via_seekable, read_exact_at, read_rest, remaining_len, split_option,
+    ChargedBytes, ColorSignalling, DecodeOptions, EncodeReport, EncodeSettings, ImageCodec, ImageInfo, PendingHeader,
+    ReadSeek, RowCounter, RowEncoder, StoredBytes, StreamReport, VideoCodec, VideoDecoder, VideoEncoder, WriteSeek,
 };
 pub use color::{Chromaticities, ColorPrimaries, Mat3, YcbcrCoefficients};
 pub use error::{Error, Result};

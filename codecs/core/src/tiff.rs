@@ -46,7 +46,6 @@
 use crate::bytes::{ByteOrder, ByteReader, ByteWriter};
 use crate::{Allocation, Error, Limits, ReadSeek, Result};
 use std::collections::HashSet;
-use std::io::SeekFrom;
 
 /// The magic number of TIFF (Section 2, "Image File Header", bytes 2-3).
 pub const MAGIC_TIFF: u16 = 42;
@@ -360,14 +359,8 @@ impl TiffParts {
         reading.held = reading.held.saturating_add(n);
         self._charge = None;
         self._charge = Some(reading.limits.charge(reading.held, "the TIFF's IFDs and tag values")?);
-        let mut bytes = vec![0; n as usize];
-        reading.input.seek(SeekFrom::Start(reading.base + at))?;
-        reading.input.read_exact(&mut bytes).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => {
-                Error::truncated(format!("the TIFF file (it ended inside bytes {at}..{})", at + n))
-            }
-            _ => Error::Io(e),
-        })?;
+        let mut bytes = vec![0; usize::try_from(n).map_err(|_| Error::limit("a TIFF tag's values are too large"))?];
+        crate::codec::read_exact_at(reading.input, reading.base + at, &mut bytes, "the TIFF file")?;
         if self.parts.get(&at).is_none_or(|b| b.len() < bytes.len()) {
             self.parts.insert(at, bytes);
         }

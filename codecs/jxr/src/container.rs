@@ -448,16 +448,19 @@ const READ_TAGS: [u16; 14] = [
 pub struct ContainerHead {
     version: u8,
     parts: TiffParts,
+    /// Where the file starts in the stream.
+    base: u64,
     /// Where each codestream is (offset, length) and its first bytes, primary first.
     codestreams: Vec<(u64, u64, Vec<u8>)>,
-    _charge: Allocation,
+    /// The first bytes' charge.
+    _charge: Option<Allocation>,
 }
 
 impl ContainerHead {
     /// The container as [`parse_container`] returns it for the whole file, except that its
     /// [`image`](Container::image) and [`alpha`](Container::alpha) hold only the first bytes of
     /// each codestream that were read (all of them when the codestream is shorter than what was
-    /// asked for): [`image_len`](Self::image_len) is the primary codestream's length.
+    /// asked for); [`codestream_ranges`](Self::codestream_ranges) gives their lengths.
     pub fn container(&self) -> Result<Container<'_>> {
         let tiff = Tiff::from_parts(&self.parts, magic_of(self.version))?;
         let mut heads = self.codestreams.iter();
@@ -469,15 +472,25 @@ impl ContainerHead {
         })
     }
 
-    /// The length of the primary codestream (IMAGE_BYTE_COUNT, or as [`parse_container`] infers it).
-    pub fn image_len(&self) -> u64 {
-        self.codestreams.first().map_or(0, |c| c.1)
-    }
-
     /// Where each codestream lies in the file (from the position [`read_container`] started
     /// at), primary first, then the planar alpha codestream if there is one.
     pub fn codestream_ranges(&self) -> impl Iterator<Item = std::ops::Range<u64>> + '_ {
         self.codestreams.iter().map(|&(at, n, _)| at..at + n)
+    }
+
+    /// Reads the first `head_len` bytes of each codestream (all of a shorter one) in place of
+    /// those held, charged to `limits`.
+    fn read_heads(&mut self, input: &mut dyn ReadSeek, limits: &Limits, head_len: u64) -> Result<()> {
+        let total: u64 = self.codestreams.iter().map(|&(_, n, _)| n.min(head_len)).sum();
+        self._charge = None;
+        self._charge = Some(limits.charge(total, "the first bytes of the JPEG XR codestreams")?);
+        for (at, n, head) in &mut self.codestreams {
+            let len = usize::try_from((*n).min(head_len))
+                .map_err(|_| Error::limit("the first bytes of a JPEG XR codestream are too many"))?;
+            head.resize(len, 0);
+            hdrcodec_core::read_exact_at(input, self.base + *at, head, "the JPEG XR file")?;
+        }
+        Ok(())
     }
 }
 
@@ -494,20 +507,14 @@ pub struct FileHeaders {
 }
 
 /// [`read_container`] and the headers of its primary codestream and, if `with_alpha`, of its
-/// planar alpha codestream (`header::parse_head`), reading first
-/// `head_len` bytes of each codestream and 16 times more each time the headers (a long index
-/// table) need more: what a header probe and a decoder that reads the file piece by piece both
-/// start from. Reads from `input`'s position; errors are those of the file held in memory.
-pub fn read_headers(
-    input: &mut dyn ReadSeek,
-    limits: &Limits,
-    mut head_len: u64,
-    with_alpha: bool,
-) -> Result<FileHeaders> {
-    let (at, _) = hdrcodec_core::remaining_len(input)?;
+/// planar alpha codestream (`header::parse_head`), reading first `head_len` bytes of each
+/// codestream (at least 64) and 16 times more each time the headers (a long index table) need
+/// more: what a header probe and a decoder that reads the file piece by piece both start from.
+/// Reads from `input`'s position; errors are those of the file held in memory.
+pub fn read_headers(input: &mut dyn ReadSeek, limits: &Limits, head_len: u64, with_alpha: bool) -> Result<FileHeaders> {
+    let mut head_len = head_len.max(64);
+    let mut head = read_container(input, limits, head_len)?;
     loop {
-        input.seek(SeekFrom::Start(at))?;
-        let head = read_container(input, limits, head_len)?;
         let container = head.container()?;
         let lens: Vec<u64> = head.codestream_ranges().map(|r| r.end - r.start).collect();
         // A codestream's header errors are its own only when all of it was there to read.
@@ -515,14 +522,19 @@ pub fn read_headers(
             Err(_) if (bytes.len() as u64) < len => None,
             cs => Some(cs),
         };
-        let image = parse(container.image, lens[0]);
+        let image = parse(container.image, lens.first().copied().unwrap_or(0));
         let alpha = container.alpha.filter(|_| with_alpha).map(|a| parse(a, lens.get(1).copied().unwrap_or(0)));
-        match (image, alpha) {
-            (Some(image), None) => return Ok(FileHeaders { image: image?, alpha: None, head }),
-            (Some(image), Some(Some(alpha))) => {
-                return Ok(FileHeaders { image: image?, alpha: Some(alpha?), head });
+        let found = match (image, alpha) {
+            (Some(image), None) => Some((image?, None)),
+            (Some(image), Some(Some(alpha))) => Some((image?, Some(alpha?))),
+            _ => None,
+        };
+        match found {
+            Some((image, alpha)) => return Ok(FileHeaders { image, alpha, head }),
+            None => {
+                head_len = head_len.saturating_mul(16);
+                head.read_heads(input, limits, head_len)?;
             }
-            _ => head_len = head_len.saturating_mul(16),
         }
     }
 }
@@ -540,7 +552,7 @@ pub fn read_container(input: &mut dyn ReadSeek, limits: &Limits, head_len: u64) 
     let parts = TiffParts::read(input, magic_of(version), limits, &|t| READ_TAGS.contains(&t))?;
     // Where the codestreams are, checked against the file's length as the bytes of a file in
     // memory would be.
-    let mut located = Vec::new();
+    let mut codestreams = Vec::new();
     parse_ifd(version, Tiff::from_parts(&parts, magic_of(version))?, &mut |at, n, what| {
         if at.checked_add(n).is_none_or(|end| end > len) {
             return Err(Error::truncated(format!(
@@ -548,22 +560,12 @@ pub fn read_container(input: &mut dyn ReadSeek, limits: &Limits, head_len: u64) 
                 at.saturating_add(n)
             )));
         }
-        located.push((at, n));
+        codestreams.push((at, n, Vec::new()));
         Ok(&[])
     })?;
-    let heads: u64 = located.iter().map(|&(_, n)| n.min(head_len)).sum();
-    let charge = limits.charge(heads, "the first bytes of the JPEG XR codestreams")?;
-    let mut codestreams = Vec::with_capacity(located.len());
-    for (at, n) in located {
-        let mut head = vec![0; n.min(head_len) as usize];
-        input.seek(SeekFrom::Start(base + at))?;
-        input.read_exact(&mut head).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => Error::truncated("the JPEG XR file (it ended while it was read)"),
-            _ => Error::Io(e),
-        })?;
-        codestreams.push((at, n, head));
-    }
-    Ok(ContainerHead { version, parts, codestreams, _charge: charge })
+    let mut head = ContainerHead { version, parts, base, codestreams, _charge: None };
+    head.read_heads(input, limits, head_len)?;
+    Ok(head)
 }
 
 /// The magic number of the TIFF structure of a file of this version (1: JPEG XR, 0: HD Photo).

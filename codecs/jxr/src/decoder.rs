@@ -187,7 +187,11 @@ impl<'a> RowDecoder<'a> {
     /// The next macroblock row (`None` after the last): for each plane (primary, then
     /// alpha), `mb_width × channels` arrays of [`MB_COEFFS`], dequantized and predicted.
     pub fn next_row(&mut self, out: &mut [Vec<i32>]) -> Result<Option<u32>> {
-        self.advance(out, None)
+        if self.my >= self.cs.image.mb_height {
+            return Ok(None);
+        }
+        self.next_rows(&mut [out], None)?;
+        Ok(Some(self.my - 1))
     }
 
     /// True when the codestream's flexbits are in packets of their own (frequency order with
@@ -195,14 +199,6 @@ impl<'a> RowDecoder<'a> {
     /// then decode them on another thread, a row behind.
     pub(crate) fn can_defer_flex(cs: &Codestream) -> bool {
         cs.image.frequency_mode && cs.primary.bands.has_flex()
-    }
-
-    fn advance(&mut self, out: &mut [Vec<i32>], side: Option<&mut [Vec<MbSide>]>) -> Result<Option<u32>> {
-        if self.my >= self.cs.image.mb_height {
-            return Ok(None);
-        }
-        self.next_rows(&mut [out], side.map(|s| vec![s]))?;
-        Ok(Some(self.my - 1))
     }
 
     /// The next `outs.len()` rows at once, each as [`next_row`](Self::next_row) gives it; with
@@ -328,7 +324,7 @@ impl<'a> RowCompleter<'a> {
         RowCompleter { cs, data, pool, ty: 0, left: 0, stages: Vec::new() }
     }
 
-    /// Completes the next row (`out` and `side` as [`RowDecoder::next_row_deferred`] gave them).
+    /// Completes the next row (`out` and `side` as [`RowDecoder::next_rows`] gave them).
     pub fn complete(&mut self, out: &mut [Vec<i32>], side: &[Vec<MbSide>]) -> Result<()> {
         let img = &self.cs.image;
         if self.left == 0 {

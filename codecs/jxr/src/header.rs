@@ -537,6 +537,8 @@ pub fn parse_head(data: &[u8], len: u64) -> Result<Codestream> {
     let mut profile_level = None;
     if subsequent >= 4 {
         profile_level = Some((r.read(8) as u8, r.read(8) as u8));
+        // On the first bytes of a codestream (`parse_head`), not zeros read past them.
+        r.check("the JPEG XR codestream's profile and level")?;
     }
     let header_len = after
         .checked_add(subsequent)

@@ -323,8 +323,8 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
     let with_alpha = format.alpha && (cs.alpha.is_some() || alpha_dec.is_some());
     let prim_params =
         params(primary.scaled, OperatorSet::for_plane(cs, container.image, 0, options)?, (overlap, &hard));
-    // (From a file, `container.image` and `alpha` are empty: only HD Photo 1.0's operators
-    // read them, and such files are decoded from memory.)
+    // (From a file, `container.image` and `alpha` hold only the first bytes of each codestream:
+    // only HD Photo 1.0's operators read further, and such files are decoded from memory.)
     let alpha_ops = match (&cs.alpha, planar_cs) {
         (Some(_), _) if with_alpha => OperatorSet::for_plane(cs, container.image, 1, options)?,
         (None, Some(p)) if with_alpha => OperatorSet::for_plane(p, container.alpha.unwrap_or_default(), 0, options)?,
@@ -347,11 +347,7 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
     let coeff_rows = (if parallel { 2 * band } else { band } + 2 + halo_below).min(mb_h + 2);
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
     let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8) * if parallel { 2 } else { 1 };
-    let raw_rows_held = if parallel { band * 16 + FORMAT_JOBS } else { FORMAT_CHUNK };
     let full_rows = if parallel { FORMAT_JOBS } else { 1 } * primary.channels * 16 * mb_w * 4;
-    let sample_bytes = (sample_rows * mb_w * 16 * 4 * (primary.channels + 1) + full_rows) as u64
-        + (raw_rows_held * out.row_bytes(width)) as u64;
-    let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     if let Output::Sink(s) = &mut output {
         s.start(&info)?;
@@ -362,6 +358,17 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
         Output::Raw { .. } => true,
         Output::Sink(s) => s.rows_mut(0, img.height).is_some(),
     };
+    // Rows in the pixel format's bytes: in place, a row per formatting job (f32 rows are
+    // formatted into one, then converted); else a band's of them (two threads) or a few.
+    let raw_rows_held = match (in_place, parallel) {
+        (true, true) => FORMAT_JOBS,
+        (true, false) => 1,
+        (false, true) => band * 16 + FORMAT_JOBS,
+        (false, false) => FORMAT_CHUNK,
+    };
+    let sample_bytes = (sample_rows * mb_w * 16 * 4 * (primary.channels + 1) + full_rows) as u64
+        + (raw_rows_held * out.row_bytes(width)) as u64;
+    let _charge = options.limits.charge(coeff_bytes + sample_bytes, "the JPEG XR band buffers")?;
     let [top, left, _, _] = img.margins.map(|m| m as usize);
     let ext_w = 16 * mb_w;
     let row_len = width * channels.count();
@@ -469,13 +476,10 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
         let y0 = band_rows(t.r0).0 - top + part.start;
         let raws = raw_band.chunks_exact(raw_row.max(1)).take(part.len());
         match output {
-            Output::Raw { buf, stride } => raws.enumerate().try_for_each(|(i, raw)| {
-                buf.get_mut((y0 + i) * *stride..)
-                    .and_then(|b| b.get_mut(..raw.len()))
-                    .ok_or_else(|| Error::invalid("JPEG XR: a row past the caller's buffer (a bug in the decoder)"))?
-                    .copy_from_slice(raw);
-                Ok(())
-            }),
+            // Raw rows are always formatted in place.
+            Output::Raw { .. } => {
+                Err(Error::invalid("JPEG XR: raw rows handed out after a step (a bug in the decoder)"))
+            }
             Output::Sink(s) => {
                 fill_rows(&mut **s, y0 as u32, part.len() as u32, row_len, scratch, |dst: &mut [f32]| {
                     raws.zip(dst.chunks_exact_mut(row_len)).try_for_each(|(raw, d)| out.row_to_f32(raw, width, d))

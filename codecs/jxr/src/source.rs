@@ -14,7 +14,6 @@ use crate::bits::{BitReader, ReaderState};
 use crate::header::Codestream;
 use crate::mb::MB_COEFFS;
 use hdrcodec_core::{Allocation, Error, Limits, ReadSeek, Result};
-use std::io::SeekFrom;
 use std::sync::Mutex;
 
 /// Reads bytes at an offset of a file; shared by the packets' windows, which the tiles of a
@@ -64,14 +63,7 @@ impl<'f> SharedFile<'f> {
 impl ReadAt for SharedFile<'_> {
     fn read_at(&self, offset: u64, out: &mut [u8]) -> Result<()> {
         let mut input = self.input.lock().map_err(|_| Error::invalid("JPEG XR: a thread reading the file failed"))?;
-        input.seek(SeekFrom::Start(offset))?;
-        input.read_exact(out).map_err(|e| match e.kind() {
-            std::io::ErrorKind::UnexpectedEof => Error::truncated(format!(
-                "the JPEG XR file (it ended inside bytes {offset}..{})",
-                offset + out.len() as u64
-            )),
-            _ => Error::Io(e),
-        })
+        hdrcodec_core::read_exact_at(&mut **input, offset, out, "the JPEG XR file")
     }
     fn limits(&self) -> &Limits {
         &self.limits

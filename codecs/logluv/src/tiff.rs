@@ -10,7 +10,6 @@ use crate::{Encoding, LogLuvRaster};
 use hdrcodec_core::bytes::{ByteOrder, ByteReader, ByteWriter};
 use hdrcodec_core::tiff::{self as core_tiff, tag, Entry, IfdWriter, Tiff, TiffParts, MAGIC_TIFF};
 use hdrcodec_core::{Allocation, Error, Limits, ReadSeek, Result};
-use std::io::SeekFrom;
 
 /// Sample-to-nits factor: the cd/m² of Y = 1 (an SGI private tag, from Larson's LogLuv TIFF
 /// definition).
@@ -237,13 +236,7 @@ fn strip_tables(t: Tiff<'_>) -> Result<StripTables> {
 /// Reads `len` bytes at `at` (from the file's start `base`) into `out`; a file that ends first
 /// is [`Error::Truncated`] naming `what`.
 fn read_at(input: &mut dyn ReadSeek, base: u64, at: u64, out: &mut [u8], what: &str) -> Result<()> {
-    input.seek(SeekFrom::Start(base + at))?;
-    input.read_exact(out).map_err(|e| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => {
-            Error::truncated(format!("{what} (bytes {at}..{} of the file)", at + out.len() as u64))
-        }
-        _ => Error::Io(e),
-    })
+    hdrcodec_core::read_exact_at(input, base + at, out, what)
 }
 
 impl<'a> StripRows<'a> {

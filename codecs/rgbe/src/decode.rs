@@ -487,7 +487,7 @@ pub fn probe(data: &[u8], limits: &Limits) -> Result<ImageInfo> {
 }
 
 /// [`probe`] from a file (any source that reads and seeks, from its current position): reads
-/// the first 64 KiB, or as much as the longest header accepted (1 MiB) if the header is longer,
+/// the first 4 KiB, or as much as the longest header accepted (1 MiB) if the header is longer,
 /// and the first bytes of the first scanline. Same answer and the same kinds of errors as
 /// [`probe`] on the file's bytes.
 pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo> {
@@ -495,15 +495,21 @@ pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo
     let (at, len) = hdrcodec_core::remaining_len(input)?;
     // The header, its resolution string and the 4 bytes that say whether scanlines are coded.
     let most = (header::MAX_HEADER_BYTES as u64 + 4).min(len);
-    let mut read = |n: u64| -> Result<Vec<u8>> {
+    // What is read is charged to `limits` while it is held.
+    let mut read = |n: u64| -> Result<(Vec<u8>, hdrcodec_core::Allocation)> {
+        let charge = limits.charge(n, "the Radiance header")?;
         input.seek(std::io::SeekFrom::Start(at))?;
         let mut head = Vec::new();
         (&mut *input).take(n).read_to_end(&mut head)?;
-        Ok(head)
+        Ok((head, charge))
     };
-    let first = (64 << 10u64).min(most);
-    match probe_head(&read(first)?, len, limits) {
-        Err(_) if first < most => probe_head(&read(most)?, len, limits),
+    let first = (4 << 10u64).min(most);
+    let (head, charge) = read(first)?;
+    match probe_head(&head, len, limits) {
+        Err(_) if first < most => {
+            drop((head, charge));
+            probe_head(&read(most)?.0, len, limits)
+        }
         r => r,
     }
 }
