@@ -27,47 +27,9 @@ use std::hint::black_box;
 
 /// libultrahdr through tests/peers/libultrahdr_shim.c.
 #[cfg(libultrahdr)]
-mod libultrahdr {
-    use std::os::raw::{c_char, c_int};
-
-    extern "C" {
-        #[allow(clippy::too_many_arguments)]
-        fn uhdr_shim_decode(
-            data: *const u8,
-            len: usize,
-            out: *mut u16,
-            out_len: usize,
-            width: *mut u32,
-            height: *mut u32,
-            err: *mut c_char,
-            err_len: usize,
-        ) -> c_int;
-    }
-
-    /// Decodes `data` to linear half-float RGBA: the size, and the samples (as bits) when
-    /// `out` is given (it must hold width·height·4 halves).
-    pub fn decode(data: &[u8], out: Option<&mut [u16]>) -> Result<(u32, u32), String> {
-        let (mut w, mut h) = (0u32, 0u32);
-        let mut err = [0u8; 256];
-        let (ptr, len) = match out {
-            Some(o) => (o.as_mut_ptr(), o.len()),
-            None => (std::ptr::null_mut(), 0),
-        };
-        // SAFETY: `data` is valid for reads of `data.len()` bytes, `ptr` is null or valid for
-        // writes of `len` halves, `err` for 256 bytes, `w` and `h` are live locals; the shim
-        // checks that the image fits in `len` before writing, NUL-terminates `err`, and keeps
-        // no pointer after it returns.
-        let rc = unsafe {
-            uhdr_shim_decode(data.as_ptr(), data.len(), ptr, len, &mut w, &mut h, err.as_mut_ptr().cast(), err.len())
-        };
-        if rc == 0 {
-            Ok((w, h))
-        } else {
-            let end = err.iter().position(|&b| b == 0).unwrap_or(err.len());
-            Err(format!("libultrahdr error {rc}: {}", String::from_utf8_lossy(&err[..end])))
-        }
-    }
-}
+#[path = "libultrahdr.rs"]
+#[allow(dead_code)] // the encoder
+mod libultrahdr;
 
 /// The median |log2| of the ratio of two images' BT.709 luminances (RGB f32 and RGBA f32),
 /// over pixels where both are above 1e-3.

@@ -6,7 +6,8 @@
 //!   in-process through a small C shim (peers/jxrlib_shim.c) over Debian `libjxr-dev` (headers
 //!   and `pkg-config libjxr`; scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
 //!   benches say jxrlib is missing (a failure under `CI=true`): `cfg(jxrlib)` tells it.
-//! - libultrahdr 1.4, the Ultra HDR peer of benches/ultrahdr_decode.rs, is the shared library
+//! - libultrahdr 1.4, the Ultra HDR peer of benches/ultrahdr_decode.rs and ultrahdr_encode.rs
+//!   (through benches/libultrahdr.rs), is the shared library
 //!   bundled in the reference venv's imagecodecs wheel (`$HDRCODEC_VENV`, else `.venv`;
 //!   scripts/setup-reference-tools.sh makes it), without a header: peers/libultrahdr_shim.c
 //!   declares the few functions it calls. Found, it is linked (with an rpath to its directory)
@@ -55,7 +56,7 @@ fn libultrahdr_shim() {
         return;
     }
     let Some((dir, name)) = libultrahdr_library() else {
-        println!("cargo::warning=libultrahdr 1.4 (imagecodecs in the reference venv) not found: benches/ultrahdr_decode.rs runs without its peer");
+        println!("cargo::warning=libultrahdr 1.4 (imagecodecs in the reference venv) not found: benches/ultrahdr_decode.rs and ultrahdr_encode.rs run without their peer");
         return;
     };
     cc::Build::new().file("peers/libultrahdr_shim.c").cargo_metadata(false).compile("libultrahdr_shim");

@@ -1,4 +1,4 @@
-/* The in-process libultrahdr 1.4 peer of benches/ultrahdr_decode.rs is reached through this
+/* The in-process libultrahdr 1.4 peer of benches/ultrahdr_decode.rs and ultrahdr_encode.rs is reached through this
  * shim (`hdrcodec bench`'s libultrahdr rows use imagecodecs' Python instead: the CLI links no
  * peer). The library comes from the reference venv (imagecodecs' wheel bundles libuhdr 1.4.0
  * without its header), so the few declarations needed are written here from the documented
@@ -6,7 +6,11 @@
  * of the library is used.
  * - uhdr_shim_decode decodes an Ultra HDR JPEG held in memory to linear half-float RGBA
  *   (SDR white = 1.0), full HDR rendition, optionally copying the samples out. One call is one
- *   whole decode: decoder, set image, decode, (copy), release. */
+ *   whole decode: decoder, set image, decode, (copy), release.
+ * - uhdr_shim_encode encodes linear half-float RGBA (the HDR intent alone; libultrahdr tone-maps
+ *   its own SDR base) to an Ultra HDR JPEG at a quality for both the base and the map, with the
+ *   settings imagecodecs' ultrahdr_encode uses (the best-quality preset, a map scale factor) and
+ *   copies the file out. One call is one whole encode: encoder, settings, encode, copy, release. */
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -14,6 +18,9 @@
 /* ---- declarations of libultrahdr 1.4's public C API (the subset used) ---- */
 enum { FMT_64BPP_RGBA_HALF = 4 };
 enum { CT_LINEAR = 0 };
+enum { CR_FULL_RANGE = 1 };
+enum { HDR_IMG = 0, BASE_IMG = 2, GAIN_MAP_IMG = 3 };
+enum { USAGE_BEST_QUALITY = 1 };
 enum { CODEC_OK = 0 };
 
 typedef struct {
@@ -45,6 +52,14 @@ extern shim_error_info uhdr_dec_set_out_img_format(shim_codec *dec, int fmt);
 extern shim_error_info uhdr_dec_set_out_color_transfer(shim_codec *dec, int ct);
 extern shim_error_info uhdr_decode(shim_codec *dec);
 extern shim_raw_image *uhdr_get_decoded_image(shim_codec *dec);
+extern shim_codec *uhdr_create_encoder(void);
+extern void uhdr_release_encoder(shim_codec *enc);
+extern shim_error_info uhdr_enc_set_raw_image(shim_codec *enc, shim_raw_image *img, int intent);
+extern shim_error_info uhdr_enc_set_quality(shim_codec *enc, int quality, int intent);
+extern shim_error_info uhdr_enc_set_gainmap_scale_factor(shim_codec *enc, int scale);
+extern shim_error_info uhdr_enc_set_preset(shim_codec *enc, int preset);
+extern shim_error_info uhdr_encode(shim_codec *enc);
+extern shim_compressed_image *uhdr_get_encoded_stream(shim_codec *enc);
 
 /* ---- the shim ---- */
 
@@ -101,5 +116,40 @@ int uhdr_shim_decode(const uint8_t *data, size_t len, uint16_t *out, size_t out_
     }
 done:
     uhdr_release_decoder(dec);
+    return rc;
+}
+
+/* Encodes `width`x`height` linear half-float RGBA `rgba` (rows packed; SDR white = 1.0) in
+ * colour gamut `gamut` (0 BT.709, 1 Display P3, 2 BT.2100) at `quality` (base and map) with a map
+ * `scale` times smaller per axis. Writes the file's size to *out_size; copies the file into `out`
+ * if it fits in `out_cap` bytes, else returns -1 (nothing written but *out_size). 0 on success,
+ * libultrahdr's error code otherwise. libultrahdr only reads `rgba`. */
+int uhdr_shim_encode(const uint16_t *rgba, uint32_t width, uint32_t height, int gamut, int quality, int scale,
+                     uint8_t *out, size_t out_cap, size_t *out_size, char *err, size_t err_len) {
+    int rc = 0;
+    shim_codec *enc = uhdr_create_encoder();
+    if (!enc)
+        return -2;
+    shim_raw_image img = {FMT_64BPP_RGBA_HALF, gamut, CT_LINEAR, CR_FULL_RANGE, width, height, {(void *)rgba, 0, 0},
+                          {width, 0, 0}};
+    TRY(uhdr_enc_set_preset(enc, USAGE_BEST_QUALITY));
+    TRY(uhdr_enc_set_raw_image(enc, &img, HDR_IMG));
+    TRY(uhdr_enc_set_quality(enc, quality, BASE_IMG));
+    TRY(uhdr_enc_set_quality(enc, quality, GAIN_MAP_IMG));
+    TRY(uhdr_enc_set_gainmap_scale_factor(enc, scale));
+    TRY(uhdr_encode(enc));
+    shim_compressed_image *file = uhdr_get_encoded_stream(enc);
+    if (!file || !file->data) {
+        rc = -3;
+        goto done;
+    }
+    *out_size = file->data_sz;
+    if (file->data_sz > out_cap) {
+        rc = -1;
+        goto done;
+    }
+    memcpy(out, file->data, file->data_sz);
+done:
+    uhdr_release_encoder(enc);
     return rc;
 }
