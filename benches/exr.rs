@@ -468,7 +468,9 @@ fn bench(c: &mut Criterion) {
             // OIIO 2.4's null writer fails on small images (64x64 does; 13 MP works): the
             // 1-pixel start-up writes an EXR of one pixel instead.
             let (startup, read) = (args(&one_px_path, &s.tmp.join("1px_out.exr")), args(&src, &null));
+            g.throughput(Throughput::Elements(1));
             g.bench_function(format!("startup_1px_{threads}thread"), |b| b.iter(|| run(oiiotool, &startup)));
+            g.throughput(Throughput::Elements(u64::from(w) * u64::from(h)));
             g.bench_function(format!("read_none_float_{threads}thread"), |b| b.iter(|| run(oiiotool, &read)));
         }
         g.finish();
