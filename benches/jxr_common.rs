@@ -1,8 +1,10 @@
-//! What the JPEG XR benches (jxr_decode, jxr_encode) share: finding the corpus and tools,
-//! saying what is missing, and the GoldenGate half floats and their 13 MP mosaic.
-use hdrcodec_core::{DecodeOptions, ImageCodec, Limits, ThreadPool};
+//! What the benches share (jxr_decode, jxr_encode, ultrahdr_decode, exr, pfm): finding the
+//! corpus and tools, saying what is missing, the GoldenGate images and their 13 MP mosaics,
+//! and timing a tool out of process.
+use hdrcodec_core::{DecodeOptions, HdrImage, ImageCodec, Limits, ThreadPool};
 use hdrcodec_jxr::{decode_raw, JxrCodec};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 /// In CI a missing peer or corpus is a failure; elsewhere the bench (`bench`) says what it
 /// skips.
@@ -20,6 +22,16 @@ pub fn corpus_dir() -> Option<PathBuf> {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
     dir.join("MANIFEST.tsv").is_file().then_some(dir)
+}
+
+/// [`corpus_dir`], or `None` after saying (through [`missing`]) that `bench` lacks it.
+#[allow(dead_code)] // used by the EXR and PFM benches
+pub fn corpus_for(bench: &str) -> Option<PathBuf> {
+    let dir = corpus_dir();
+    if dir.is_none() {
+        missing(bench, "the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
+    }
+    dir
 }
 
 /// Decode options on one thread and on a pool of two (the decode benches' two rows of ours).
@@ -48,19 +60,58 @@ pub fn golden_gate_half(data: &[u8]) -> (usize, usize, Vec<u8>) {
 
 /// `w`×`h` 48bppRGBHalf samples mirrored into a 4×3 mosaic (every other copy flipped, so
 /// that no seam is a hard edge): its width, height and samples.
+#[allow(dead_code)] // used by the JPEG XR benches
 pub fn mosaic(raw: &[u8], w: usize, h: usize) -> (usize, usize, Vec<u8>) {
+    mosaic_of(raw, w, h, 6)
+}
+
+/// [`mosaic`] of `w`×`h` pixels of `per_pixel` values each.
+pub fn mosaic_of<T: Copy + Default>(raw: &[T], w: usize, h: usize, per_pixel: usize) -> (usize, usize, Vec<T>) {
     let (tx, ty) = (4, 3);
     let (big_w, big_h) = (w * tx, h * ty);
-    let mut half = vec![0u8; big_w * big_h * 6];
+    let mut out = vec![T::default(); big_w * big_h * per_pixel];
     for y in 0..big_h {
         let (ty_i, yy) = (y / h, y % h);
         let sy = if ty_i % 2 == 1 { h - 1 - yy } else { yy };
         for x in 0..big_w {
             let (tx_i, xx) = (x / w, x % w);
             let sx = if tx_i % 2 == 1 { w - 1 - xx } else { xx };
-            let (s, d) = ((sy * w + sx) * 6, (y * big_w + x) * 6);
-            half[d..d + 6].copy_from_slice(&raw[s..s + 6]);
+            let (s, d) = ((sy * w + sx) * per_pixel, (y * big_w + x) * per_pixel);
+            out[d..d + per_pixel].copy_from_slice(&raw[s..s + per_pixel]);
         }
     }
-    (big_w, big_h, half)
+    (big_w, big_h, out)
+}
+
+/// The corpus photograph exr/GoldenGate.exr (1262x860 RGB, half samples: exact in `f32`)
+/// mirrored into a 4×3 mosaic of 5048x2580 = 13.0 MP, the large image of the EXR and PFM
+/// benches.
+#[allow(dead_code)] // used by the EXR and PFM benches
+pub fn golden_gate_exr_mosaic(corpus: &Path) -> HdrImage {
+    let data = std::fs::read(corpus.join("exr/GoldenGate.exr")).expect("read the corpus's exr/GoldenGate.exr");
+    let img = hdrcodec_exr::decode_exr(&data, &Limits::default()).expect("decode GoldenGate.exr");
+    let per_pixel = img.channels().count();
+    let (w, h, samples) = mosaic_of(img.samples(), img.width() as usize, img.height() as usize, per_pixel);
+    HdrImage::new(w as u32, h as u32, img.channels(), samples, img.color.clone()).expect("the mosaic")
+}
+
+/// Runs `program` with `args`; panics with its standard error if it fails (a bench must not
+/// time a failing command).
+#[allow(dead_code)] // used by the EXR and PFM benches
+pub fn run<S: AsRef<std::ffi::OsStr>>(program: &Path, args: &[S]) {
+    let out = Command::new(program).args(args).output().unwrap_or_else(|e| panic!("run {}: {e}", program.display()));
+    if !out.status.success() {
+        let args: Vec<_> = args.iter().map(|a| a.as_ref().to_string_lossy()).collect();
+        panic!("{} {} failed: {}", program.display(), args.join(" "), String::from_utf8_lossy(&out.stderr));
+    }
+}
+
+/// The index of the first sample where `a` and `b` differ (NaN equals NaN), or a length
+/// mismatch as `Some(len)`.
+#[allow(dead_code)] // used by the EXR and PFM benches
+pub fn first_difference(a: &[f32], b: &[f32]) -> Option<usize> {
+    if a.len() != b.len() {
+        return Some(a.len().min(b.len()));
+    }
+    a.iter().zip(b).position(|(x, y)| x.to_bits() != y.to_bits() && !(x.is_nan() && y.is_nan()))
 }

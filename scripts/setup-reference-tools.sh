@@ -2,7 +2,8 @@
 # Installs the reference implementations the validation tests compare against
 # (see ../shared/REFERENCES.md): Debian's OpenImageIO, OpenEXR, libtiff, jxrlib (its tools, and
 # libjxr-dev: headers and libraries for the in-process peer of benches/jxr_decode.rs, which
-# tests/build.rs compiles against, so it must be installed before cargo builds the benches),
+# tests/build.rs compiles against, so it must be installed before cargo builds the benches;
+# libopenexr-dev likewise for the in-process OpenEXR peer of benches/exr.rs),
 # libjxl, libavif, FFmpeg, pfstools, the DejaVu font `bench --plot` labels with, and a Python venv with a pinned imagecodecs,
 # libdav1d-dev (the system library hdrcodec-video decodes AV1 with, through the dav1d crate),
 # nasm (rav1e's assembly kernels, its `asm` feature), GNU time (peak memory in scripts/memory-bench.sh), and (for the KTX2 reference) Node.js with the npm package ktx-parse pinned in tests/ktx2.
@@ -13,7 +14,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 venv="${HDRCODEC_VENV:-$here/.venv}"
 
 packages=(openimageio-tools python3-openimageio python3-numpy openexr libtiff-tools libtiff-dev
-          libjxr-tools libjxr-dev libjxl-tools libavif-bin ffmpeg dav1d libdav1d-dev nasm pfstools pkg-config
+          libjxr-tools libjxr-dev libopenexr-dev libjxl-tools libavif-bin ffmpeg dav1d libdav1d-dev nasm pfstools pkg-config
           fonts-dejavu-core time)
 
 missing=()

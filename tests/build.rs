@@ -12,6 +12,10 @@
 //!   scripts/setup-reference-tools.sh makes it), without a header: peers/libultrahdr_shim.c
 //!   declares the few functions it calls. Found, it is linked (with an rpath to its directory)
 //!   into the benches only, and `cfg(libultrahdr)` is set.
+//! - OpenEXR 3.1, the reference peer of benches/exr.rs, is called in-process through a small C++
+//!   shim (peers/openexr_shim.cpp) over Debian `libopenexr-dev` (`pkg-config OpenEXR`;
+//!   scripts/setup-reference-tools.sh installs it). Without it the shim is not built and the
+//!   bench says OpenEXR is missing: `cfg(openexr)` tells it.
 //!
 //! `rustc-link-lib` would reach only this package's (empty) library, which the test and bench
 //! binaries never link, so they get the link flags themselves.
@@ -21,6 +25,7 @@ use std::process::Command;
 fn main() {
     println!("cargo::rustc-check-cfg=cfg(jxrlib)");
     println!("cargo::rustc-check-cfg=cfg(libultrahdr)");
+    println!("cargo::rustc-check-cfg=cfg(openexr)");
     println!("cargo::rerun-if-changed=build.rs");
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("linux") {
         println!("cargo::rustc-link-arg-tests=-lstdc++");
@@ -28,6 +33,41 @@ fn main() {
     }
     jxrlib_shim();
     libultrahdr_shim();
+    openexr_shim();
+}
+
+/// `pkg-config <args> <package>`, split at white space; `None` if pkg-config or the package is
+/// not there.
+fn pkg_config(package: &str, args: &str) -> Option<Vec<String>> {
+    let out = Command::new("pkg-config").args([args, package]).output().ok()?;
+    out.status.success().then(|| String::from_utf8_lossy(&out.stdout).split_whitespace().map(str::to_string).collect())
+}
+
+fn openexr_shim() {
+    println!("cargo::rerun-if-changed=peers/openexr_shim.cpp");
+    let (Some(cflags), Some(libs)) = (pkg_config("OpenEXR", "--cflags"), pkg_config("OpenEXR", "--libs")) else {
+        println!(
+            "cargo::warning=OpenEXR (Debian libopenexr-dev) not found: benches/exr.rs runs without its in-process peer"
+        );
+        return;
+    };
+    let mut build = cc::Build::new();
+    build.cpp(true).std("c++14").file("peers/openexr_shim.cpp").cargo_metadata(false);
+    for flag in &cflags {
+        match flag.strip_prefix("-I") {
+            Some(dir) => build.include(dir),
+            None => build.flag(flag),
+        };
+    }
+    build.compile("openexr_shim");
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo::rustc-link-arg-benches=-L{}", out.display());
+    // The shim first, then the libraries it calls.
+    println!("cargo::rustc-link-arg-benches=-lopenexr_shim");
+    for lib in &libs {
+        println!("cargo::rustc-link-arg-benches={lib}");
+    }
+    println!("cargo::rustc-cfg=openexr");
 }
 
 /// The directory and file name of libultrahdr 1.4 in the reference venv's imagecodecs wheel
