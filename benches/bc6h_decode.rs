@@ -6,6 +6,9 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use hdrcodec_bc6h::{block_dims, decode_surface_into, read_dds, Bc6hTexture};
 use hdrcodec_core::Limits;
 use std::hint::black_box;
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
 
 struct Surface {
     name: String,
@@ -17,9 +20,7 @@ struct Surface {
 
 fn surfaces() -> Vec<Surface> {
     let mut v = Vec::new();
-    let corpus = std::env::var_os("HDRCODEC_CORPUS")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/corpus"));
+    let corpus = common::corpus_dir().unwrap_or_default();
     for name in ["Desk_BC6H_UF16_mips.dds", "Desk_BC6H_SF16_mips.dds"] {
         match std::fs::read(corpus.join("dds").join(name)) {
             Ok(data) => {

@@ -7,6 +7,9 @@
 mod peers;
 
 use std::hint::black_box;
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
 use std::time::{Duration, Instant};
 
 // Linking the facade crate brings in its build script's `-lstdc++`, which intel_tex_2 needs.
@@ -16,10 +19,7 @@ use hdrcodec_bc6h::encode::{encode_surface, EncodeOptions};
 
 /// The images: corpus crops when the corpus is present, always the synthetic image.
 fn images() -> Vec<peers::Image> {
-    let corpus = std::env::var_os("HDRCODEC_CORPUS")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus"));
-    if corpus.join("MANIFEST.tsv").is_file() {
+    if let Some(corpus) = common::corpus_dir() {
         peers::quality_images(&corpus, 2, 128)
     } else {
         eprintln!("corpus not found: benchmarking the synthetic image only");

@@ -35,10 +35,10 @@ use hdrcodec_core::{DecodeOptions, HdrImage, Limits, ThreadPool};
 use hdrcodec_exr::exr::prelude::{f16, ReadChannels, ReadLayers, ReadSpecificChannel, WritableImage};
 use hdrcodec_exr::interop::{rgb_exr_image, rgba_exr_image};
 use hdrcodec_exr::{decode_exr_with, encode_exr, ExrCompression, ExrEncodeOptions, ExrPixelType};
-#[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers
-mod jxr_common;
-use jxr_common::{corpus_for, first_difference, missing, one_and_two_threads, run, tool};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_for, first_difference, missing, one_and_two_threads, run, tool};
 use std::ffi::{OsStr, OsString};
 use std::hint::black_box;
 use std::io::Cursor;
@@ -447,7 +447,7 @@ fn bench(c: &mut Criterion) {
         decode_rows(c, &s, &path.file_stem().unwrap().to_string_lossy(), &data, None);
     }
 
-    let img = jxr_common::golden_gate_exr_mosaic(&dir);
+    let img = common::golden_gate_exr_mosaic(&dir);
     let (w, h) = (img.width(), img.height());
     // oiiotool's encode input, and its start-up on a 1-pixel file.
     let none_float = ExrEncodeOptions { compression: ExrCompression::None, pixel: ExrPixelType::Float };

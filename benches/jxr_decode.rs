@@ -21,9 +21,10 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Samplin
 use hdrcodec_cli::jxrlib::float_rgb_tiff;
 use hdrcodec_core::{ImageCodec, Limits};
 use hdrcodec_jxr::{decode_raw, decode_raw_into, raw_layout, JxrCodec};
-#[path = "jxr_common.rs"]
-mod jxr_common;
-use jxr_common::{corpus_dir, missing, tool};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_dir, missing, tool};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -113,8 +114,8 @@ fn large_files(corpus: &[File]) -> Vec<File> {
     let Some(src) = corpus.iter().find(|f| f.name.starts_with("GoldenGate_48bppRGBHalf")) else {
         return Vec::new();
     };
-    let (w, h, raw) = jxr_common::golden_gate_half(&src.data);
-    let (big_w, big_h, half) = jxr_common::mosaic(&raw, w, h);
+    let (w, h, raw) = common::golden_gate_half(&src.data);
+    let (big_w, big_h, half) = common::mosaic(&raw, w, h);
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("jxr_decode_bench");
     std::fs::create_dir_all(&dir).expect("create the bench's temp dir");
     let matrix = std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1");
@@ -175,7 +176,7 @@ fn bench(c: &mut Criterion) {
     #[cfg(not(jxrlib))]
     missing("jxr_decode", "jxrlib (Debian libjxr-dev; tests/build.rs builds the shim only if it is installed)");
 
-    let (single, two) = jxr_common::one_and_two_threads();
+    let (single, two) = common::one_and_two_threads();
     let mut group = c.benchmark_group("jxr_decode");
     group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for f in &files {

@@ -42,11 +42,12 @@ use hdrcodec_jxr::encoder::{encode, BitstreamOrder, EncodeOptions, SampleFormat}
 use hdrcodec_jxr::transform::OverlapMode;
 #[cfg(jxrlib)]
 use hdrcodec_jxr::{encoder::Quantizers, JxrCodec};
-#[path = "jxr_common.rs"]
-mod jxr_common;
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
 #[cfg(jxrlib)]
-use jxr_common::tool;
-use jxr_common::{corpus_dir, missing};
+use common::tool;
+use common::{corpus_dir, missing};
 use std::hint::black_box;
 
 /// The qualities: name, jxrlib's `-q` (1.0 = lossless), ours, the overlap jxrlib uses.
@@ -142,10 +143,10 @@ fn inputs() -> Vec<Input> {
         return Vec::new();
     };
     let data = std::fs::read(dir.join("jxr/GoldenGate_48bppRGBHalf_lossless.jxr")).expect("read GoldenGate");
-    let (w, h, raw) = jxr_common::golden_gate_half(&data);
+    let (w, h, raw) = common::golden_gate_half(&data);
     let mut inputs = Vec::new();
     if std::env::var("HDRCODEC_JXR_BENCH_MATRIX").is_ok_and(|v| v == "1") {
-        let (big_w, big_h, half) = jxr_common::mosaic(&raw, w, h);
+        let (big_w, big_h, half) = common::mosaic(&raw, w, h);
         let name = format!("GoldenGate_mosaic_{big_w}x{big_h}");
         // 316x162 macroblocks in tiles of 64: 5x3 tiles.
         inputs.insert(0, Input::new(name, big_w as u32, big_h as u32, half, 64));

@@ -11,15 +11,15 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hdrcodec_core::{ColorPrimaries, Limits};
 use hdrcodec_logluv::{decode, encode, read_tiff, DecodeOptions, EncodeOptions, Encoding, LogLuvRaster};
 use std::hint::black_box;
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
 fn corpus_file() -> Option<PathBuf> {
-    let dir = std::env::var_os("HDRCODEC_CORPUS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus"));
-    let f = dir.join("tiff/StillLife_logluv32.tif");
+    let f = common::corpus_dir()?.join("tiff/StillLife_logluv32.tif");
     f.is_file().then_some(f)
 }
 

@@ -19,10 +19,10 @@
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
 use hdrcodec_core::{HdrImage, Limits};
 use hdrcodec_pfm::{decode_pfm, encode_pfm};
-#[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers
-mod jxr_common;
-use jxr_common::{corpus_for, first_difference, missing, run, tool};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_for, first_difference, missing, run, tool};
 use std::ffi::OsStr;
 use std::hint::black_box;
 use std::io::Cursor;
@@ -61,7 +61,7 @@ fn bench(c: &mut Criterion) {
 
     let exr = std::fs::read(dir.join("exr/GoldenGate.exr")).expect("read the corpus's exr/GoldenGate.exr");
     let small = hdrcodec_exr::decode_exr(&exr, &Limits::default()).expect("decode GoldenGate.exr");
-    let large = jxr_common::golden_gate_exr_mosaic(&dir);
+    let large = common::golden_gate_exr_mosaic(&dir);
     if let Some(oiiotool) = &oiiotool {
         let one_px = HdrImage::new(1, 1, small.channels(), small.samples()[..3].to_vec(), small.color.clone()).unwrap();
         let path = tmp.join("1px.pfm");

@@ -10,16 +10,20 @@ use hdrcodec_core::Limits;
 use hdrcodec_rgbe::{decode, encode, RgbeDecodeOptions, RgbeEncodeOptions, Rounding};
 use image::ImageDecoder;
 use std::hint::black_box;
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
 use std::path::PathBuf;
 use std::time::Duration;
 
 fn corpus() -> Vec<(String, Vec<u8>)> {
-    let dir = std::env::var_os("HDRCODEC_CORPUS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus"))
-        .join("hdr");
+    let Some(corpus) = common::corpus_dir() else {
+        common::missing("rgbe", "the shared HDR corpus (../shared/corpus or $HDRCODEC_CORPUS)");
+        return Vec::new();
+    };
+    let dir = corpus.join("hdr");
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("the RGBE bench needs the corpus at {}: {e}", dir.display()))
+        .unwrap_or_else(|e| panic!("the RGBE bench needs the corpus's .hdr files at {}: {e}", dir.display()))
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "hdr"))
         .collect();

@@ -19,10 +19,10 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
 use hdrcodec_core::ImageCodec;
 use hdrcodec_jpeghdr::GainMapJpegCodec;
-#[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers besides these
-mod jxr_common;
-use jxr_common::{corpus_dir, missing, one_and_two_threads};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_dir, missing, one_and_two_threads};
 use std::hint::black_box;
 
 /// libultrahdr through tests/peers/libultrahdr_shim.c.

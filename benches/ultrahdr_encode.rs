@@ -27,10 +27,10 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput};
 use hdrcodec_core::{metrics, ColorPrimaries, DecodeOptions, EncodeSettings, HdrImage, ImageCodec, Limits};
 use hdrcodec_jpeghdr::{GainMapJpegCodec, JpegHdrCodec};
-#[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers besides these
-mod jxr_common;
-use jxr_common::{corpus_dir, missing};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_dir, missing};
 use std::hint::black_box;
 
 #[cfg(libultrahdr)]

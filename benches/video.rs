@@ -38,10 +38,10 @@ use hdrcodec_video::encode::{encode_sequence, Av1Options};
 use hdrcodec_video::hdr10::{content_light_level, yuv_to_frame, ChromaSiting, Range, Subsampling, Transfer, YuvFrame};
 use hdrcodec_video::ivf::{IvfHeader, IvfReader, IvfWriter};
 use hdrcodec_video::sequences::moving_light_frame;
-#[path = "jxr_common.rs"]
-#[allow(dead_code)] // the JPEG XR helpers besides these
-mod jxr_common;
-use jxr_common::{corpus_dir, missing, tool};
+#[path = "common.rs"]
+#[allow(dead_code)] // each bench uses some of the shared helpers
+mod common;
+use common::{corpus_dir, missing, tool};
 use std::ffi::{OsStr, OsString};
 use std::hint::black_box;
 use std::path::Path;

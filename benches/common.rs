@@ -1,4 +1,4 @@
-//! What the benches share (jxr_decode, jxr_encode, ultrahdr_decode, exr, pfm): finding the
+//! What the benches share (each uses some of it): finding the
 //! corpus and tools, saying what is missing, the GoldenGate images and their 13 MP mosaics,
 //! and timing a tool out of process.
 use hdrcodec_core::{DecodeOptions, HdrImage, ImageCodec, Limits, ThreadPool};
@@ -25,7 +25,6 @@ pub fn corpus_dir() -> Option<PathBuf> {
 }
 
 /// [`corpus_dir`], or `None` after saying (through [`missing`]) that `bench` lacks it.
-#[allow(dead_code)] // used by the EXR and PFM benches
 pub fn corpus_for(bench: &str) -> Option<PathBuf> {
     let dir = corpus_dir();
     if dir.is_none() {
@@ -35,14 +34,12 @@ pub fn corpus_for(bench: &str) -> Option<PathBuf> {
 }
 
 /// Decode options on one thread and on a pool of two (the decode benches' two rows of ours).
-#[allow(dead_code)] // jxr_encode has no decode rows.
 pub fn one_and_two_threads() -> (DecodeOptions, DecodeOptions) {
     let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).expect("a pool of two threads"));
     (DecodeOptions::new(Limits::default()), two)
 }
 
 /// A program on PATH.
-#[allow(dead_code)] // jxr_encode uses it only with jxrlib.
 pub fn tool(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path).map(|d| d.join(name)).find(|p| p.is_file())
@@ -60,7 +57,6 @@ pub fn golden_gate_half(data: &[u8]) -> (usize, usize, Vec<u8>) {
 
 /// `w`×`h` 48bppRGBHalf samples mirrored into a 4×3 mosaic (every other copy flipped, so
 /// that no seam is a hard edge): its width, height and samples.
-#[allow(dead_code)] // used by the JPEG XR benches
 pub fn mosaic(raw: &[u8], w: usize, h: usize) -> (usize, usize, Vec<u8>) {
     mosaic_of(raw, w, h, 6)
 }
@@ -86,7 +82,6 @@ pub fn mosaic_of<T: Copy + Default>(raw: &[T], w: usize, h: usize, per_pixel: us
 /// The corpus photograph exr/GoldenGate.exr (1262x860 RGB, half samples: exact in `f32`)
 /// mirrored into a 4×3 mosaic of 5048x2580 = 13.0 MP, the large image of the EXR and PFM
 /// benches.
-#[allow(dead_code)] // used by the EXR and PFM benches
 pub fn golden_gate_exr_mosaic(corpus: &Path) -> HdrImage {
     let data = std::fs::read(corpus.join("exr/GoldenGate.exr")).expect("read the corpus's exr/GoldenGate.exr");
     let img = hdrcodec_exr::decode_exr(&data, &Limits::default()).expect("decode GoldenGate.exr");
@@ -97,7 +92,6 @@ pub fn golden_gate_exr_mosaic(corpus: &Path) -> HdrImage {
 
 /// Runs `program` with `args`; panics with its standard error if it fails (a bench must not
 /// time a failing command).
-#[allow(dead_code)] // used by the EXR and PFM benches
 pub fn run<S: AsRef<std::ffi::OsStr>>(program: &Path, args: &[S]) {
     let out = Command::new(program).args(args).output().unwrap_or_else(|e| panic!("run {}: {e}", program.display()));
     if !out.status.success() {
@@ -108,7 +102,6 @@ pub fn run<S: AsRef<std::ffi::OsStr>>(program: &Path, args: &[S]) {
 
 /// The index of the first sample where `a` and `b` differ (NaN equals NaN), or a length
 /// mismatch as `Some(len)`.
-#[allow(dead_code)] // used by the EXR and PFM benches
 pub fn first_difference(a: &[f32], b: &[f32]) -> Option<usize> {
     if a.len() != b.len() {
         return Some(a.len().min(b.len()));
