@@ -461,7 +461,7 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
             format_rows(t, start..(start + FORMAT_JOB_ROWS).min(rows), bufs, dst)
         })
     };
-    // The image rows of band `t`.
+    // The image rows of the band from macroblock row `r0`.
     let row_sizes = (raw_row, row_len);
     let band_dst = |r0: usize| {
         let (y_start, rows) = band_rows(r0);
