@@ -334,9 +334,8 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
     // Working memory. One thread: the window (the band and its halo of coefficient rows),
     // one band of samples and, for a sink that takes copies, a few formatted rows; every step
     // of a band runs after the one before, so nothing else is held. Two threads: the next
-    // band's rows being decoded and the samples of the band before (formatted straight into
-    // the caller's rows, or for a sink that takes copies into a band of formatted rows) and
-    // each formatting job's rows too. (A small image has fewer rows than that.)
+    // band's rows being decoded too, a band of formatted rows for a sink that takes copies,
+    // and each formatting job's rows. (A small image has fewer rows than that.)
     let parallel = options.pool.is_parallel();
     // A whole image on one thread, shorter than SHORT_IMAGE_MB_ROWS: bands of SHORT_BAND_MB_ROWS,
     // so that the working set (the band's coefficients and halo, its samples) stays a small
@@ -346,7 +345,7 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
     let halo_below = if primary.clr_fmt == ClrFmt::Yuv420 { 3 } else { 2 };
     let coeff_rows = (if parallel { 2 * band } else { band } + 2 + halo_below).min(mb_h + 2);
     let coeff_bytes = (coeff_rows * mb_w * (primary.channels + 1) * crate::mb::MB_COEFFS * 4) as u64;
-    let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8) * if parallel { 2 } else { 1 };
+    let sample_rows = ((band + 1) * 16).min(mb_h * 16 + 8);
     let full_rows = if parallel { FORMAT_JOBS } else { 1 } * primary.channels * 16 * mb_w * 4;
     let mut win = Window { first: 0, rows: VecDeque::with_capacity(band + 5) };
     if let Output::Sink(s) = &mut output {
@@ -462,10 +461,10 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
             format_rows(t, start..(start + FORMAT_JOB_ROWS).min(rows), bufs, dst)
         })
     };
-    // The image rows of band `t`.
+    // The image rows of the band from macroblock row `r0`.
     let row_sizes = (raw_row, row_len);
-    let band_dst = |t: &Transformed| {
-        let (y_start, rows) = band_rows(t.r0);
+    let band_dst = |r0: usize| {
+        let (y_start, rows) = band_rows(r0);
         (y_start - top)..(y_start - top + rows)
     };
     // Hands rows `part` of a band formatted into `raw_band` to the caller.
@@ -487,7 +486,6 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
             }
         }
     };
-    let mut transformed: Option<Transformed> = None;
     let mut decoded = need(band.min(mb_h));
     let mut pending = fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, decoded, &mut spare_rows)?;
     for r0 in (0..mb_h).step_by(band) {
@@ -574,7 +572,7 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
                 let part = start..(start + FORMAT_CHUNK).min(rows);
                 if in_place {
                     // Straight into the caller's rows.
-                    let y0 = band_dst(&t).start + start;
+                    let y0 = band_dst(r0).start + start;
                     let mut dst = rows_out(&mut output, y0..y0 + part.len(), row_sizes, true, &mut raw_band)?;
                     format_rows(&t, part, &mut full, &mut dst)?;
                     continue;
@@ -588,37 +586,24 @@ fn decode_impl(parsed: &Parsed, options: &DecodeOptions, mut output: Output<'_>)
             continue;
         }
         // One thread entropy-decodes the next band's rows; the other transforms this band and
-        // formats the band before it, in jobs (channels, pieces of rows) that the first takes
-        // once it is done.
+        // then formats it, in jobs (channels, then pieces of rows) that the first takes once it
+        // is done: the formatting jobs, short, come last and fill the end of the step.
         let spare = &mut spare_rows;
-        let previous = transformed.take();
-        let dst = previous.as_ref().map(|t| rows_out(&mut output, band_dst(t), row_sizes, in_place, &mut raw_band));
-        let dst = dst.transpose()?;
+        let dst = rows_out(&mut output, band_dst(r0), row_sizes, in_place, &mut raw_band)?;
         let bufs = &mut job_bufs;
-        let format_previous = || match (&previous, dst) {
-            (Some(t), Some(dst)) => format_jobs(t, dst, bufs),
-            _ => Ok(()),
+        let transform_and_format = || -> Result<Transformed> {
+            let t = transform_all()?;
+            format_jobs(&t, dst, bufs)?;
+            Ok(t)
         };
         let fetch_next = || fetch(&mut prim_dec, alpha_dec.as_mut(), deferred, count, spare);
-        let (fetched, (this_band, formatted)) =
-            options.pool.join(fetch_next, || options.pool.join(transform_all, format_previous));
-        formatted?;
+        let (fetched, this_band) = options.pool.join(fetch_next, transform_and_format);
+        let t = this_band?;
         pending = fetched?;
-        let this_band = this_band?;
-        if let Some(t) = previous {
-            if !in_place {
-                deliver(&t, 0..band_rows(t.r0).1, &raw_band, &mut output, &mut scratch)?;
-            }
-            spare_samples.extend(t.into_buffers());
-        }
-        transformed = Some(this_band);
-    }
-    if let Some(t) = transformed.take() {
-        let dst = rows_out(&mut output, band_dst(&t), row_sizes, in_place, &mut raw_band)?;
-        format_jobs(&t, dst, &mut job_bufs)?;
         if !in_place {
             deliver(&t, 0..band_rows(t.r0).1, &raw_band, &mut output, &mut scratch)?;
         }
+        spare_samples.extend(t.into_buffers());
     }
     Ok(())
 }
@@ -897,6 +882,39 @@ mod tests {
                 crate::JxrCodec.decode_into(&file, pool, FrameBufMut::f16(buf, w * 4)).unwrap();
             }
             assert_eq!(halves[0], halves[1]);
+        }
+    }
+
+    /// The two-thread pipeline (a band transformed and formatted while the next is decoded)
+    /// ends as one thread's bands do whatever the image's height: one macroblock row, less
+    /// than a band, exactly one or two bands, a band and one row; in one tile and in tiles, in
+    /// 4:4:4, 4:2:2 and 4:2:0 (whose chroma reaches a row into the next band), with and
+    /// without the flexbits in packets of their own (frequency order, completed on the
+    /// transform's side).
+    #[test]
+    fn two_threads_end_every_band_count_as_one_thread() {
+        use crate::encoder::{encode, BitstreamOrder, EncodeOptions, Subsampling};
+        use hdrcodec_core::{ColorInfo, HdrImage, ThreadPool};
+        let one = DecodeOptions::new(Limits::default());
+        let two = DecodeOptions::new(Limits::default()).with_pool(ThreadPool::new(2).unwrap());
+        let w = 72usize;
+        let mut next = crate::testing::rng(7);
+        for h in [9usize, 16, 100, 128, 136, 256, 270] {
+            let samples: Vec<f32> =
+                (0..w * h * 3).map(|i| (i % (w * 3)) as f32 / 150.0 + (next() % 1000) as f32 / 3000.0).collect();
+            let image = HdrImage::new(w as u32, h as u32, Channels::Rgb, samples, ColorInfo::default()).unwrap();
+            for (subsampling, tile_mbs, order) in [
+                (Subsampling::Yuv444, 0, BitstreamOrder::Spatial),
+                (Subsampling::Yuv422, 3, BitstreamOrder::Frequency),
+                (Subsampling::Yuv420, 2, BitstreamOrder::Spatial),
+                (Subsampling::Yuv420, 0, BitstreamOrder::Frequency),
+            ] {
+                let options = EncodeOptions { quality: 80, subsampling, tile_mbs, order, ..EncodeOptions::default() };
+                let file = encode(&image, &options, &ThreadPool::single()).unwrap().0;
+                let raw = decode_raw(&file, &one).unwrap();
+                assert_eq!(raw.len(), raw_layout(&file).unwrap().2 * h);
+                assert_eq!(decode_raw(&file, &two).unwrap(), raw, "height {h}, {subsampling:?}, tiles {tile_mbs}");
+            }
         }
     }
 
