@@ -216,25 +216,30 @@ impl<'h> PlaneWork<'h> {
     /// next row's prediction, then dequantizes it in place, unless (`quantized`) a FLEXBITS
     /// stage completes it.
     fn finish_row(&mut self, row: &mut [i32], my: usize, quantized: bool) -> Result<()> {
-        for mx in 0..self.w {
-            self.finish_mb(row, mx, my, quantized)?;
+        for (top, cur) in self.top.chunks_exact_mut(MB_COEFFS).zip(row.chunks_exact(MB_COEFFS)) {
+            top[..16].copy_from_slice(&cur[..16]);
+        }
+        if quantized {
+            return Ok(());
+        }
+        let stride = self.stride();
+        for (c, side) in row.chunks_exact_mut(stride).zip(&self.side[my % 2]) {
+            dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
         }
         Ok(())
     }
 
-    /// [`finish_row`](Self::finish_row) for macroblock `mx` alone: in frequency order the
-    /// last packet's pass runs it on each macroblock while it is in cache (every DC and LP
-    /// prediction of the row, which reads the row above and the macroblock to the left
-    /// quantized, ran in an earlier pass).
-    fn finish_mb(&mut self, row: &mut [i32], mx: usize, my: usize, quantized: bool) -> Result<()> {
+    /// [`finish_row`](Self::finish_row), dequantizing, for macroblock `mx` alone: in
+    /// frequency order the last packet's pass runs it on each macroblock while it is in cache
+    /// (every DC and LP prediction of the row, which reads the row above and the macroblock to
+    /// the left quantized, ran in an earlier pass).
+    #[inline(always)]
+    fn finish_mb(&mut self, row: &mut [i32], mx: usize, my: usize) -> Result<()> {
         let stride = self.stride();
         let c = &mut row[mx * stride..(mx + 1) * stride];
         let top = &mut self.top[mx * stride..(mx + 1) * stride];
         for (top, cur) in top.chunks_exact_mut(MB_COEFFS).zip(c.chunks_exact(MB_COEFFS)) {
             top[..16].copy_from_slice(&cur[..16]);
-        }
-        if quantized {
-            return Ok(());
         }
         dequantize_mb(c, &self.side[my % 2][mx], &self.qp, self.hdr.clr_fmt, self.hdr.scaled)
     }
@@ -500,12 +505,12 @@ impl<'a> TileDecoder<'a> {
         } else {
             let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
             let r = dc;
-            // With an HP packet, the last pass (FLEXBITS, or HP when there is none or it is
-            // deferred) finishes each macroblock as it goes ([`PlaneWork::finish_mb`]).
-            let defer = self.defer_flex;
-            let flex_last = rest.len() >= 3 && !defer;
-            let hp_last = rest.len() == 2 || (rest.len() >= 3 && defer);
-            finished = rest.len() >= 2;
+            // The last pass (FLEXBITS, or HP when there is no FLEXBITS packet) dequantizes
+            // each macroblock as it goes ([`PlaneWork::finish_mb`]). Deferred flexbits leave
+            // only the copy of DC and LP, which stays a pass after the row.
+            let flex_last = rest.len() >= 3 && !self.defer_flex;
+            let hp_last = rest.len() == 2;
+            finished = flex_last || hp_last;
             // Without an LP packet (coded but not read), DC prediction runs here.
             let lp_read = !rest.is_empty();
             each_mb(planes, rows, r, w, my, "a JPEG XR DC packet", |p, row, r, mx, my| {
@@ -531,7 +536,7 @@ impl<'a> TileDecoder<'a> {
                         p.predict_hp(row, mx, my);
                     }
                     if hp_last {
-                        p.finish_mb(row, mx, my, defer)?;
+                        p.finish_mb(row, mx, my)?;
                     }
                     Ok(())
                 })?;
@@ -541,7 +546,7 @@ impl<'a> TileDecoder<'a> {
                     p.flex(row, r, mx, my);
                     p.predict_hp(row, mx, my);
                     if flex_last {
-                        p.finish_mb(row, mx, my, false)?;
+                        p.finish_mb(row, mx, my)?;
                     }
                     Ok(())
                 })?;
