@@ -737,6 +737,7 @@ impl OutputParams {
     /// [`format_row_avx2`](Self::format_row_avx2)) interleaves the RGB formats' samples with
     /// the `avx2` module's shuffles.
     #[inline(always)]
+    #[allow(unsafe_code)]
     fn format_row_body(&self, (channels, alpha): RowSources, width: usize, out: &mut [u8], avx2: bool) -> Result<()> {
         let n = self.internal.channels();
         let short = || Error::invalid("output row shorter than the image width");
@@ -801,6 +802,17 @@ impl OutputParams {
                 u16::to_le_bytes,
             ),
             (C::Rgb, Bd16F) => {
+                // With AVX2, 48bppRGBHalf in groups of 16 pixels in one pass (`avx2::half_rgb48`); the
+                // rest through the runs.
+                #[allow(unused_mut)]
+                let mut done = 0;
+                #[cfg(target_arch = "x86_64")]
+                if avx2 && spp == 3 && !gray_to_rgb {
+                    // SAFETY: `avx2` is true only in `format_row_avx2`, which runs only when
+                    // the CPU has AVX2.
+                    done = unsafe { avx2::half_rgb48(out, yuv, bias, s, red != 0, width) };
+                }
+                let (out, yuv) = (&mut out[done * 2 * spp..], yuv.map(|p| &p[done..]));
                 write_rgb_runs(out, layout, yuv, bias, gray_to_rgb, |v| int_to_half_bits(v >> s), u16::to_le_bytes)
             }
             (C::Rgb, Bd32S) => write_rgb_runs(
@@ -1476,6 +1488,80 @@ mod tests {
         assert_eq!(int_to_half_bits(-0x8000), 0);
         assert_eq!(int_to_half_bits(-0x8005), 0x8005 - 0x8000 + 0x8000);
         assert_eq!(int_to_half_bits(i32::MIN), 0);
+    }
+
+    /// The AVX2 kernel of the half formats (colour transform, shift, half fold, interleave in
+    /// one pass) against the scalar definition, sample by sample, on the edge values: half
+    /// overshoot (magnitudes past 0x7BFF and past 0x7FFF, which wrap), the patterns around
+    /// negative zero (−1, −0x8000, −0x8001 after the shift), samples whose colour transform
+    /// wraps (`i32::MIN`, `i32::MAX`), and random values of every magnitude.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    #[allow(unsafe_code)]
+    fn half_rgb_fused_twins_agree() {
+        if !hdrcodec_core::cpu::twin_test_can_run(hdrcodec_core::cpu::CpuLevel::Avx2, "half_rgb_fused_twins_agree") {
+            return;
+        }
+        let edges = [
+            0,
+            1,
+            -1,
+            2,
+            -2,
+            0x3C00,
+            -0x3C00,
+            0x7BFF,
+            0x7C00,
+            0x7FFF,
+            0x8000,
+            0x8001,
+            0xFFFF,
+            0x1_0000,
+            -0x7BFF,
+            -0x7C00,
+            -0x7FFF,
+            -0x8000,
+            -0x8001,
+            -0xFFFF,
+            -0x1_0000,
+            i32::MAX,
+            i32::MIN,
+            i32::MAX - 1,
+            i32::MIN + 1,
+        ];
+        let mut r = rng(21);
+        let width = 16 * 40 + 7;
+        let mut pick = |i: usize| -> i32 {
+            match i % 3 {
+                0 => edges[(r() % edges.len() as u64) as usize],
+                1 => edges[(r() % edges.len() as u64) as usize].wrapping_shl((r() % 4) as u32),
+                _ => r() as i32 >> (r() % 32),
+            }
+        };
+        let rows: [Vec<i32>; 3] = std::array::from_fn(|_| (0..width).map(&mut pick).collect());
+        let yuv = [&rows[0][..], &rows[1][..], &rows[2][..]];
+        for s in [0, 3] {
+            for bias in [0, 3, -0x7FFF, i32::MAX] {
+                for swap in [false, true] {
+                    let mut out = vec![0xAAu8; width * 6];
+                    // SAFETY: the CPU has AVX2 (checked above).
+                    let done = unsafe { avx2::half_rgb48(&mut out, yuv, bias, s, swap, width) };
+                    assert_eq!(done, width / 16 * 16);
+                    for x in 0..width {
+                        let (red, g, b) = inverse_cc(rows[0][x].wrapping_add(bias), rows[1][x], rows[2][x]);
+                        let (first, last) = if swap { (b, red) } else { (red, b) };
+                        let want = [first, g, last].map(|v| int_to_half_bits(v >> s));
+                        let px = &out[x * 6..][..6];
+                        if x < done {
+                            let got: Vec<u16> = px.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+                            assert_eq!(got, want, "pixel {x}, s {s}, bias {bias}, swap {swap}");
+                        } else {
+                            assert!(px.iter().all(|&b| b == 0xAA), "pixel {x} past the groups written");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

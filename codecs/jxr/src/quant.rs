@@ -112,11 +112,16 @@ unsafe fn dequantize_avx2(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32
 #[inline(always)]
 fn dequantize_portable(c: &mut [i32], shape: (usize, usize), dc: i32, lp: i32, hp: i32) {
     c[mb::DC] = c[mb::DC].wrapping_mul(dc);
-    for v in &mut c[1..shape.0] {
-        *v = v.wrapping_mul(lp);
+    // A step of 1 (every band of a lossless file) changes nothing: its loop is skipped.
+    if lp != 1 {
+        for v in &mut c[1..shape.0] {
+            *v = v.wrapping_mul(lp);
+        }
     }
-    for v in &mut c[16..16 + 15 * shape.1] {
-        *v = v.wrapping_mul(hp);
+    if hp != 1 {
+        for v in &mut c[16..16 + 15 * shape.1] {
+            *v = v.wrapping_mul(hp);
+        }
     }
 }
 
@@ -319,6 +324,24 @@ mod tests {
             assert_eq!(a, b, "{shape:?}");
             assert_eq!(a[16], c[16].wrapping_mul(hp));
             assert_ne!(a, c);
+            // Steps of 1 skip their band's loop: the same as multiplying.
+            for (dc, lp, hp) in [(1, 1, 1), (dc, 1, hp), (dc, lp, 1)] {
+                let (mut a, mut b) = (c.clone(), c.clone());
+                dequantize_portable(&mut a, shape, dc, lp, hp);
+                // SAFETY: the CPU has AVX2 (checked above).
+                unsafe { dequantize_avx2(&mut b, shape, dc, lp, hp) };
+                let want: Vec<i32> = c
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &v)| match i {
+                        0 => v.wrapping_mul(dc),
+                        _ if i < shape.0 => v.wrapping_mul(lp),
+                        _ if (16..16 + 15 * shape.1).contains(&i) => v.wrapping_mul(hp),
+                        _ => v,
+                    })
+                    .collect();
+                assert!(a == want && b == want, "{shape:?} {dc} {lp} {hp}");
+            }
         }
     }
 

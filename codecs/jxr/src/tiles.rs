@@ -228,6 +228,21 @@ impl<'h> PlaneWork<'h> {
         }
         Ok(())
     }
+
+    /// [`finish_row`](Self::finish_row), dequantizing, for macroblock `mx` alone: in
+    /// frequency order the last packet's pass runs it on each macroblock while it is in cache
+    /// (every DC and LP prediction of the row, which reads the row above and the macroblock to
+    /// the left quantized, ran in an earlier pass).
+    #[inline(always)]
+    fn finish_mb(&mut self, row: &mut [i32], mx: usize, my: usize) -> Result<()> {
+        let stride = self.stride();
+        let c = &mut row[mx * stride..(mx + 1) * stride];
+        let top = &mut self.top[mx * stride..(mx + 1) * stride];
+        for (top, cur) in top.chunks_exact_mut(MB_COEFFS).zip(c.chunks_exact(MB_COEFFS)) {
+            top[..16].copy_from_slice(&cur[..16]);
+        }
+        dequantize_mb(c, &self.side[my % 2][mx], &self.qp, self.hdr.clr_fmt, self.hdr.scaled)
+    }
 }
 
 /// HP prediction of one macroblock (`c`: all channels); for 420 and 422 the luma call also
@@ -470,6 +485,7 @@ impl<'a> TileDecoder<'a> {
         }
         let rows = &mut rows[..];
         let planes = &mut self.planes;
+        let mut finished = false;
         if !self.frequency {
             let r = &mut self.readers[0];
             each_mb(planes, rows, r, w, my, "a JPEG XR tile", |p, row, r, mx, my| {
@@ -489,6 +505,12 @@ impl<'a> TileDecoder<'a> {
         } else {
             let [dc, rest @ ..] = &mut self.readers[..] else { unreachable!("a DC packet") };
             let r = dc;
+            // The last pass (FLEXBITS, or HP when there is no FLEXBITS packet) dequantizes
+            // each macroblock as it goes ([`PlaneWork::finish_mb`]). Deferred flexbits leave
+            // only the copy of DC and LP, which stays a pass after the row.
+            let flex_last = rest.len() >= 3 && !self.defer_flex;
+            let hp_last = rest.len() == 2;
+            finished = flex_last || hp_last;
             // Without an LP packet (coded but not read), DC prediction runs here.
             let lp_read = !rest.is_empty();
             each_mb(planes, rows, r, w, my, "a JPEG XR DC packet", |p, row, r, mx, my| {
@@ -513,6 +535,9 @@ impl<'a> TileDecoder<'a> {
                     if bands == Bands::NoFlexbits {
                         p.predict_hp(row, mx, my);
                     }
+                    if hp_last {
+                        p.finish_mb(row, mx, my)?;
+                    }
                     Ok(())
                 })?;
             }
@@ -520,12 +545,17 @@ impl<'a> TileDecoder<'a> {
                 each_mb(planes, rows, r, w, my, "a JPEG XR FLEXBITS packet", |p, row, r, mx, my| {
                     p.flex(row, r, mx, my);
                     p.predict_hp(row, mx, my);
+                    if flex_last {
+                        p.finish_mb(row, mx, my)?;
+                    }
                     Ok(())
                 })?;
             }
         }
-        for (p, row) in self.planes.iter_mut().zip(rows.iter_mut()) {
-            p.finish_row(row, my, self.defer_flex)?;
+        if !finished {
+            for (p, row) in self.planes.iter_mut().zip(rows.iter_mut()) {
+                p.finish_row(row, my, self.defer_flex)?;
+            }
         }
         if let Some(side) = side {
             for (p, s) in self.planes.iter().zip(side.iter_mut()) {
@@ -580,7 +610,7 @@ impl<'a> FlexStage<'a> {
                 #[cfg(not(test))]
                 Some(_) => {}
             }
-            for (i, (fmt, channels, _, _)) in self.planes.iter().enumerate() {
+            for (i, (fmt, channels, scaled, qp)) in self.planes.iter().enumerate() {
                 let stride = channels * MB_COEFFS;
                 let c = rows[i]
                     .get_mut(mx * stride..(mx + 1) * stride)
@@ -591,19 +621,14 @@ impl<'a> FlexStage<'a> {
                     None => self.reader.run(|r| macroblock::flex_mb(r, c, *fmt, *channels, self.trim, s.hp_bits)),
                 }
                 predict_hp_mb(*fmt, *channels, c, s.hp_mode);
+                // Dequantized while in cache.
+                dequantize_mb(c, s, qp, *fmt, *scaled)?;
             }
         }
         if let Some(r) = memory {
             self.reader.set_state(r.state());
         }
-        self.reader.check("a JPEG XR FLEXBITS packet")?;
-        for (i, (fmt, channels, scaled, qp)) in self.planes.iter().enumerate() {
-            let stride = channels * MB_COEFFS;
-            for (c, s) in rows[i].chunks_exact_mut(stride).zip(side[i]) {
-                dequantize_mb(c, s, qp, *fmt, *scaled)?;
-            }
-        }
-        Ok(())
+        self.reader.check("a JPEG XR FLEXBITS packet")
     }
 }
 
