@@ -216,20 +216,16 @@ impl<'h> PlaneWork<'h> {
     /// next row's prediction, then dequantizes it in place, unless (`quantized`) a FLEXBITS
     /// stage completes it.
     fn finish_row(&mut self, row: &mut [i32], my: usize, quantized: bool) -> Result<()> {
-        for (top, cur) in self.top.chunks_exact_mut(MB_COEFFS).zip(row.chunks_exact(MB_COEFFS)) {
-            top[..16].copy_from_slice(&cur[..16]);
-        }
         if quantized {
+            keep_dc_lp(&mut self.top, row);
             return Ok(());
         }
-        let stride = self.stride();
-        for (c, side) in row.chunks_exact_mut(stride).zip(&self.side[my % 2]) {
-            dequantize_mb(c, side, &self.qp, self.hdr.clr_fmt, self.hdr.scaled)?;
-        }
-        Ok(())
+        let mbs = self.side[my % 2].len().min(row.len() / self.stride());
+        (0..mbs).try_for_each(|mx| self.finish_mb(row, mx, my))
     }
 
-    /// [`finish_row`](Self::finish_row), dequantizing, for macroblock `mx` alone: in
+    /// [`finish_row`](Self::finish_row), dequantizing, for macroblock `mx` alone (the row
+    /// runs it on each macroblock): in
     /// frequency order the last packet's pass runs it on each macroblock while it is in cache
     /// (every DC and LP prediction of the row, which reads the row above and the macroblock to
     /// the left quantized, ran in an earlier pass).
@@ -237,11 +233,17 @@ impl<'h> PlaneWork<'h> {
     fn finish_mb(&mut self, row: &mut [i32], mx: usize, my: usize) -> Result<()> {
         let stride = self.stride();
         let c = &mut row[mx * stride..(mx + 1) * stride];
-        let top = &mut self.top[mx * stride..(mx + 1) * stride];
-        for (top, cur) in top.chunks_exact_mut(MB_COEFFS).zip(c.chunks_exact(MB_COEFFS)) {
-            top[..16].copy_from_slice(&cur[..16]);
-        }
+        keep_dc_lp(&mut self.top[mx * stride..(mx + 1) * stride], c);
         dequantize_mb(c, &self.side[my % 2][mx], &self.qp, self.hdr.clr_fmt, self.hdr.scaled)
+    }
+}
+
+/// Copies the DC and LP coefficients (the first 16 of each block of [`MB_COEFFS`]) of the
+/// macroblocks `cur` into `top`, for the next row's prediction.
+#[inline(always)]
+fn keep_dc_lp(top: &mut [i32], cur: &[i32]) {
+    for (top, cur) in top.chunks_exact_mut(MB_COEFFS).zip(cur.chunks_exact(MB_COEFFS)) {
+        top[..16].copy_from_slice(&cur[..16]);
     }
 }
 
