@@ -505,13 +505,14 @@ pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo
     };
     let first = (4 << 10u64).min(most);
     let (head, charge) = read(first)?;
-    match probe_head(&head, len, limits) {
-        Err(_) if first < most => {
-            drop((head, charge));
-            probe_head(&read(most)?.0, len, limits)
-        }
-        r => r,
+    // The first read is enough when it holds the whole header and the 4 bytes after it (a
+    // header ending in the last 4 bytes of it would otherwise read as flat scanlines).
+    let complete = |head: &[u8]| header::parse(head).is_ok_and(|h| h.data_start + 4 <= head.len());
+    if first < most && !complete(&head) {
+        drop((head, charge));
+        return probe_head(&read(most)?.0, len, limits);
     }
+    probe_head(&head, len, limits)
 }
 
 /// [`probe`] of a file of `len` bytes that starts with `head`, which holds at least the header,
@@ -654,6 +655,23 @@ mod tests {
     use super::*;
     #[cfg(target_arch = "x86_64")]
     use hdrcodec_core::cpu::{self, CpuLevel};
+
+    #[test]
+    fn probe_from_reads_past_4_kib_when_the_header_ends_near_it() {
+        // Headers ending so that the first scanline's 4 bytes straddle, start at or follow the
+        // 4 KiB first read: probe_from must still see they are run-length coded (a fuzz find).
+        let line = [2, 2, 0, 8, 136, 1, 136, 2, 8, 1, 2, 3, 4, 5, 6, 7, 8, 136, 4];
+        for end in 4086..4102 {
+            let tail = b"\n\n-Y 1 +X 8\n";
+            let pad = end - b"#?RGBE\n#".len() - tail.len();
+            let file = [b"#?RGBE\n#".as_slice(), &vec![b'x'; pad], tail, &line].concat();
+            assert_eq!(header::parse(&file).unwrap().data_start, end);
+            let limits = Limits::default();
+            let from = probe_from(&mut std::io::Cursor::new(&file), &limits).unwrap();
+            assert_eq!(from, probe(&file, &limits).unwrap(), "header of {end} bytes");
+            assert_eq!(from.format, "RGBE, run-length scanlines", "header of {end} bytes");
+        }
+    }
 
     #[test]
     fn every_cut_of_the_pixels_is_truncated_and_names_the_scanline() {
