@@ -12,6 +12,14 @@ export CARGO_PROFILE_DEV_DEBUG="${CARGO_PROFILE_DEV_DEBUG:-line-tables-only}"
 
 step() { printf '\n== %s\n' "$*"; }
 
+# Which SIMD kernels this machine's tests exercise: every level's twin tests must run under
+# CI=true, except AVX-512's, which print SKIPPED on a CPU without it (hdrcodec_core::cpu).
+step "CPU"
+grep -m1 'model name' /proc/cpuinfo || true
+for f in avx2 bmi2 avx512f; do
+  if grep -qw "$f" /proc/cpuinfo; then echo "$f: yes"; else echo "$f: no"; fi
+done
+
 step "reference tools"
 bash scripts/setup-reference-tools.sh
 

@@ -737,7 +737,8 @@ impl crate::core::sink::RowSink for ConvertSink<'_, '_> {
             ConvertState::Streaming(stream) => stream,
         };
         let rows = samples.len() / stream.row_len.max(1);
-        if samples.len() % stream.row_len.max(1) != 0 || u64::from(y) + rows as u64 > u64::from(stream.height) {
+        if !samples.len().is_multiple_of(stream.row_len.max(1)) || u64::from(y) + rows as u64 > u64::from(stream.height)
+        {
             return Err(Error::invalid(format!(
                 "a decoder delivered {} samples at row {y}, not whole rows inside the image (a bug in the decoder)",
                 samples.len()

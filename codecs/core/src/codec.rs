@@ -241,7 +241,7 @@ impl RowCounter {
     }
     /// The first row `samples` holds, and how many rows that is.
     pub fn take(&mut self, samples: &[f32]) -> Result<(u32, u32)> {
-        if self.row_len == 0 || samples.len() % self.row_len != 0 {
+        if self.row_len == 0 || !samples.len().is_multiple_of(self.row_len) {
             return Err(Error::invalid(format!(
                 "{} samples given to an encoder are not whole rows of {}",
                 samples.len(),

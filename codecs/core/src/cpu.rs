@@ -2,8 +2,9 @@
 //!
 //! Every SIMD site asks this module, never `is_x86_feature_detected!` itself, so that one
 //! switch selects the portable code everywhere: `HDRCODEC_CPU=scalar` (the portable twins only),
-//! `HDRCODEC_CPU=avx2` (the AVX2 kernels, not the BMI2 ones) or `HDRCODEC_CPU=bmi2` (everything;
-//! the machine's best today). The variable can only lower the level the hardware has, so a
+//! `HDRCODEC_CPU=avx2` (the AVX2 kernels, not the BMI2 ones), `HDRCODEC_CPU=bmi2` (all but the
+//! AVX-512 ones) or `HDRCODEC_CPU=avx512` (everything). The variable can only lower the level
+//! the hardware has, so a
 //! kernel chosen through [`level`] is always safe to run. CI runs the codec tests once more
 //! with `HDRCODEC_CPU=scalar`.
 
@@ -23,6 +24,11 @@ pub enum CpuLevel {
     /// later, Zen and later); the level is separate so that `HDRCODEC_CPU=avx2` can leave
     /// them out.
     Bmi2,
+    /// [`Bmi2`](CpuLevel::Bmi2) and AVX-512F (Skylake-SP, Ice Lake, Zen 4 and later): the
+    /// kernels whose sixteen 32-bit lanes a register pay on the cores that run 512-bit
+    /// operations at full width. Their twin tests need a CPU with it (see
+    /// [`twin_test_can_run`]).
+    Avx512,
 }
 
 impl CpuLevel {
@@ -32,16 +38,18 @@ impl CpuLevel {
             CpuLevel::Scalar => "scalar",
             CpuLevel::Avx2 => "avx2",
             CpuLevel::Bmi2 => "bmi2",
+            CpuLevel::Avx512 => "avx512",
         }
     }
 
     /// The level called `name` in `HDRCODEC_CPU` (`scalar`/`portable`/`none`, `avx2`,
-    /// `bmi2`/`x86-64-v3`/`native`/`best`).
+    /// `bmi2`/`x86-64-v3`, `avx512`/`native`/`best`).
     pub fn from_name(name: &str) -> Option<Self> {
         match name.trim().to_ascii_lowercase().as_str() {
             "scalar" | "portable" | "none" | "generic" => Some(CpuLevel::Scalar),
             "avx2" => Some(CpuLevel::Avx2),
-            "bmi2" | "x86-64-v3" | "native" | "best" => Some(CpuLevel::Bmi2),
+            "bmi2" | "x86-64-v3" => Some(CpuLevel::Bmi2),
+            "avx512" | "native" | "best" => Some(CpuLevel::Avx512),
             _ => None,
         }
     }
@@ -66,7 +74,11 @@ fn detect() -> CpuLevel {
             && std::arch::is_x86_feature_detected!("bmi2")
             && std::arch::is_x86_feature_detected!("lzcnt")
         {
-            CpuLevel::Bmi2
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                CpuLevel::Avx512
+            } else {
+                CpuLevel::Bmi2
+            }
         } else {
             CpuLevel::Avx2
         }
@@ -92,7 +104,7 @@ pub fn level() -> CpuLevel {
             Ok(v) => match CpuLevel::from_name(&v) {
                 Some(cap) => hw.min(cap),
                 None => {
-                    eprintln!("hdrcodec: ignoring {ENV_VAR}={v} (known: scalar, avx2, bmi2)");
+                    eprintln!("hdrcodec: ignoring {ENV_VAR}={v} (known: scalar, avx2, bmi2, avx512)");
                     hw
                 }
             },
@@ -114,15 +126,24 @@ pub fn bmi2() -> bool {
     level() >= CpuLevel::Bmi2
 }
 
+/// True when the AVX-512 kernels may run: the hardware has [`bmi2`]'s features and AVX-512F,
+/// and `HDRCODEC_CPU` does not forbid them.
+#[inline]
+pub fn avx512() -> bool {
+    level() >= CpuLevel::Avx512
+}
+
 /// For a test that compares a SIMD kernel with its portable twin: true when the hardware can
 /// run the kernel at `needed` (the override does not matter: the test calls both directly).
 /// When it cannot, the test has nothing to compare: under `CI=true` that is a failure (the CI
 /// machine must exercise every kernel), elsewhere it prints `SKIPPED` and the test returns.
+/// AVX-512 is the exception: x86-64 machines without it are common (CI's among them, for all
+/// we know), so its twin tests print `SKIPPED` there under CI too; CI prints the CPU's flags.
 pub fn twin_test_can_run(needed: CpuLevel, test: &str) -> bool {
     if detected() >= needed {
         return true;
     }
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
+    let ci = needed < CpuLevel::Avx512 && std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
     assert!(!ci, "{test}: this CPU lacks {} (CI=true requires every SIMD kernel to be tested)", needed.name());
     eprintln!("SKIPPED {test}: this CPU lacks {}", needed.name());
     false
@@ -169,15 +190,19 @@ mod tests {
         assert_eq!(CpuLevel::from_name(" Scalar "), Some(CpuLevel::Scalar));
         assert_eq!(CpuLevel::from_name("avx2"), Some(CpuLevel::Avx2));
         assert_eq!(CpuLevel::from_name("BMI2"), Some(CpuLevel::Bmi2));
-        assert_eq!(CpuLevel::from_name("native"), Some(CpuLevel::Bmi2));
-        assert_eq!(CpuLevel::from_name("avx512"), None);
-        assert!(CpuLevel::Scalar < CpuLevel::Avx2 && CpuLevel::Avx2 < CpuLevel::Bmi2);
-        for level in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Bmi2] {
+        assert_eq!(CpuLevel::from_name("native"), Some(CpuLevel::Avx512));
+        assert_eq!(CpuLevel::from_name("AVX512"), Some(CpuLevel::Avx512));
+        assert_eq!(CpuLevel::from_name("avx10"), None);
+        assert!(
+            CpuLevel::Scalar < CpuLevel::Avx2 && CpuLevel::Avx2 < CpuLevel::Bmi2 && CpuLevel::Bmi2 < CpuLevel::Avx512
+        );
+        for level in [CpuLevel::Scalar, CpuLevel::Avx2, CpuLevel::Bmi2, CpuLevel::Avx512] {
             assert_eq!(CpuLevel::from_name(level.name()), Some(level));
         }
         match std::env::var(ENV_VAR).ok().and_then(|v| CpuLevel::from_name(&v)) {
             Some(CpuLevel::Scalar) => assert!(!avx2() && !bmi2()),
             Some(CpuLevel::Avx2) => assert!(!bmi2()),
+            Some(CpuLevel::Bmi2) => assert!(!avx512()),
             _ => assert_eq!(level(), detected()),
         }
     }
@@ -193,7 +218,8 @@ mod tests {
             ("portable", CpuLevel::Scalar),
             ("avx2", hw.min(CpuLevel::Avx2)),
             ("bmi2", hw.min(CpuLevel::Bmi2)),
-            ("avx512", hw), // unknown: ignored (with a message on stderr)
+            ("avx512", hw.min(CpuLevel::Avx512)),
+            ("avx10", hw), // unknown: ignored (with a message on stderr)
         ] {
             let out = std::process::Command::new(&exe)
                 .args(["--exact", "cpu::tests::child_reports_its_level", "--test-threads=1"])
@@ -218,8 +244,9 @@ mod tests {
     fn child_reports_its_level() {
         let Ok(want) = std::env::var(CHILD_WANTS) else { return };
         assert_eq!(level().name(), want);
-        assert_eq!(avx2(), want == "avx2" || want == "bmi2");
-        assert_eq!(bmi2(), want == "bmi2");
+        assert_eq!(avx2(), ["avx2", "bmi2", "avx512"].contains(&want.as_str()));
+        assert_eq!(bmi2(), ["bmi2", "avx512"].contains(&want.as_str()));
+        assert_eq!(avx512(), want == "avx512");
         assert!(level() <= detected());
     }
 }

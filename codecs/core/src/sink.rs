@@ -113,7 +113,7 @@ pub fn band_rows(row_len: usize, target_bytes: usize) -> u32 {
 /// Checks that `samples` holds whole rows of `row_len`, lying inside `height`, and returns how
 /// many rows that is.
 fn whole_rows(y: u32, samples: usize, row_len: usize, height: u32) -> Result<u32> {
-    if row_len == 0 || samples % row_len != 0 {
+    if row_len == 0 || !samples.is_multiple_of(row_len) {
         return Err(Error::invalid(format!(
             "a decoder delivered {samples} samples, not whole rows of {row_len} (a bug in the decoder)"
         )));

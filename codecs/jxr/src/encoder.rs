@@ -220,7 +220,7 @@ impl EncodeOptions {
         if let Some(t) = settings.option("tile") {
             let px: usize =
                 t.parse().map_err(|_| Error::invalid(format!("jxr: tile={t}: expected a number of pixels")))?;
-            if px % 16 != 0 {
+            if !px.is_multiple_of(16) {
                 return Err(Error::invalid(format!("jxr: tile={t}: tiles are whole macroblocks (a multiple of 16)")));
             }
             o.tile_mbs = px / 16;
@@ -1020,7 +1020,7 @@ fn colour_info(image: &HdrImage, report: &mut EncodeReport) -> Result<Option<[u8
 fn tile_sizes(n: usize, size: usize) -> Vec<usize> {
     let size = if size == 0 { n } else { size.max(n.div_ceil(4096)) };
     let mut v = vec![size; n / size];
-    if n % size != 0 {
+    if !n.is_multiple_of(size) {
         v.push(n % size);
     }
     v
@@ -1163,7 +1163,7 @@ impl TileCoding<'_> {
         let trim = enc.trim;
         let tile_w = tile.w as u32;
         let [r0, r1] = &mut t.rows;
-        let (row, prev_row) = if my % 2 == 0 { (r0, &*r1) } else { (r1, &*r0) };
+        let (row, prev_row) = if my.is_multiple_of(2) { (r0, &*r1) } else { (r1, &*r0) };
         // The row, each macroblock's channels together (`stride` values), as the decoder
         // holds them.
         for (mx, mb) in row.chunks_exact_mut(stride).enumerate() {
@@ -1173,7 +1173,7 @@ impl TileCoding<'_> {
         }
         let row = &*row;
         let [a, b] = &mut t.cbp_rows;
-        let (cur_cbp, top_cbp) = if my % 2 == 0 { (a, &*b) } else { (b, &*a) };
+        let (cur_cbp, top_cbp) = if my.is_multiple_of(2) { (a, &*b) } else { (b, &*a) };
         for mx in 0..tile.w {
             let cur = &row[mx * stride..(mx + 1) * stride];
             let left = (mx > 0).then(|| &row[(mx - 1) * stride..mx * stride]);

@@ -452,9 +452,15 @@ pub fn parse_head(data: &[u8], len: u64) -> Result<Codestream> {
         margins[3] = ((16 - width % 16) % 16) as u32;
     }
     let [top, left, bottom, right] = margins.map(u64::from);
-    if (width + left + right) % 16 != 0 || (height + top + bottom) % 16 != 0 {
+    if !(width + left + right).is_multiple_of(16) || !(height + top + bottom).is_multiple_of(16) {
         // jxrlib's legacy window: the sizes include the right and bottom margins.
-        if width % 16 != 0 || height % 16 != 0 || left != 0 || top != 0 || width <= right || height <= bottom {
+        if !width.is_multiple_of(16)
+            || !height.is_multiple_of(16)
+            || left != 0
+            || top != 0
+            || width <= right
+            || height <= bottom
+        {
             return Err(Error::invalid("JPEG XR: the window margins do not make whole macroblocks"));
         }
         width -= right;
@@ -894,7 +900,7 @@ mod tests {
         }
         fn put(&mut self, v: u64, n: u32) {
             for i in (0..n).rev() {
-                if self.1 % 8 == 0 {
+                if self.1.is_multiple_of(8) {
                     self.0.push(0);
                 }
                 let bit = ((v >> i) & 1) as u8;
@@ -1136,13 +1142,13 @@ mod tests {
                     let mut img = image(100 + k as u32, 40 + n as u32);
                     img.output_bitdepth = depth;
                     img.output_clr_fmt = (k % 9) as u8;
-                    img.short_header = n % 2 == 0;
+                    img.short_header = n.is_multiple_of(2);
                     img.orientation = (n % 8) as u8;
                     img.overlap = (n % 3) as u8;
-                    img.trim_flexbits = n % 5 == 0;
-                    img.red_blue_not_swapped = n % 7 == 0;
-                    img.frequency_mode = n % 3 == 0;
-                    img.index_table = img.frequency_mode || n % 4 == 0;
+                    img.trim_flexbits = n.is_multiple_of(5);
+                    img.red_blue_not_swapped = n.is_multiple_of(7);
+                    img.frequency_mode = n.is_multiple_of(3);
+                    img.index_table = img.frequency_mode || n.is_multiple_of(4);
                     let count = if img.frequency_mode { band.count() } else { 1 };
                     round_trip(&img, &p, None, &packets(count, img.index_table));
                     // With an alpha plane of the same bands.

@@ -144,7 +144,7 @@ impl EntropyState {
     /// The start of MB_LP: the LP scan totals restart every 16 macroblocks.
     #[inline]
     fn start_lp(&mut self, mx: u32) {
-        if mx % 16 == 0 {
+        if mx.is_multiple_of(16) {
             self.lp_scan.reset_totals();
         }
     }
@@ -164,7 +164,7 @@ impl EntropyState {
     /// The start of MB_HP: the HP scan totals restart every 16 macroblocks.
     #[inline]
     fn start_hp(&mut self, mx: u32) {
-        if mx % 16 == 0 {
+        if mx.is_multiple_of(16) {
             self.hp_hor.reset_totals();
             self.hp_ver.reset_totals();
         }
@@ -2475,7 +2475,7 @@ fn predict_blocks(fmt: ClrFmt, ch: usize) -> usize {
 /// Adaptation point: every 16th macroblock of a tile row, and its last one (`_jxr_ResetContext`).
 #[inline]
 fn reset_context(mx: u32, tile_w: u32) -> bool {
-    mx % 16 == 0 || mx + 1 == tile_w
+    mx.is_multiple_of(16) || mx + 1 == tile_w
 }
 
 /// REFINE_LP (`r_REFINE_LP`): `model_bits` raw low bits, and a sign for a value that was zero.

@@ -475,7 +475,7 @@ pub fn upsample_chroma_row(
             let row = |r: usize| plane.get(r * src_w..(r + 1) * src_w).ok_or_else(bad);
             let mut vertical = vec![0i32; src_w];
             let top = row(y / 2)?;
-            if y % 2 == 0 || y / 2 + 1 >= src_h {
+            if y.is_multiple_of(2) || y / 2 + 1 >= src_h {
                 vertical.copy_from_slice(top);
             } else {
                 let bottom = row(y / 2 + 1)?;

@@ -403,7 +403,7 @@ mod tests {
                         let mut c = [0i32; mb::MB_COEFFS];
                         for v in &mut c {
                             let r = next();
-                            *v = if r % 3 == 0 { 0 } else { ((r >> 8) as i32) >> (31 - bits) };
+                            *v = if r.is_multiple_of(3) { 0 } else { ((r >> 8) as i32) >> (31 - bits) };
                         }
                         if round == 7 {
                             c[16] = i32::MIN;

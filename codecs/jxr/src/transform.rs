@@ -47,8 +47,133 @@ macro_rules! ap {
     }};
 }
 
+/// A register of 32-bit lanes as a [`Lane`] for the operators, and the 4×4 transpose in each
+/// of its 128-bit lanes, for the `avx2` and `avx512` modules: `simd_lane!(W, __m256i, "avx2",
+/// _mm256)` declares `W` and `transpose` with the `_mm256_…` intrinsics. A value of the type
+/// exists only inside that module's functions compiled for `$feature` (its one constructor is
+/// theirs), so its operations, inlined there, run only on CPUs with the feature.
+#[cfg(target_arch = "x86_64")]
+macro_rules! simd_lane {
+    ($name:ident, $reg:ty, $feature:literal,
+     $add:ident, $sub:ident, $set1:ident, $mullo:ident, $sra:ident, $zero:ident,
+     $lo32:ident, $hi32:ident, $lo64:ident, $hi64:ident) => {
+        #[derive(Clone, Copy)]
+        pub(super) struct $name($reg);
+
+        macro_rules! lane_op {
+            ($tr:ident, $f:ident, $rhs:ty, |$a:ident, $b:ident| $e:expr) => {
+                impl $tr<$rhs> for $name {
+                    type Output = $name;
+                    #[inline(always)]
+                    #[allow(unsafe_code)]
+                    fn $f(self, o: $rhs) -> $name {
+                        let ($a, $b) = (self.0, o);
+                        // SAFETY: a value of this type exists only in code that runs on CPUs
+                        // with the module's feature (see `simd_lane!`).
+                        $name(unsafe { $e })
+                    }
+                }
+            };
+        }
+        lane_op!(Add, add, $name, |a, b| $add(a, b.0));
+        lane_op!(Sub, sub, $name, |a, b| $sub(a, b.0));
+        lane_op!(Add, add, i32, |a, k| $add(a, $set1(k)));
+        lane_op!(Mul, mul, i32, |a, k| $mullo(a, $set1(k)));
+        lane_op!(Shr, shr, u32, |a, k| $sra(a, std::arch::x86_64::_mm_cvtsi32_si128(k as i32)));
+
+        impl Neg for $name {
+            type Output = $name;
+            #[inline(always)]
+            #[allow(unsafe_code)]
+            fn neg(self) -> $name {
+                // SAFETY: as in `lane_op`.
+                $name(unsafe { $sub($zero(), self.0) })
+            }
+        }
+        impl AddAssign for $name {
+            #[inline(always)]
+            fn add_assign(&mut self, o: $name) {
+                *self = *self + o;
+            }
+        }
+        impl SubAssign for $name {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: $name) {
+                *self = *self - o;
+            }
+        }
+        impl Lane for $name {}
+
+        /// The 4×4 transpose of the rows `m` in each 128-bit lane: lane `l` of `out[c]` holds
+        /// element `c` of lane `l` of `m[0]`, `m[1]`, `m[2]`, `m[3]` (its own inverse).
+        #[inline]
+        #[target_feature(enable = $feature)]
+        fn transpose(m: [$reg; 4]) -> [$reg; 4] {
+            let (t0, t1) = ($lo32(m[0], m[1]), $lo32(m[2], m[3]));
+            let (t2, t3) = ($hi32(m[0], m[1]), $hi32(m[2], m[3]));
+            [$lo64(t0, t1), $hi64(t0, t1), $lo64(t2, t3), $hi64(t2, t3)]
+        }
+    };
+}
+
+/// The POT's interior 4×4 windows of the seam row `y` of `r` ([`pot4_interior_row_portable`]'s
+/// windows) with a [`simd_lane!`] type of `$n` lanes, `$n` windows at a time straight from the
+/// rows: the `4·$n` samples of a window row of `$n` windows are four registers of `$n / 4`
+/// windows each, whose transpose gives each of the row's four samples for the windows in
+/// some order (any will do: the transpose back restores it). The last `count mod $n`
+/// windows run in `$rest_call`, given the rectangle `$rest` they start at.
+#[cfg(target_arch = "x86_64")]
+macro_rules! pot4_interior_kernel {
+    ($(#[$doc:meta])* $lane:ident, $n:literal, $feature:literal, $load:ident, $store:ident, $zero:ident,
+     |$p:ident, $rest:ident, $y:ident, $dir:ident, $cm:ident| $rest_call:expr) => {
+        $(#[$doc])*
+        #[target_feature(enable = $feature)]
+        #[allow(unsafe_code)]
+        pub(super) unsafe fn pot4_interior_row($p: &mut Rows, r: Rect, $y: usize, $dir: Dir, $cm: &mut Vec<i32>) {
+            let count = ((r.x1 - r.x0) / 4).saturating_sub(1);
+            let groups = count / $n;
+            let top = $p.at(r.x0 + 2, $y - 2);
+            let stride = $p.stride;
+            // Every access below is inside `rows` (window row j of group g: 4·$n samples from
+            // j·stride + 4·$n·g), checked once here rather than at each load and store.
+            let rows = if groups > 0 { &mut $p.data[top..][..3 * stride + 4 * $n * groups] } else { &mut [] };
+            let base = rows.as_mut_ptr();
+            for g in 0..groups {
+                let mut v = [$lane($zero()); 16];
+                for j in 0..4 {
+                    // SAFETY: j·stride + 4·$n·(g + 1) ≤ 3·stride + 4·$n·groups, the length of
+                    // `rows`.
+                    let at = unsafe { base.add(j * stride + 4 * $n * g) };
+                    // SAFETY: the 4·$n samples from `at` are in `rows` (above); unaligned loads.
+                    let x = unsafe { [0, $n, 2 * $n, 3 * $n].map(|o| $load(at.add(o).cast())) };
+                    for (i, x) in transpose(x).into_iter().enumerate() {
+                        v[4 * j + i] = $lane(x);
+                    }
+                }
+                let v = match $dir {
+                    Dir::Inverse => post4x4_g(v),
+                    Dir::Forward => pre4x4_g(v),
+                };
+                for j in 0..4 {
+                    let x = transpose([v[4 * j].0, v[4 * j + 1].0, v[4 * j + 2].0, v[4 * j + 3].0]);
+                    for (o, x) in x.into_iter().enumerate() {
+                        // SAFETY: as for the loads.
+                        unsafe { $store(base.add(j * stride + 4 * $n * g + $n * o).cast(), x) };
+                    }
+                }
+            }
+            if groups * $n < count {
+                let $rest = Rect { x0: r.x0 + 4 * $n * groups, ..r };
+                $rest_call
+            }
+        }
+    };
+}
+
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 mod legacy;
 pub use legacy::DcLeakage;
 
@@ -889,6 +1014,11 @@ fn pot4_region(p: &mut Rows, r: Rect, keys: &RangeInclusive<usize>, dir: Dir, cm
 #[allow(unsafe_code)]
 fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
     #[cfg(target_arch = "x86_64")]
+    if hdrcodec_core::cpu::avx512() {
+        // SAFETY: `cpu::avx512()` is true only when the CPU has AVX-512F and AVX2.
+        return unsafe { avx512::pot4_interior_row(p, r, y, dir, cm) };
+    }
+    #[cfg(target_arch = "x86_64")]
     if hdrcodec_core::cpu::avx2() {
         // SAFETY: `cpu::avx2()` is true only when the CPU has AVX2, the twin's one feature.
         return unsafe { pot4_interior_row_avx2(p, r, y, dir, cm) };
@@ -1193,7 +1323,7 @@ pub fn inverse_band(
     rows: Range<usize>,
     out: &mut [i32],
 ) -> Result<()> {
-    if mb_w == 0 || coeffs.len() % mb_w != 0 {
+    if mb_w == 0 || !coeffs.len().is_multiple_of(mb_w) {
         return Err(Error::invalid(format!("{} macroblocks given in rows of {mb_w}", coeffs.len())));
     }
     let row_slices: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|r| r.as_flattened()).collect();
@@ -1521,7 +1651,7 @@ pub fn inverse_dc_band(
     rows: Range<usize>,
     out: &mut [i32],
 ) -> Result<()> {
-    if mb_w == 0 || coeffs.len() % mb_w != 0 {
+    if mb_w == 0 || !coeffs.len().is_multiple_of(mb_w) {
         return Err(Error::invalid(format!("{} macroblocks given in rows of {mb_w}", coeffs.len())));
     }
     let row_slices: Vec<&[i32]> = coeffs.chunks_exact(mb_w).map(|r| r.as_flattened()).collect();
@@ -1969,6 +2099,46 @@ mod tests {
         }
     }
 
+    /// The AVX-512 POT kernel filters what the portable code filters: both directions, rows
+    /// of 1 to 4 groups of sixteen windows with every remainder (which the AVX2 kernel and
+    /// then the portable code take), regions starting past the left edge (hard tile edges).
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn avx512_twin_matches_the_portable_transform() {
+        use hdrcodec_core::cpu::{self, CpuLevel};
+        if !cpu::twin_test_can_run(CpuLevel::Avx512, "avx512_twin_matches_the_portable_transform") {
+            return;
+        }
+        let mut r = rng(37);
+        let h = 16;
+        for w in [64, 68, 96, 112, 128, 132, 192, 260, 304] {
+            for x0 in [0, 16, 32] {
+                let rect = Rect { x0, x1: w, y0: 0, y1: h };
+                for dir in [Dir::Inverse, Dir::Forward] {
+                    let plane: Vec<i32> = (0..w * h).map(|_| sample(&mut r, 16)).collect();
+                    let (mut a, mut b) = (plane.clone(), plane);
+                    let (mut ca, mut cb) = (Vec::new(), Vec::new());
+                    for y in (4..h).step_by(4) {
+                        let mut pa = Rows { data: &mut a, stride: w, y_base: 0 };
+                        pot4_interior_row_portable(&mut pa, rect, y, dir, &mut ca);
+                        // SAFETY: the CPU has AVX-512F and AVX2 (checked above).
+                        unsafe {
+                            avx512::pot4_interior_row(
+                                &mut Rows { data: &mut b, stride: w, y_base: 0 },
+                                rect,
+                                y,
+                                dir,
+                                &mut cb,
+                            )
+                        };
+                    }
+                    assert_eq!(a, b, "{dir:?} width {w} from {x0}");
+                }
+            }
+        }
+    }
+
     /// [`inverse_band_rows_avx2`] gives [`inverse_band_rows_portable`]'s samples on random
     /// coefficients of `mb_w × mb_h` macroblocks, every plane kind, overlap mode and tiling.
     #[cfg(target_arch = "x86_64")]
@@ -2292,7 +2462,7 @@ mod tests {
         let rows: Vec<Vec<i32>> =
             lines.map(|l| l.split_whitespace().map(|v| v.parse::<i64>().unwrap() as i32).collect()).collect();
         let n = h[0] * h[1];
-        let images = if (rows.len() - 1) % n == 0 { 1 } else { 2 };
+        let images = if (rows.len() - 1).is_multiple_of(n) { 1 } else { 2 };
         let (mbs, expected) = rows.split_at(rows.len() - images);
         let channels = mbs
             .chunks(n)

@@ -578,7 +578,7 @@ mod tests {
             x ^= x << 13;
             x ^= x >> 17;
             x ^= x << 5;
-            if x % 5000 == 0 {
+            if x.is_multiple_of(5000) {
                 totals = SCAN_TOTALS;
                 s.reset_totals();
             }

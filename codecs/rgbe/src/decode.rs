@@ -720,7 +720,7 @@ mod tests {
                 while x < n {
                     let left = n - x;
                     let count = (next() as usize % 128 + 1).min(left);
-                    if next() % 2 == 0 && count < 128 {
+                    if next().is_multiple_of(2) && count < 128 {
                         data.extend([128 + count as u8, next() as u8]);
                     } else {
                         data.push(count as u8);

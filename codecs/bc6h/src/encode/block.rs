@@ -742,7 +742,8 @@ mod tests {
                 values.push((next() % 6_600_000) as f32 / 100.0 - 5.0);
             }
             check::<false>(bits, &values);
-            let signed: Vec<f32> = values.iter().map(|&v| if next() % 2 == 0 { v / 2.0 } else { -v / 2.0 }).collect();
+            let signed: Vec<f32> =
+                values.iter().map(|&v| if next().is_multiple_of(2) { v / 2.0 } else { -v / 2.0 }).collect();
             check::<true>(bits, &signed);
         }
         check::<false>(16, &[0.0, 0.4, 0.5, 0.6, 1000.49, 65534.6, 70000.0]);

@@ -14,75 +14,27 @@ use crate::mb::hp;
 use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_loadu_si256, _mm256_mullo_epi32, _mm256_permute2x128_si256,
     _mm256_set1_epi32, _mm256_set_m128i, _mm256_setzero_si256, _mm256_sra_epi32, _mm256_storeu_si256, _mm256_sub_epi32,
-    _mm256_unpackhi_epi32, _mm256_unpackhi_epi64, _mm256_unpacklo_epi32, _mm256_unpacklo_epi64, _mm_cvtsi32_si128,
-    _mm_loadu_si128,
+    _mm256_unpackhi_epi32, _mm256_unpackhi_epi64, _mm256_unpacklo_epi32, _mm256_unpacklo_epi64, _mm_loadu_si128,
 };
 use std::ops::{Add, AddAssign, Mul, Neg, Shr, Sub, SubAssign};
 
-/// The 4×4 transpose of the rows `m` in each 128-bit lane: lane `l` of `out[c]` holds element
-/// `c` of lane `l` of `m[0]`, `m[1]`, `m[2]`, `m[3]` (its own inverse).
-#[inline]
-#[target_feature(enable = "avx2")]
-fn transpose(m: [__m256i; 4]) -> [__m256i; 4] {
-    let (t0, t1) = (_mm256_unpacklo_epi32(m[0], m[1]), _mm256_unpacklo_epi32(m[2], m[3]));
-    let (t2, t3) = (_mm256_unpackhi_epi32(m[0], m[1]), _mm256_unpackhi_epi32(m[2], m[3]));
-    [
-        _mm256_unpacklo_epi64(t0, t1),
-        _mm256_unpackhi_epi64(t0, t1),
-        _mm256_unpacklo_epi64(t2, t3),
-        _mm256_unpackhi_epi64(t2, t3),
-    ]
-}
-
-/// Eight lanes of the operators' arithmetic in one AVX2 register (the portable code's [`V`]
-/// as LLVM would keep it: built from lane arrays, it split the operators into 128-bit halves).
-/// A `W` exists only inside this module's AVX2 functions (its one constructor is theirs), so
-/// its operations, inlined there, run only on CPUs with AVX2.
-#[derive(Clone, Copy)]
-pub(super) struct W(__m256i);
-
-macro_rules! w_op {
-    ($tr:ident, $f:ident, $rhs:ty, |$a:ident, $b:ident| $e:expr) => {
-        impl $tr<$rhs> for W {
-            type Output = W;
-            #[inline(always)]
-            #[allow(unsafe_code)]
-            fn $f(self, o: $rhs) -> W {
-                let ($a, $b) = (self.0, o);
-                // SAFETY: a `W` exists only in code that runs on CPUs with AVX2 (see `W`).
-                W(unsafe { $e })
-            }
-        }
-    };
-}
-w_op!(Add, add, W, |a, b| _mm256_add_epi32(a, b.0));
-w_op!(Sub, sub, W, |a, b| _mm256_sub_epi32(a, b.0));
-w_op!(Add, add, i32, |a, k| _mm256_add_epi32(a, _mm256_set1_epi32(k)));
-w_op!(Mul, mul, i32, |a, k| _mm256_mullo_epi32(a, _mm256_set1_epi32(k)));
-w_op!(Shr, shr, u32, |a, k| _mm256_sra_epi32(a, _mm_cvtsi32_si128(k as i32)));
-
-impl Neg for W {
-    type Output = W;
-    #[inline(always)]
-    #[allow(unsafe_code)]
-    fn neg(self) -> W {
-        // SAFETY: as in `w_op`.
-        W(unsafe { _mm256_sub_epi32(_mm256_setzero_si256(), self.0) })
-    }
-}
-impl AddAssign for W {
-    #[inline(always)]
-    fn add_assign(&mut self, o: W) {
-        *self = *self + o;
-    }
-}
-impl SubAssign for W {
-    #[inline(always)]
-    fn sub_assign(&mut self, o: W) {
-        *self = *self - o;
-    }
-}
-impl Lane for W {}
+// Eight lanes of the operators' arithmetic in one AVX2 register (the portable code's [`V`]
+// as LLVM would keep it: built from lane arrays, it split the operators into 128-bit halves).
+simd_lane!(
+    W,
+    __m256i,
+    "avx2",
+    _mm256_add_epi32,
+    _mm256_sub_epi32,
+    _mm256_set1_epi32,
+    _mm256_mullo_epi32,
+    _mm256_sra_epi32,
+    _mm256_setzero_si256,
+    _mm256_unpacklo_epi32,
+    _mm256_unpackhi_epi32,
+    _mm256_unpacklo_epi64,
+    _mm256_unpackhi_epi64
+);
 
 /// Four values of `s` from `at` (unaligned).
 #[inline]
@@ -212,50 +164,17 @@ pub(super) unsafe fn stage2_full_row(
     mb_w / 8 * 8
 }
 
-/// The POT's interior 4×4 windows of the seam row `y` of `r` ([`pot4_interior_row_portable`]'s
-/// windows), eight at a time straight from the rows: the 32 samples of a window row of eight
-/// windows are four registers of two windows each, whose transpose gives each of the row's
-/// four samples for the windows in the order 0 2 4 6 | 1 3 5 7 (any order will do: the
-/// transpose back restores it). The last `count mod 8` windows run in the portable code.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
-#[allow(unsafe_code)]
-pub(super) unsafe fn pot4_interior_row(p: &mut Rows, r: Rect, y: usize, dir: Dir, cm: &mut Vec<i32>) {
-    let count = ((r.x1 - r.x0) / 4).saturating_sub(1);
-    let groups = count / 8;
-    let top = p.at(r.x0 + 2, y - 2);
-    let stride = p.stride;
-    // Every access below is inside `rows` (window row j of group g: 32 samples from
-    // j·stride + 32·g), checked once here rather than at each load and store.
-    let rows = if groups > 0 { &mut p.data[top..][..3 * stride + 32 * groups] } else { &mut [] };
-    let base = rows.as_mut_ptr();
-    for g in 0..groups {
-        let mut v = [W(_mm256_setzero_si256()); 16];
-        for j in 0..4 {
-            // SAFETY: j·stride + 32·g + 32 ≤ 3·stride + 32·groups, the length of `rows`.
-            let at = unsafe { base.add(j * stride + 32 * g) };
-            // SAFETY: the 32 samples from `at` are in `rows` (above); unaligned loads.
-            let x = unsafe { [0, 8, 16, 24].map(|o| _mm256_loadu_si256(at.add(o).cast())) };
-            for (i, x) in transpose(x).into_iter().enumerate() {
-                v[4 * j + i] = W(x);
-            }
-        }
-        let v = match dir {
-            Dir::Inverse => post4x4_g(v),
-            Dir::Forward => pre4x4_g(v),
-        };
-        for j in 0..4 {
-            let x = transpose([v[4 * j].0, v[4 * j + 1].0, v[4 * j + 2].0, v[4 * j + 3].0]);
-            for (o, x) in x.into_iter().enumerate() {
-                // SAFETY: as for the loads.
-                unsafe { _mm256_storeu_si256(base.add(j * stride + 32 * g + 8 * o).cast(), x) };
-            }
-        }
-    }
-    if groups * 8 < count {
-        let rest = Rect { x0: r.x0 + 32 * groups, ..r };
-        pot4_interior_row_portable(p, rest, y, dir, cm);
-    }
-}
+pot4_interior_kernel!(
+    /// [`pot4_interior_kernel!`] with eight windows a step (two a register); the last
+    /// `count mod 8` windows run in the portable code.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    W,
+    8,
+    "avx2",
+    _mm256_loadu_si256,
+    _mm256_storeu_si256,
+    _mm256_setzero_si256,
+    |p, rest, y, dir, cm| pot4_interior_row_portable(p, rest, y, dir, cm)
+);
