@@ -49,7 +49,7 @@ macro_rules! ap {
 
 /// A register of 32-bit lanes as a [`Lane`] for the operators, and the 4×4 transpose in each
 /// of its 128-bit lanes, for the `avx2` and `avx512` modules: `simd_lane!(W, __m256i, "avx2",
-/// _mm256)` declares `W` and `transpose` with the `_mm256_…` intrinsics. A value of the type
+/// _mm256_add_epi32, …)` declares `W` and `transpose` with the intrinsics it names. A value of the type
 /// exists only inside that module's functions compiled for `$feature` (its one constructor is
 /// theirs), so its operations, inlined there, run only on CPUs with the feature.
 #[cfg(target_arch = "x86_64")]
