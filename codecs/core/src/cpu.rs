@@ -4,9 +4,8 @@
 //! switch selects the portable code everywhere: `HDRCODEC_CPU=scalar` (the portable twins only),
 //! `HDRCODEC_CPU=avx2` (the AVX2 kernels, not the BMI2 ones), `HDRCODEC_CPU=bmi2` (all but the
 //! AVX-512 ones) or `HDRCODEC_CPU=avx512` (everything). The variable can only lower the level
-//! the hardware has, so a
-//! kernel chosen through [`level`] is always safe to run. CI runs the codec tests once more
-//! with `HDRCODEC_CPU=scalar`.
+//! the hardware has, so a kernel chosen through [`level`] is always safe to run. CI runs the
+//! codec tests once more with `HDRCODEC_CPU=scalar`.
 
 use std::sync::OnceLock;
 
