@@ -507,18 +507,22 @@ pub fn probe_from(input: &mut dyn ReadSeek, limits: &Limits) -> Result<ImageInfo
     let (head, charge) = read(first)?;
     // The first read is enough when it holds the whole header and the 4 bytes after it (a
     // header ending in the last 4 bytes of it would otherwise read as flat scanlines).
-    let complete = |head: &[u8]| header::parse(head).is_ok_and(|h| h.data_start + 4 <= head.len());
-    if first < most && !complete(&head) {
+    let parsed = header::parse(&head);
+    if first < most && !parsed.as_ref().is_ok_and(|h| h.data_start + 4 <= head.len()) {
         drop((head, charge));
         return probe_head(&read(most)?.0, len, limits);
     }
-    probe_head(&head, len, limits)
+    probe_parsed(&parsed?, &head, len, limits)
 }
 
 /// [`probe`] of a file of `len` bytes that starts with `head`, which holds at least the header,
 /// the resolution string and the first 4 bytes of the pixels when the file has them.
 fn probe_head(head: &[u8], len: u64, limits: &Limits) -> Result<ImageInfo> {
-    let hdr = header::parse(head)?;
+    probe_parsed(&header::parse(head)?, head, len, limits)
+}
+
+/// [`probe_head`] with `head`'s header already parsed (`hdr`).
+fn probe_parsed(hdr: &Header, head: &[u8], len: u64, limits: &Limits) -> Result<ImageInfo> {
     limits.check_dimensions(u64::from(hdr.width()), u64::from(hdr.height()))?;
     let r = ByteReader::le(head).at(hdr.data_start as u64);
     let (nscan, n) = (hdr.major.len, hdr.minor.len);
@@ -539,7 +543,7 @@ fn probe_head(head: &[u8], len: u64, limits: &Limits) -> Result<ImageInfo> {
         PixelFormat::Xyze => "XYZE",
     };
     let format = format!("{name}, {}", if rle { "run-length scanlines" } else { "flat scanlines" });
-    let color = ColorInfo { primaries: primaries(&hdr), ..ColorInfo::default() };
+    let color = ColorInfo { primaries: primaries(hdr), ..ColorInfo::default() };
     Ok(ImageInfo::new(hdr.width(), hdr.height(), Channels::Rgb, color).with_format(format))
 }
 
